@@ -1,0 +1,4 @@
+#pragma once
+namespace lpvid::cli {
+int run_main(int argc, char** argv);
+}

@@ -1,0 +1,70 @@
+// lpvid — the one place where the data layout of idlib is stated.
+//
+// Signals:    Eigen::MatrixXd, N x channels, time along rows (column j holds
+//             channel j; row k is the sample at t = t0 + k * sample_period_s).
+// Responses:  MIMO responses are indexed (output, input, frequency): a vector
+//             over frequency of (outputs x inputs) complex matrices.
+// Markov:     g[k] is the (outputs x inputs) impulse-response matrix at lag k,
+//             k = 0..L, for a discrete system G(z) = sum_k g[k] z^-k.
+// Units:      SI throughout; angles in rad; frequencies in rad/s unless a name
+//             says _hz.
+#pragma once
+
+#include <Eigen/Core>
+#include <complex>
+#include <string>
+#include <vector>
+
+namespace lpvid {
+
+using Index = Eigen::Index;
+using Complex = std::complex<double>;
+
+// A linear time-invariant state-space model
+//   continuous (sample_period_s == 0):  x' = A x + B u,        y = C x + D u
+//   discrete   (sample_period_s  > 0):  x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k]
+//
+// | matrix | shape |
+// |--------|-------|
+// | A      | n x n |
+// | B      | n x m |
+// | C      | p x n |
+// | D      | p x m |
+// input_names has m entries and output_names p entries, or they are empty.
+struct StateSpace {
+  Eigen::MatrixXd A, B, C, D;
+  double sample_period_s = 0.0;  // 0 = continuous time
+  std::vector<std::string> input_names;
+  std::vector<std::string> output_names;
+
+  Index order() const { return A.rows(); }
+  Index num_inputs() const { return D.cols(); }
+  Index num_outputs() const { return D.rows(); }
+  bool is_discrete() const { return sample_period_s > 0.0; }
+
+  // Throws InputError naming the first broken rule (shapes, non-finite entries,
+  // negative sample period, name counts).
+  void validate() const;
+};
+
+// Frequency-response data (FRD): response[k] is the (outputs x inputs) complex
+// matrix at omega_rad_s[k].  coherence, when not empty, has the same layout with
+// values in [0, 1].  flagged, when not empty, marks frequencies whose values the
+// producer could not trust (one entry per frequency).
+struct FrequencyResponse {
+  Eigen::VectorXd omega_rad_s;
+  std::vector<Eigen::MatrixXcd> response;
+  std::vector<Eigen::MatrixXd> coherence;
+  std::vector<bool> flagged;
+  std::vector<std::string> input_names;
+  std::vector<std::string> output_names;
+
+  Index num_frequencies() const { return omega_rad_s.size(); }
+  Index num_outputs() const { return response.empty() ? 0 : response.front().rows(); }
+  Index num_inputs() const { return response.empty() ? 0 : response.front().cols(); }
+};
+
+// Markov parameters g[0..L] of a discrete system, each (outputs x inputs).
+using MarkovSequence = std::vector<Eigen::MatrixXd>;
+
+}  // namespace lpvid
