@@ -1,0 +1,81 @@
+// lpvid — internals shared by the CSV readers and writers of formats/io.
+// Not a public interface: include only from formats/io/*.cc.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "formats/io/atomic_file.h"
+#include "idlib/core/types.h"
+
+namespace lpvid::detail {
+
+// "-" is shown as "<stdin>" in messages.
+std::string display_path(const std::string& path);
+
+// Throws InputError "path:line:column: what".
+[[noreturn]] void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what);
+
+// Quotes a cell for a message: at most 40 bytes, longer text cut with "...".
+std::string quote_cell(std::string_view text);
+
+// Asks the kernel to back a large buffer with transparent huge pages: on the
+// target VMs the first touch of a 4 KiB page costs ~11 us (BUILD-NOTES.md), which
+// would otherwise cost more than the parsing itself.  Harmless where unsupported.
+void advise_huge_pages(void* data, size_t bytes);
+
+struct CellPosition {
+  int64_t line = 0;
+  int64_t column = 0;
+};
+
+// A CSV file of one header row and numeric rows (the rules of docs/formats.md).
+struct NumericCsv {
+  std::string path;
+  std::vector<std::string> names;
+  std::vector<int64_t> name_columns;  // byte column of each header cell
+  int64_t header_line = 0;
+  // Comment lines before the header.
+  struct Comment {
+    int64_t line;
+    int64_t column;  // byte column of text's first character (just after '#')
+    std::string text;
+  };
+  std::vector<Comment> leading_comments;
+  Eigen::MatrixXd data;  // rows x names.size()
+  Index key = 0;         // index of the key column
+  int64_t end_line = 1;  // the line after the last one (where a next row would start)
+
+  // Line and byte column of the key cell of data row `row`.
+  CellPosition key_position(Index row) const;
+
+  struct Run {  // rows from `row` on sit at line + (r - row), key cell at `column`
+    Index row;
+    int64_t line;
+    int64_t column;
+  };
+  std::vector<Run> runs;
+};
+
+// Reads path ("-": stdin) in large chunks and parses it with fast_float.
+// key_name must be a column of the header, else
+// "path:L:1: no column 'key_name' in the header; <key_hint>".
+NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint);
+
+// Checks names for a CSV header: non-empty, unique, no ',', '"', '#' at the start,
+// or line breaks.  what = "cannot write 'x.csv'" prefix for messages.
+void check_header_names(const std::string& path, const std::vector<std::string>& names);
+
+// Writes "# text" lines (a text with line breaks becomes several lines).
+void append_comments(std::string& out, const std::vector<std::string>& comments);
+
+// Writes header + rows of numbers (shortest text that round-trips) to out,
+// in blocks.  Throws InputError naming the first non-finite entry.
+void write_numeric_rows(AtomicFileWriter& out, std::string head, const Eigen::MatrixXd& rows,
+                        const std::vector<std::string>& names, int64_t first_data_line);
+
+}  // namespace lpvid::detail

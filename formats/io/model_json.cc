@@ -1,0 +1,288 @@
+#include "formats/io/model_json.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "formats/io/csv_detail.h"
+#include "idlib/core/error.h"
+
+namespace lpvid {
+namespace {
+
+using nlohmann::json;
+
+std::string read_all(const std::string& path) {
+  const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
+  std::string text;
+  char chunk[65536];
+  for (;;) {
+    const ssize_t n = ::read(fd, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int err = errno;
+      if (fd != STDIN_FILENO) ::close(fd);
+      throw InputError(fmt::format("cannot read '{}': {}; give a readable file", detail::display_path(path),
+                                   std::strerror(err)));
+    }
+    if (n == 0) break;
+    text.append(chunk, static_cast<size_t>(n));
+  }
+  if (fd != STDIN_FILENO) ::close(fd);
+  return text;
+}
+
+// 1-based line and byte column of text[offset].
+detail::CellPosition position_of(const std::string& text, size_t offset) {
+  offset = std::min(offset, text.size());
+  detail::CellPosition at{1, 1};
+  for (size_t i = 0; i < offset; ++i) {
+    if (text[i] == '\n') {
+      ++at.line;
+      at.column = 1;
+    } else {
+      ++at.column;
+    }
+  }
+  return at;
+}
+
+// Offset of the top-level key "name" in a syntactically valid JSON object text
+// (for messages); 0 if not found.
+size_t find_top_level_key(const std::string& text, const std::string& name) {
+  int depth = 0;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '{' || c == '[') {
+      ++depth;
+    } else if (c == '}' || c == ']') {
+      --depth;
+    } else if (c == '"') {
+      const size_t start = i;
+      for (++i; i < text.size() && text[i] != '"'; ++i)
+        if (text[i] == '\\') ++i;
+      if (depth != 1) continue;
+      size_t j = i + 1;
+      while (j < text.size() && std::strchr(" \t\r\n", text[j]) != nullptr) ++j;
+      if (j < text.size() && text[j] == ':' && text.compare(start + 1, i - start - 1, name) == 0) return start;
+    }
+  }
+  return 0;
+}
+
+class ModelReader {
+ public:
+  ModelReader(const std::string& path, const std::string& text) : path_(path), text_(text) {}
+
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    const detail::CellPosition at = position_of(text_, key.empty() ? 0 : find_top_level_key(text_, key));
+    detail::fail_at(path_, at.line, at.column, what);
+  }
+
+  const json* find(const json& root, const std::string& key) const {
+    const auto it = root.find(key);
+    return it == root.end() ? nullptr : &*it;
+  }
+
+  const json& require(const json& root, const std::string& key, const std::string& hint) const {
+    const json* value = find(root, key);
+    if (value == nullptr) fail("", fmt::format("missing key '{}'; {}", key, hint));
+    return *value;
+  }
+
+  std::vector<std::string> names(const json& root, const std::string& key) const {
+    std::vector<std::string> out;
+    const json* value = find(root, key);
+    if (value == nullptr) return out;
+    const std::string rule = fmt::format("key '{}' must be an array of unique, non-empty names", key);
+    if (!value->is_array()) fail(key, fmt::format("{}, got {}; e.g. \"{}\": [\"v1\", \"v2\"]", rule, value->type_name(), key));
+    for (const json& item : *value) {
+      if (!item.is_string() || item.get_ref<const std::string&>().empty())
+        fail(key, fmt::format("{}, got an entry {}; write every name as a string", rule, item.dump()));
+      const std::string& name = item.get_ref<const std::string&>();
+      if (std::find(out.begin(), out.end(), name) != out.end())
+        fail(key, fmt::format("{}, '{}' appears twice; give every signal its own name", rule, name));
+      out.push_back(name);
+    }
+    return out;
+  }
+
+  // Shape of a nested array: rows and columns (columns = -1 when there are no rows).
+  Eigen::MatrixXd matrix(const json& value, const std::string& key, const std::string& shape_words, Index& cols) const {
+    const std::string rule = fmt::format("key '{}' must be a matrix ({}) written as an array of rows", key, shape_words);
+    if (!value.is_array()) fail(key, fmt::format("{}, got {}; e.g. [[1, 0], [0, 1]]", rule, value.type_name()));
+    const Index rows = static_cast<Index>(value.size());
+    cols = -1;
+    for (Index i = 0; i < rows; ++i) {
+      const json& row = value[static_cast<size_t>(i)];
+      if (!row.is_array())
+        fail(key, fmt::format("{}, but row {} is {}; write each row as an array of numbers", rule, i + 1, row.type_name()));
+      const Index len = static_cast<Index>(row.size());
+      if (cols < 0) cols = len;
+      if (len != cols)
+        fail(key, fmt::format("{}, but row {} has {} entries and row 1 has {}; give every row the same length", rule,
+                              i + 1, len, cols));
+    }
+    Eigen::MatrixXd out(rows, std::max<Index>(cols, 0));
+    for (Index i = 0; i < rows; ++i) {
+      for (Index j = 0; j < out.cols(); ++j) {
+        const json& entry = value[static_cast<size_t>(i)][static_cast<size_t>(j)];
+        if (!entry.is_number())
+          fail(key, fmt::format("{}, but entry ({}, {}) is {}; every entry must be a finite number (JSON has no NaN or "
+                                "Inf)",
+                                rule, i + 1, j + 1, entry.dump()));
+        out(i, j) = entry.get<double>();
+        if (!std::isfinite(out(i, j)))
+          fail(key, fmt::format("{}, but entry ({}, {}) is {}; every entry must be a finite number", rule, i + 1, j + 1,
+                                out(i, j)));
+      }
+    }
+    return out;
+  }
+
+  void check_shape(const std::string& key, const Eigen::MatrixXd& value, Index cols_given, Index rows, Index cols,
+                   const std::string& shape_words) const {
+    const bool ok = value.rows() == rows && (value.rows() == 0 || cols_given == cols);
+    if (!ok) {
+      const std::string got =
+          value.rows() == 0 ? "an empty array (0 rows)" : fmt::format("{}×{}", value.rows(), cols_given);
+      fail(key, fmt::format("key '{}' must be a {}×{} matrix ({}), got {}; check the dimensions of A, B, C, D and "
+                            "the inputs/outputs names",
+                            key, rows, cols, shape_words, got));
+    }
+  }
+
+  StateSpace read() const {
+    json root;
+    try {
+      root = json::parse(text_);
+    } catch (const json::parse_error& e) {
+      const size_t offset = e.byte == 0 ? 0 : e.byte - 1;
+      std::string what = e.what();
+      // "[json.exception.parse_error.101] parse error at line 1, column 5: syntax error ..." -> "syntax error ..."
+      const size_t column = what.find("column ");
+      const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
+      if (colon != std::string::npos) what = what.substr(colon + 2);
+      const detail::CellPosition at = position_of(text_, offset);
+      detail::fail_at(path_, at.line, at.column, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
+    }
+    if (!root.is_object())
+      fail("", fmt::format("the file holds {} where a JSON object is expected; a model file is an object "
+                           "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}",
+                           root.type_name()));
+    const json& type = require(root, "type", "a model file starts with \"type\": \"state_space\"");
+    if (!type.is_string() || type.get_ref<const std::string&>() != "state_space")
+      fail("type", fmt::format("key 'type' is {}; this reader knows only \"state_space\"", type.dump()));
+    const json& ts = require(root, "ts", "give the sample period in seconds, \"ts\": 0 for continuous time");
+    if (!ts.is_number())
+      fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}", ts.type_name()));
+    const double sample_period_s = ts.get<double>();
+    if (!(sample_period_s >= 0) || !std::isfinite(sample_period_s))
+      fail("ts", fmt::format("key 'ts' is {}; it must be 0 (continuous time) or a positive sample period in seconds",
+                             sample_period_s));
+
+    StateSpace model;
+    model.sample_period_s = sample_period_s;
+    model.input_names = names(root, "inputs");
+    model.output_names = names(root, "outputs");
+    const std::string hint = "a model needs the matrices A, B, C and D";
+    Index cols_a, cols_b, cols_c, cols_d;
+    model.A = matrix(require(root, "A", hint), "A", "states × states", cols_a);
+    model.B = matrix(require(root, "B", hint), "B", "states × inputs", cols_b);
+    model.C = matrix(require(root, "C", hint), "C", "outputs × states", cols_c);
+    model.D = matrix(require(root, "D", hint), "D", "outputs × inputs", cols_d);
+
+    const Index n = model.A.rows();
+    const bool have_inputs = find(root, "inputs") != nullptr;
+    const bool have_outputs = find(root, "outputs") != nullptr;
+    const Index p = have_outputs ? static_cast<Index>(model.output_names.size()) : model.D.rows();
+    Index m = 0;
+    if (have_inputs) m = static_cast<Index>(model.input_names.size());
+    else if (model.D.rows() > 0) m = cols_d;
+    else if (n > 0) m = std::max<Index>(cols_b, 0);
+    check_shape("A", model.A, cols_a, n, n, "states × states");
+    check_shape("B", model.B, cols_b, n, m, "states × inputs");
+    check_shape("C", model.C, cols_c, p, n, "outputs × states");
+    check_shape("D", model.D, cols_d, p, m, "outputs × inputs");
+    // Empty matrices carry their implied width.
+    model.B.resize(n, m);
+    if (n == 0 || m == 0) model.B.setZero();
+    if (model.C.cols() != n) model.C.resize(p, n);
+    if (model.D.cols() != m) model.D.resize(p, m);
+    try {
+      model.validate();
+    } catch (const InputError& e) {
+      fail("", fmt::format("{}; fix the model file", e.what()));
+    }
+    return model;
+  }
+
+ private:
+  const std::string& path_;
+  const std::string& text_;
+};
+
+std::string number(double v) { return json(v).dump(); }
+
+void append_matrix(std::string& out, const char* key, const Eigen::MatrixXd& m, bool last) {
+  out += fmt::format("  \"{}\": [", key);
+  for (Index i = 0; i < m.rows(); ++i) {
+    out += i == 0 ? "\n    [" : ",\n    [";
+    for (Index j = 0; j < m.cols(); ++j) {
+      if (j > 0) out += ", ";
+      out += number(m(i, j));
+    }
+    out += "]";
+  }
+  out += m.rows() > 0 ? "\n  ]" : "]";
+  out += last ? "\n" : ",\n";
+}
+
+}  // namespace
+
+StateSpace read_state_space(const std::string& path) {
+  const std::string text = read_all(path);
+  return ModelReader(path, text).read();
+}
+
+std::string state_space_to_json(const StateSpace& model, const nlohmann::json& extra) {
+  model.validate();
+  if (!extra.is_null() && !extra.is_object())
+    throw InputError(fmt::format("extra model-file content must be a JSON object, got {}", extra.type_name()));
+  static const char* const kSchemaKeys[] = {"type", "ts", "inputs", "outputs", "A", "B", "C", "D"};
+  std::string out = "{\n  \"type\": \"state_space\",\n";
+  out += fmt::format("  \"ts\": {},\n", number(model.sample_period_s));
+  if (!model.input_names.empty()) out += fmt::format("  \"inputs\": {},\n", json(model.input_names).dump());
+  if (!model.output_names.empty()) out += fmt::format("  \"outputs\": {},\n", json(model.output_names).dump());
+  append_matrix(out, "A", model.A, false);
+  append_matrix(out, "B", model.B, false);
+  append_matrix(out, "C", model.C, false);
+  const bool has_extra = extra.is_object() && !extra.empty();
+  append_matrix(out, "D", model.D, !has_extra);
+  if (has_extra) {
+    size_t k = 0;
+    for (auto it = extra.begin(); it != extra.end(); ++it, ++k) {
+      for (const char* key : kSchemaKeys)
+        if (it.key() == key)
+          throw InputError(fmt::format("extra model-file key '{}' collides with the model schema; rename it", key));
+      std::string value = it.value().dump(2);
+      // Indent nested lines by two more spaces.
+      for (size_t pos = value.find('\n'); pos != std::string::npos; pos = value.find('\n', pos + 1))
+        value.insert(pos + 1, "  ");
+      out += fmt::format("  {}: {}{}\n", json(it.key()).dump(), value, k + 1 < extra.size() ? "," : "");
+    }
+  }
+  out += "}\n";
+  return out;
+}
+
+void write_state_space(const std::string& path, const StateSpace& model, const nlohmann::json& extra) {
+  write_file_atomic(path, state_space_to_json(model, extra));
+}
+
+}  // namespace lpvid
