@@ -1,0 +1,459 @@
+#include "idlib/signal/markov.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "idlib/signal/real_fft.h"
+
+namespace lpvid {
+namespace {
+
+using signal_detail::ChannelView;
+using signal_detail::ComplexArray;
+using signal_detail::RealArray;
+using signal_detail::RealFft;
+
+// kCorrelation: an experiment counts as exciting input j when the RMS of v_j there is
+// at least this fraction of the largest RMS of v_j over all experiments; smaller
+// levels are leakage or sensor noise in experiments meant for other inputs.
+constexpr double kExcitedFractionOfLargestRms = 0.1;
+
+// Inputs are reported as linearly dependent when the smallest eigenvalue of their
+// normalised zero-lag correlation matrix (unit diagonal) is below this: the normal
+// equations would then lose more than 8 of the 16 significant digits.
+constexpr double kDependentInputsEigenvalue = 1e-8;
+// ... naming the inputs whose component in that eigenvector exceeds this (a unit
+// vector spread over k inputs has components ~1/sqrt(k) >= 0.3 for k <= 10).
+constexpr double kDependentInputComponent = 0.2;
+
+// Least squares: the residual energy is taken from the normal equations,
+//   ||e_i||^2 = ||q_i||^2 - 2 g_i . b_i + g_i . Phi g_i   (O(L log L)),
+// whose round-off is ~1e-14 ||q_i||^2.  When the model explains all but this fraction
+// of the output energy, that formula has fewer than 8 correct digits and the residual
+// is recomputed by FFT convolution over the data (O(N log L)).
+constexpr double kAnalyticResidualMinFraction = 1e-6;
+
+struct ColumnStats {
+  double offset = 0.0;         // subtracted from every sample
+  double sum_sq = 0.0;         // sum_t (x(t) - offset)^2
+  bool active = false;         // false: the column is treated as identically zero
+};
+
+// One pass-pair over a column: finiteness, mean and centred energy.  The sums are
+// taken about the first sample, so a constant column gives exactly zero energy.
+ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bool remove_mean,
+                         Index experiment, const char* what) {
+  const Index n = a.rows();
+  ColumnStats s;
+  if (n == 0) return s;
+  const auto col = a.col(c).array();
+  const double shift = remove_mean ? a(0, c) : 0.0;
+  const double s1 = (col - shift).sum();
+  const double s2 = (col - shift).square().sum();
+  if (!std::isfinite(s1) || !std::isfinite(s2)) {
+    for (Index t = 0; t < n; ++t)
+      if (!std::isfinite(a(t, c)))
+        throw InputError(fmt::format(
+            "estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
+            "remove or interpolate the bad samples first",
+            experiment, what, t, c, a(t, c)));
+    throw InputError(fmt::format(
+        "estimate_markov: experiment {}: {} column {} overflows a double when squared and "
+        "summed; rescale the signal (e.g. to SI units)",
+        experiment, what, c));
+  }
+  const double dn = static_cast<double>(n);
+  if (remove_mean) {
+    s.offset = shift + s1 / dn;
+    s.sum_sq = std::max(0.0, s2 - s1 * s1 / dn);
+  } else {
+    s.sum_sq = s2;
+  }
+  s.active = s.sum_sq > 0.0;
+  if (!s.active) s.sum_sq = 0.0;
+  return s;
+}
+
+// Products with the normal matrix Phi = blocktoeplitz(R_vv) - sum_e T_e T_e^T of the
+// covariance method, by FFT.  Unknown layout: H(k * m + a, c) = g[k](c, a), i.e. one
+// column per output, m (L + 1) rows, lag-major.
+//
+//   Toeplitz part: (T h)(j) = sum_k K(j - k) h(k), K(n) = R(n)^T (n >= 0), R(-n) (n < 0).
+//   Correction:    (C h)(j) = sum_r w(j - r) z(r),  z(r) = sum_k w(k - r)^T h(k),
+//                  w(s) = v(N - s) for s = 1..L (zero elsewhere), r = 0..L-1,
+//   which is C(j, k) = sum_{t=N}^{N-1+min(j,k)} v(t - j) v(t - k)^T with t = N + r.
+// FFT size M >= 2L + 2 keeps every product free of wrap-around.
+class NormalOperator {
+ public:
+  NormalOperator(const std::vector<Eigen::MatrixXd>& rvv, const std::vector<Eigen::MatrixXd>& tails,
+                 Index m, Index L, Index p)
+      : m_(m), L_(L), p_(p), fft_(signal_detail::next_pow2(2 * L + 2)), nb_(fft_.bins()),
+        num_exp_(static_cast<Index>(tails.size())),
+        kernel_(signal_detail::alloc_complex(m * m * nb_)),
+        tail_(signal_detail::alloc_complex(num_exp_ * m * nb_)),
+        hspec_(signal_detail::alloc_complex(p * m * nb_)),
+        yspec_(signal_detail::alloc_complex(p * m * nb_)),
+        zspec_(signal_detail::alloc_complex(nb_)),
+        buf_(signal_detail::alloc_real(fft_.size())) {
+    const Index M = fft_.size();
+    double* b = buf_.get();
+    for (Index a = 0; a < m; ++a) {
+      for (Index c = 0; c < m; ++c) {
+        std::fill(b, b + M, 0.0);
+        for (Index n = 0; n <= L; ++n) b[n] = rvv[n](c, a);
+        for (Index n = 1; n <= L; ++n) b[M - n] = rvv[n](a, c);
+        fft_.forward(b, kernel_.get() + (a * m + c) * nb_);
+      }
+    }
+    for (Index e = 0; e < num_exp_; ++e) {
+      const Eigen::MatrixXd& w = tails[e];  // row s-1 holds v(N - s)
+      for (Index a = 0; a < m; ++a) {
+        std::fill(b, b + M, 0.0);
+        for (Index s = 1; s <= L; ++s) b[s] = w(s - 1, a);
+        fft_.forward(b, tail_.get() + (e * m + a) * nb_);
+      }
+    }
+  }
+
+  void apply(const Eigen::MatrixXd& h, Eigen::MatrixXd& y) {
+    const Index M = fft_.size();
+    const Index m = m_, L = L_, nb = nb_;
+    double* b = buf_.get();
+    for (Index c = 0; c < p_; ++c) {
+      for (Index a = 0; a < m; ++a) {
+        std::fill(b, b + M, 0.0);
+        for (Index k = 0; k <= L; ++k) b[k] = h(k * m + a, c);
+        fft_.forward(b, hspec(c, a));
+      }
+    }
+    std::fill(yspec_.get(), yspec_.get() + p_ * m * nb, Complex(0.0, 0.0));
+    for (Index c = 0; c < p_; ++c)
+      for (Index a = 0; a < m; ++a)
+        for (Index d = 0; d < m; ++d) mac(kernel_.get() + (a * m + d) * nb, hspec(c, d), yspec(c, a));
+    const double scale = 1.0 / static_cast<double>(M);
+    for (Index e = 0; e < num_exp_; ++e) {
+      for (Index c = 0; c < p_; ++c) {
+        std::fill(zspec_.get(), zspec_.get() + nb, Complex(0.0, 0.0));
+        for (Index a = 0; a < m; ++a) mac_conj(hspec(c, a), tail(e, a), zspec_.get());
+        fft_.inverse(zspec_.get(), b);
+        // Keep z(r) for r = 0..L-1 only; fold in the -1 of Phi = T - C and the 1/M.
+        for (Index r = 0; r < L; ++r) b[r] *= -scale;
+        std::fill(b + L, b + M, 0.0);
+        fft_.forward(b, zspec_.get());
+        for (Index a = 0; a < m; ++a) mac(tail(e, a), zspec_.get(), yspec(c, a));
+      }
+    }
+    y.resize(m * (L + 1), p_);
+    for (Index c = 0; c < p_; ++c) {
+      for (Index a = 0; a < m; ++a) {
+        fft_.inverse(yspec(c, a), b);
+        for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
+      }
+    }
+  }
+
+ private:
+  Complex* hspec(Index c, Index a) { return hspec_.get() + (c * m_ + a) * nb_; }
+  Complex* yspec(Index c, Index a) { return yspec_.get() + (c * m_ + a) * nb_; }
+  const Complex* tail(Index e, Index a) const { return tail_.get() + (e * m_ + a) * nb_; }
+
+  // acc += x * z
+  void mac(const Complex* x, const Complex* z, Complex* acc) const {
+    for (Index i = 0; i < nb_; ++i) acc[i] += x[i] * z[i];
+  }
+  // acc += x * conj(z)
+  void mac_conj(const Complex* x, const Complex* z, Complex* acc) const {
+    for (Index i = 0; i < nb_; ++i) acc[i] += x[i] * std::conj(z[i]);
+  }
+
+  Index m_, L_, p_;
+  RealFft fft_;
+  Index nb_;
+  Index num_exp_;
+  ComplexArray kernel_, tail_, hspec_, yspec_, zspec_;
+  RealArray buf_;
+};
+
+struct PcgOutcome {
+  Eigen::MatrixXd x;
+  Index iterations = 0;
+  double worst_relative_residual = 0.0;
+  bool converged = false;
+};
+
+// Preconditioned CG on Phi X = B, one independent CG per column run in lockstep so
+// that the FFTs of all columns are shared.  Preconditioner: the same m x m block
+// R_vv(0)^{-1} applied to every lag.
+PcgOutcome solve_pcg(NormalOperator& op, const Eigen::MatrixXd& rhs,
+                     const Eigen::LLT<Eigen::MatrixXd>& r0, Index m, Index L, double tolerance,
+                     int max_iterations) {
+  const Index n = rhs.rows(), p = rhs.cols();
+  auto precondition = [&](const Eigen::MatrixXd& r, Eigen::MatrixXd& z) {
+    z = r;
+    for (Index c = 0; c < p; ++c) {
+      Eigen::Map<Eigen::MatrixXd> blocks(z.col(c).data(), m, L + 1);
+      r0.solveInPlace(blocks);
+    }
+  };
+  PcgOutcome out;
+  out.x = Eigen::MatrixXd::Zero(n, p);
+  Eigen::MatrixXd r = rhs, z, q;
+  Eigen::VectorXd bnorm(p), rz(p);
+  std::vector<bool> done(static_cast<size_t>(p));
+  auto relres = [&](Index c) { return bnorm(c) > 0.0 ? r.col(c).norm() / bnorm(c) : 0.0; };
+  bool all_done = true;
+  for (Index c = 0; c < p; ++c) {
+    bnorm(c) = rhs.col(c).norm();
+    done[c] = relres(c) <= tolerance;
+    all_done = all_done && done[c];
+  }
+  precondition(r, z);
+  Eigen::MatrixXd dir = z;
+  for (Index c = 0; c < p; ++c) rz(c) = r.col(c).dot(z.col(c));
+  Index it = 0;
+  while (!all_done && it < max_iterations) {
+    ++it;
+    op.apply(dir, q);
+    all_done = true;
+    for (Index c = 0; c < p; ++c) {
+      if (done[c]) continue;
+      const double alpha = rz(c) / dir.col(c).dot(q.col(c));
+      out.x.col(c) += alpha * dir.col(c);
+      r.col(c) -= alpha * q.col(c);
+      done[c] = relres(c) <= tolerance;
+      all_done = all_done && done[c];
+    }
+    if (all_done) break;
+    precondition(r, z);
+    for (Index c = 0; c < p; ++c) {
+      if (done[c]) continue;
+      const double rz_new = r.col(c).dot(z.col(c));
+      dir.col(c) = z.col(c) + (rz_new / rz(c)) * dir.col(c);
+      rz(c) = rz_new;
+    }
+  }
+  out.iterations = it;
+  out.converged = all_done;
+  for (Index c = 0; c < p; ++c) out.worst_relative_residual = std::max(out.worst_relative_residual, relres(c));
+  return out;
+}
+
+}  // namespace
+
+void MarkovOptions::validate() const {
+  if (num_lags <= 0)
+    throw InputError(fmt::format(
+        "Markov options: num_lags = {}; it must be > 0 (the number L of lags, g[0..L] is "
+        "estimated)",
+        num_lags));
+  if (!(tolerance > 0.0 && tolerance < 1.0))
+    throw InputError(fmt::format(
+        "Markov options: tolerance = {}; it must be in (0, 1) (relative residual of the "
+        "iterative solve, e.g. 1e-10)",
+        tolerance));
+  if (max_iterations <= 0)
+    throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0",
+                                 max_iterations));
+}
+
+MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
+                             const MarkovOptions& options) {
+  options.validate();
+  if (experiments.empty())
+    throw InputError(
+        "estimate_markov: no experiments; pass at least one experiment (excitation and output "
+        "logs)");
+  const Index L = options.num_lags;
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
+  if (m == 0 || p == 0)
+    throw InputError(fmt::format(
+        "estimate_markov: experiment 0 has {} excitation and {} output columns; each needs at "
+        "least one",
+        m, p));
+  Index total = 0;
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    if (x.excitation.rows() != x.output.rows())
+      throw InputError(fmt::format(
+          "estimate_markov: experiment {}: excitation has {} samples and output has {}; both "
+          "must cover the same N samples",
+          e, x.excitation.rows(), x.output.rows()));
+    if (x.excitation.cols() != m || x.output.cols() != p)
+      throw InputError(fmt::format(
+          "estimate_markov: experiment {} has {} excitation and {} output channels, experiment "
+          "0 has {} and {}; every experiment must log the same channels",
+          e, x.excitation.cols(), x.output.cols(), m, p));
+    if (x.excitation.rows() <= L)
+      throw InputError(fmt::format(
+          "estimate_markov: experiment {} has N = {} samples for num_lags = {}; each record "
+          "needs N > num_lags: use fewer lags or a longer record",
+          e, x.excitation.rows(), L));
+    total += x.excitation.rows();
+  }
+  if (total < 2 * m * (L + 1))
+    throw InputError(fmt::format(
+        "estimate_markov: {} samples in all for {} inputs and num_lags = {}; the rule is total "
+        "samples >= 2 * inputs * (num_lags + 1) = {}: add experiments, use longer records or "
+        "fewer lags",
+        total, m, L, 2 * m * (L + 1)));
+
+  // Per-experiment column statistics (also the finiteness check).
+  std::vector<std::vector<ChannelView>> vs(E), qs(E);
+  Eigen::MatrixXd v_energy(E, m), q_energy(E, p);  // sum_t (centred)^2
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    for (Index a = 0; a < m; ++a) {
+      const ColumnStats s = column_stats(x.excitation, a, options.remove_mean, e, "excitation");
+      vs[e].push_back({x.excitation.data() + a * x.excitation.outerStride(), s.offset, s.active});
+      v_energy(e, a) = s.sum_sq;
+    }
+    for (Index i = 0; i < p; ++i) {
+      const ColumnStats s = column_stats(x.output, i, options.remove_mean, e, "output");
+      qs[e].push_back({x.output.data() + i * x.output.outerStride(), s.offset, s.active});
+      q_energy(e, i) = s.sum_sq;
+    }
+  }
+  const Eigen::VectorXd v_energy_total = v_energy.colwise().sum().transpose();
+  for (Index a = 0; a < m; ++a)
+    if (!(v_energy_total(a) > 0.0))
+      throw InputError(fmt::format(
+          "estimate_markov: excitation input {} is constant{} in every experiment, so its "
+          "Markov parameters are not identifiable: excite it in at least one experiment or "
+          "drop the column",
+          a, options.remove_mean ? " (zero after mean removal)" : " zero"));
+
+  MarkovResult res;
+  res.total_samples = total;
+  res.excitation_rms = (v_energy_total / static_cast<double>(total)).cwiseSqrt();
+  res.output_rms = (q_energy.colwise().sum().transpose() / static_cast<double>(total)).cwiseSqrt();
+  res.g.assign(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
+  Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(p);  // residual energy per output
+  bool residual_known = false;
+
+  if (options.method == MarkovOptions::Method::kCorrelation) {
+    Eigen::VectorXd denom = Eigen::VectorXd::Zero(m);
+    std::vector<Eigen::MatrixXd> rqv(static_cast<size_t>(L + 1));
+    for (Index e = 0; e < E; ++e) {
+      // RMS ratio >= fraction  <=>  mean-square ratio >= fraction^2 (records may differ
+      // in length, so compare mean squares, not energies).
+      const double n_e = static_cast<double>(experiments[e].excitation.rows());
+      std::vector<ChannelView> excited = vs[e];
+      std::vector<Index> names;
+      for (Index a = 0; a < m; ++a) {
+        double largest_ms = 0.0;
+        for (Index f = 0; f < E; ++f)
+          largest_ms = std::max(largest_ms, v_energy(f, a) / static_cast<double>(experiments[f].excitation.rows()));
+        const double ms = v_energy(e, a) / n_e;
+        const bool is_excited = excited[a].active &&
+            ms >= kExcitedFractionOfLargestRms * kExcitedFractionOfLargestRms * largest_ms;
+        excited[a].active = is_excited;
+        if (is_excited) {
+          denom(a) += v_energy(e, a);
+          names.push_back(a);
+        }
+      }
+      if (names.size() > 1)
+        res.report.warnings.push_back(fmt::format(
+            "experiment {} excites inputs {} at once: the correlation method ignores their "
+            "cross-correlation; use the least-squares method",
+            e, names));
+      std::fill(rqv.begin(), rqv.end(), Eigen::MatrixXd::Zero(p, m));
+      signal_detail::accumulate_cross_correlation(qs[e], excited, experiments[e].excitation.rows(), L, rqv);
+      for (Index k = 0; k <= L; ++k) res.g[k] += rqv[k];
+    }
+    for (Index k = 0; k <= L; ++k) res.g[k] = res.g[k] * denom.cwiseInverse().asDiagonal();
+    res.report.termination =
+        "correlation estimate g[k] = R_qv(k) / sum v^2 (biased: finite-sample "
+        "autocorrelation of the excitation is not a delta)";
+    res.report.warnings.push_back(
+        "the correlation method is biased by the finite-sample autocorrelation of the "
+        "excitation and by the record end; use the least-squares method for accurate "
+        "Markov parameters");
+  } else {
+    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together.
+    std::vector<Eigen::MatrixXd> corr(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p + m, m));
+    std::vector<Eigen::MatrixXd> tails;
+    for (Index e = 0; e < E; ++e) {
+      std::vector<ChannelView> xs = qs[e];
+      xs.insert(xs.end(), vs[e].begin(), vs[e].end());
+      const Index n = experiments[e].excitation.rows();
+      signal_detail::accumulate_cross_correlation(xs, vs[e], n, L, corr);
+      Eigen::MatrixXd w = Eigen::MatrixXd::Zero(L, m);  // row s-1: v(N - s), s = 1..L
+      for (Index a = 0; a < m; ++a) {
+        if (!vs[e][a].active) continue;
+        for (Index s = 1; s <= L && n - s >= 0; ++s) w(s - 1, a) = vs[e][a].data[n - s] - vs[e][a].offset;
+      }
+      tails.push_back(std::move(w));
+    }
+    std::vector<Eigen::MatrixXd> rvv(static_cast<size_t>(L + 1));
+    Eigen::MatrixXd rhs(m * (L + 1), p);
+    for (Index k = 0; k <= L; ++k) {
+      rvv[k] = corr[k].bottomRows(m);
+      for (Index a = 0; a < m; ++a)
+        for (Index i = 0; i < p; ++i) rhs(k * m + a, i) = corr[k](i, a);
+    }
+    rvv[0] = 0.5 * (rvv[0] + rvv[0].transpose()).eval();
+
+    // Linearly dependent inputs make Phi singular: name them.
+    const Eigen::VectorXd inv_sqrt = rvv[0].diagonal().cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd normalised = inv_sqrt.asDiagonal() * rvv[0] * inv_sqrt.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(normalised);
+    if (eig.eigenvalues()(0) < kDependentInputsEigenvalue) {
+      std::vector<Index> names;
+      for (Index a = 0; a < m; ++a)
+        if (std::abs(eig.eigenvectors()(a, 0)) > kDependentInputComponent) names.push_back(a);
+      throw InputError(fmt::format(
+          "estimate_markov: excitation inputs {} are linearly dependent over all experiments "
+          "(e.g. identical): their Markov parameters cannot be separated; excite them "
+          "independently (different signals or separate experiments)",
+          names));
+    }
+    const Eigen::LLT<Eigen::MatrixXd> r0(rvv[0]);
+    NormalOperator op(rvv, tails, m, L, p);
+    const PcgOutcome sol = solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations);
+    for (Index k = 0; k <= L; ++k)
+      for (Index a = 0; a < m; ++a)
+        for (Index i = 0; i < p; ++i) res.g[k](i, a) = sol.x(k * m + a, i);
+    res.iterations = sol.iterations;
+    Eigen::MatrixXd phi_x;
+    op.apply(sol.x, phi_x);
+    const Eigen::VectorXd q_energy_total = q_energy.colwise().sum().transpose();
+    residual_known = true;
+    for (Index i = 0; i < p; ++i) {
+      sum_sq(i) = q_energy_total(i) - 2.0 * sol.x.col(i).dot(rhs.col(i)) + sol.x.col(i).dot(phi_x.col(i));
+      residual_known = residual_known && sum_sq(i) >= kAnalyticResidualMinFraction * q_energy_total(i);
+    }
+    if (sol.converged) {
+      res.report.termination = fmt::format(
+          "PCG converged in {} iterations (relative residual {:.2e} <= tolerance {:.1e})",
+          sol.iterations, sol.worst_relative_residual, options.tolerance);
+    } else {
+      res.report.usable = false;
+      res.report.termination = fmt::format(
+          "PCG stopped at max_iterations = {} with relative residual {:.2e} > tolerance {:.1e}; "
+          "raise max_iterations or check the excitation (strongly coloured or nearly dependent "
+          "inputs)",
+          sol.iterations, sol.worst_relative_residual, options.tolerance);
+    }
+  }
+
+  if (!residual_known) {  // residual energy of the estimated model by FFT convolution
+    sum_sq.setZero();
+    for (Index e = 0; e < E; ++e)
+      signal_detail::accumulate_fir_residual_energy(vs[e], qs[e], experiments[e].excitation.rows(),
+                                                    res.g, sum_sq);
+  }
+  const double dof = static_cast<double>(total - m * (L + 1));
+  const Eigen::VectorXd sigma = (sum_sq / dof).cwiseSqrt();
+  res.noise_std = sigma * v_energy_total.cwiseSqrt().cwiseInverse().transpose();
+  return res;
+}
+
+}  // namespace lpvid
