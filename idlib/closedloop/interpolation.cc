@@ -19,6 +19,7 @@ constexpr double kPoleGroupTolerance = 1e-8;
 constexpr double kMaxEigenvectorCondition = 1e10;
 
 double condition_number(const Eigen::MatrixXcd& M) {
+  if (M.size() == 0) return INFINITY;
   Eigen::JacobiSVD<Eigen::MatrixXcd> svd(M);
   const auto& s = svd.singularValues();
   return s(s.size() - 1) > 0 ? s(0) / s(s.size() - 1) : INFINITY;
@@ -35,6 +36,10 @@ InterpolationCorrection impose_controller_interpolation(const StateSpace& G, con
   out.closed_loop = G;
   if (C.order() == 0) {
     out.note = "the controller has no states: no interpolation conditions";
+    return out;
+  }
+  if (n == 0) {
+    out.note = "the closed loop has no states: no interpolation conditions can be imposed on it";
     return out;
   }
   if (m != p) {
