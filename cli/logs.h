@@ -1,0 +1,28 @@
+// Reading experiment logs for the identification subcommands: every log must
+// carry the named excitation and output columns and share one sample period.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "idlib/signal/markov.h"
+
+namespace lpvid::cli {
+
+struct ExperimentSet {
+  std::vector<Eigen::MatrixXd> excitations;  // per log: N x m
+  std::vector<Eigen::MatrixXd> outputs;      // per log: N x p
+  double sample_period_s = 0;
+  std::vector<std::string> paths;
+  std::vector<ExperimentView> views() const;
+};
+
+// Reads each log, keeps only the named columns (the rest is freed at once), and
+// checks that all logs share the sample period (relative 1e-6; the message names
+// both files and periods).
+ExperimentSet read_experiments(const std::vector<std::string>& paths, const std::vector<std::string>& excitation,
+                               const std::vector<std::string>& output);
+
+}  // namespace lpvid::cli
