@@ -21,7 +21,8 @@ Correlates the outputs with the injected excitation v (never with the plant inpu
 which the loop correlates with the noise) by FFT, and solves the least-squares
 (Wiener-Hopf) normal equations, so coloured or simultaneous excitations work.
 --method correlation gives the paper's plain estimate R_qv(k) / sum v^2, which is
-biased (~10 % on a 60 s record: the sample autocorrelation of white noise is not a delta).
+biased: the sample autocorrelation of a finite white record is not a delta (on the
+simulated platform, 60 s at 1 kHz, the plant error is 23 % against 0.12 % for least squares).
 Each log is one experiment; experiments are combined, never concatenated.)";
 
 struct MarkovCliOptions {

@@ -27,7 +27,9 @@ Example:
 writes data/middle_1000hz/{exp_T_psi.csv, exp_T_theta.csv, exp_F_z.csv} (one experiment
 per excited input: columns t, v1..v3, u1..u3, q1..q3), controller.json, and the truth:
 truth_plant.json (ZOH-sampled), truth_plant_continuous.json, truth_closed_loop.json.
-Beam positions: left, middle, right (see docs/assumptions.md) or a number in metres.)";
+Beam positions: left, middle, right (see docs/assumptions.md) or a number in metres.
+  lpvid simulate platform --out other --set coil_damping_Ns_per_m=40 --set J_psi_kgm2=0.07
+simulates a platform with other physical values (the PI gains are redesigned for them).)";
 
 struct SimulateOptions {
   std::string out_dir;
@@ -38,7 +40,53 @@ struct SimulateOptions {
   double noise_scale = 1.0;
   bool simultaneous = false;
   bool json = false;
+  std::vector<std::string> overrides;  // NAME=VALUE
 };
+
+// The physical parameters a user may override, by their names in code (units in
+// the names; see docs/assumptions.md).
+std::vector<std::pair<std::string, double*>> parameter_table(PlatformParameters& p) {
+  return {{"J_psi_kgm2", &p.J_psi_kgm2},
+          {"J_theta_kgm2", &p.J_theta_kgm2},
+          {"J_psitheta_kgm2", &p.J_psitheta_kgm2},
+          {"platform_mass_kg", &p.platform_mass_kg},
+          {"beam_mass_kg", &p.beam_mass_kg},
+          {"beam_height_m", &p.beam_height_m},
+          {"coil_arm_m", &p.coil_arm_m},
+          {"coil_damping_Ns_per_m", &p.coil_damping_Ns_per_m},
+          {"k_linear_N_per_m", &p.k_linear_N_per_m},
+          {"k_torque_low_Nm_per_rad", &p.k_torque_low_Nm_per_rad},
+          {"k_torque_high_Nm_per_rad", &p.k_torque_high_Nm_per_rad},
+          {"com_x_m", &p.com_x_m},
+          {"com_y_m", &p.com_y_m}};
+}
+
+PlatformParameters parameters_with(const std::vector<std::string>& overrides) {
+  PlatformParameters params = PlatformParameters::defaults();
+  auto table = parameter_table(params);
+  for (const std::string& item : overrides) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos)
+      throw InputError(fmt::format("--set '{}': expected NAME=VALUE, e.g. --set coil_damping_Ns_per_m=35", item));
+    const std::string name = item.substr(0, eq), value = item.substr(eq + 1);
+    double* field = nullptr;
+    std::string known;
+    for (auto& [n, f] : table) {
+      if (n == name) field = f;
+      known += (known.empty() ? "" : ", ") + n;
+    }
+    if (!field) throw InputError(fmt::format("--set: unknown parameter '{}'; known: {}", name, known));
+    try {
+      std::size_t used = 0;
+      *field = std::stod(value, &used);
+      if (used != value.size() || !std::isfinite(*field)) throw std::invalid_argument("");
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("--set {}: '{}' is not a finite number", name, value));
+    }
+  }
+  params.validate();
+  return params;
+}
 
 double parse_position(const std::string& text) {
   if (text == "left") return kBeamLeft_m;
@@ -68,7 +116,7 @@ void run(const SimulateOptions& o) {
   std::vector<double> positions_m;
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
 
-  const PlatformParameters params = PlatformParameters::defaults();
+  const PlatformParameters params = parameters_with(o.overrides);
   const auto gains = default_pi_gains(params);
   nlohmann::json summary = nlohmann::json::array();
   std::string text;
@@ -131,6 +179,9 @@ Command make_simulate_command() {
             platform->add_option("--noise-scale", opts->noise_scale, "multiplies the default sensor noise (0 = none)");
             platform->add_flag("--simultaneous", opts->simultaneous,
                                "excite all three inputs at once in one experiment (default: one input per experiment)");
+            platform->add_option("--set", opts->overrides,
+                                 "override a physical parameter, NAME=VALUE in the units of its name "
+                                 "(repeatable; see docs/assumptions.md); the PI gains follow the parameters");
             platform->add_flag("--json", opts->json, "print the summary as JSON");
             platform->callback([opts] { run(*opts); });
           }};
