@@ -20,19 +20,6 @@ constexpr double kPerturbation = 1e-4;
 // decomposition: they hold to rounding (relative to |R^-1|).
 constexpr double kConditionTolerance = 1e-8;
 
-StateSpace perturbed(const StateSpace& G, double relative, std::uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> N(0.0, 1.0);
-  StateSpace g = G;
-  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(G.order(), G.order());
-  Eigen::MatrixXd dA = G.A - I;
-  for (Index i = 0; i < dA.size(); ++i) dA(i) *= 1.0 + relative * N(rng);
-  g.A = I + dA;
-  for (Index i = 0; i < g.B.size(); ++i) g.B(i) *= 1.0 + relative * N(rng);
-  for (Index i = 0; i < g.C.size(); ++i) g.C(i) *= 1.0 + relative * N(rng);
-  return g;
-}
-
 // G(1) and G'(1) of a discrete model (z = 1).
 std::pair<Eigen::MatrixXd, Eigen::MatrixXd> value_and_slope_at_one(const StateSpace& g) {
   const Eigen::MatrixXd M = (Eigen::MatrixXd::Identity(g.order(), g.order()) - g.A).inverse();
@@ -52,7 +39,7 @@ TEST(ImposeControllerInterpolation, TrueClosedLoopAlreadySatisfiesTheConditions)
 TEST(ImposeControllerInterpolation, PerturbedLoopMeetsSlopeResidueInverseAndGZeroAfterCorrection) {
   const double ts = 1e-3;
   const StateSpace C = stage_fixture::pi_controller(ts);
-  const StateSpace G = perturbed(closed_loop_output(stage_fixture::discrete_plant(ts), C), kPerturbation, 3);
+  const StateSpace G = stage_fixture::perturbed(closed_loop_output(stage_fixture::discrete_plant(ts), C), kPerturbation, 3);
   const auto [g0, s0] = value_and_slope_at_one(G);
   const InterpolationCorrection c = impose_controller_interpolation(G, C);
   ASSERT_TRUE(c.applied) << c.note;
@@ -91,7 +78,7 @@ TEST_P(UnloopWithInterpolation, RecoversTheSixStatePlantForEverySeed) {
   const Eigen::VectorXd band = log_frequency_grid(1.0, 400.0, 200);
   const auto truth = evaluate_response(P, band);
   for (std::uint32_t seed = 1; seed <= 5; ++seed) {
-    const StateSpace G = perturbed(closed_loop_output(P, C), kPerturbation, seed);
+    const StateSpace G = stage_fixture::perturbed(closed_loop_output(P, C), kPerturbation, seed);
     const UnloopResult r = plant_from_closed_loop(G, C, UnloopOptions{});
     ASSERT_EQ(r.plant.order(), 6);
     EXPECT_TRUE(r.interpolation_applied);

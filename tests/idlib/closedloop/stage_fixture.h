@@ -10,6 +10,8 @@
 //   PI: Kp = (40, 40, 2800), Ki = (200, 50, 5000) 1/s; d(k+Kp) > m Ki per axis.
 #pragma once
 
+#include <random>
+
 #include <Eigen/Dense>
 
 #include "idlib/core/types.h"
@@ -52,5 +54,21 @@ inline StateSpace pi_controller(double sample_period_s) {
 }
 
 inline StateSpace discrete_plant(double sample_period_s) { return discretize_zoh(continuous_plant(), sample_period_s); }
+
+
+// The closed loop with relative Gaussian noise on A - I, B and C (seeded): a
+// stand-in for an identified loop (1e-4 moves G's response by ~3e-4).
+inline StateSpace perturbed(const StateSpace& G, double relative, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> N(0.0, 1.0);
+  StateSpace g = G;
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(G.order(), G.order());
+  Eigen::MatrixXd dA = G.A - I;
+  for (Index i = 0; i < dA.size(); ++i) dA(i) *= 1.0 + relative * N(rng);
+  g.A = I + dA;
+  for (Index i = 0; i < g.B.size(); ++i) g.B(i) *= 1.0 + relative * N(rng);
+  for (Index i = 0; i < g.C.size(); ++i) g.C(i) *= 1.0 + relative * N(rng);
+  return g;
+}
 
 }  // namespace lpvid::stage_fixture

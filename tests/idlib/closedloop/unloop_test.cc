@@ -36,19 +36,6 @@ double max_relative_error(const StateSpace& estimate, const StateSpace& truth) {
 
 // Relative noise on A − I (i.e. on the discrete increment, equivalent to a
 // relative error in the continuous-time matrices at any sample rate), B and C.
-StateSpace perturbed(const StateSpace& G, double relative, std::uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> N(0.0, 1.0);
-  StateSpace g = G;
-  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(G.order(), G.order());
-  Eigen::MatrixXd dA = G.A - I;
-  for (Index i = 0; i < dA.size(); ++i) dA(i) *= 1.0 + relative * N(rng);
-  g.A = I + dA;
-  for (Index i = 0; i < g.B.size(); ++i) g.B(i) *= 1.0 + relative * N(rng);
-  for (Index i = 0; i < g.C.size(); ++i) g.C(i) *= 1.0 + relative * N(rng);
-  return g;
-}
-
 class ExactClosedLoop : public ::testing::TestWithParam<double> {};
 
 TEST_P(ExactClosedLoop, RecoversTheSixStatePlant) {
@@ -73,7 +60,7 @@ TEST(PlantFromClosedLoop, PerturbedLoopGivesStableSixStatePlantWhereTruncationFa
   const double Ts = 1e-4;
   const StateSpace P = stage_fixture::discrete_plant(Ts);
   const StateSpace C = stage_fixture::pi_controller(Ts);
-  const StateSpace G = perturbed(closed_loop_output(P, C), 1e-4, kSeedPerturbation);
+  const StateSpace G = stage_fixture::perturbed(closed_loop_output(P, C), 1e-4, kSeedPerturbation);
   // This test exercises the candidate search on its own (step 0 off); with step 0
   // on, see interpolation_test.cc.
   UnloopOptions search_only;

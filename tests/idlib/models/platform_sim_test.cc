@@ -12,7 +12,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/models/platform.h"
-#include "idlib/models/zoh_local.h"
+#include "idlib/lti/discretize.h"
 #include "idlib/sim/platform_sim.h"
 #include "tests/idlib/models/closed_loop_test_util.h"
 
@@ -36,7 +36,7 @@ struct Loop {
 };
 Loop paper_loop(double xb, double Ts) {
   const auto p = PlatformParameters::defaults();
-  return {discretize_zoh_local(platform_model(p, xb), Ts), discrete_pi_controller(default_pi_gains(p), Ts)};
+  return {discretize_zoh(platform_model(p, xb), Ts), discrete_pi_controller(default_pi_gains(p), Ts)};
 }
 
 ExcitationOptions short_options(double Ts, double duration_s, int excited_input) {

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "idlib/core/error.h"
-#include "idlib/models/zoh_local.h"
+#include "idlib/lti/discretize.h"
 #include "tests/idlib/models/closed_loop_test_util.h"
 
 namespace lpvid {
@@ -21,7 +21,6 @@ namespace {
 constexpr double kExactTolerance = 1e-12;
 // Eigen's Padé-based matrix exponential is accurate to ~1e-15 relative for
 // ‖A Ts‖ << 1; 1e-12 leaves three decades for the scaling-and-squaring steps.
-constexpr double kExpmTolerance = 1e-12;
 constexpr std::uint64_t kRandomStateSeed = 20240601;
 constexpr std::array<double, 2> kPaperSamplePeriods_s = {1e-3, 1e-4};  // 1 kHz, 10 kHz
 // Decay requirement of the brief: every closed-loop pole at least 5 rad/s left
@@ -218,36 +217,6 @@ TEST(Transformation, FromLayoutIsExactForAnIrregularLayout) {
 // ---------------------------------------------------------------------------
 // ZOH
 
-TEST(ZohLocal, DoubleIntegratorMatchesClosedForm) {
-  StateSpace sys;
-  sys.A = (Eigen::MatrixXd(2, 2) << 0, 1, 0, 0).finished();
-  sys.B = (Eigen::MatrixXd(2, 1) << 0, 1).finished();
-  sys.C = (Eigen::MatrixXd(1, 2) << 1, 0).finished();
-  sys.D = Eigen::MatrixXd::Zero(1, 1);
-  for (const double Ts : {1e-4, 1e-3, 0.5}) {
-    const StateSpace d = discretize_zoh_local(sys, Ts);
-    const Eigen::Matrix2d Ad = (Eigen::Matrix2d() << 1, Ts, 0, 1).finished();
-    const Eigen::Vector2d Bd(Ts * Ts / 2, Ts);
-    EXPECT_NEAR((d.A - Ad).norm(), 0.0, kExpmTolerance) << "Ts = " << Ts;
-    EXPECT_NEAR((d.B - Bd).norm() / Bd.norm(), 0.0, kExpmTolerance) << "Ts = " << Ts;
-    EXPECT_EQ(d.C, sys.C);
-    EXPECT_EQ(d.sample_period_s, Ts);
-  }
-}
-
-TEST(ZohLocal, FirstOrderLagMatchesClosedForm) {
-  StateSpace sys;
-  sys.A = Eigen::MatrixXd::Constant(1, 1, -2.0);
-  sys.B = Eigen::MatrixXd::Constant(1, 1, 3.0);
-  sys.C = Eigen::MatrixXd::Constant(1, 1, 1.0);
-  sys.D = Eigen::MatrixXd::Constant(1, 1, 0.5);
-  const double Ts = 0.01;
-  const StateSpace d = discretize_zoh_local(sys, Ts);
-  EXPECT_NEAR(d.A(0, 0), std::exp(-2 * Ts), kExpmTolerance);
-  EXPECT_NEAR(d.B(0, 0), 3.0 * (1 - std::exp(-2 * Ts)) / 2.0, kExpmTolerance);
-  EXPECT_EQ(d.D(0, 0), 0.5);
-}
-
 // ---------------------------------------------------------------------------
 // PI controller
 
@@ -280,7 +249,7 @@ struct LoopFigures {
   double slowest_decay_rad_s;
 };
 LoopFigures closed_loop_figures(const PlatformParameters& p, double xb, double Ts) {
-  const StateSpace plant = discretize_zoh_local(platform_model(p, xb), Ts);
+  const StateSpace plant = discretize_zoh(platform_model(p, xb), Ts);
   const StateSpace ctrl = discrete_pi_controller(default_pi_gains(p), Ts);
   const auto cl = testing::close_loop(plant, ctrl);
   const double rho = Eigen::EigenSolver<Eigen::MatrixXd>(cl.A).eigenvalues().cwiseAbs().maxCoeff();
@@ -385,12 +354,6 @@ TEST(PlatformErrors, UndampedPlantHasNoDefaultPiGains) {
   EXPECT_EQ(error_text([&] { default_pi_gains(p); }),
             "default PI gains: coil_damping_Ns_per_m = 0; a PI loop on an undamped plant cannot be stabilised "
             "(stability needs d·(k + kp) > m·ki > 0); give a positive damping or supply your own controller");
-}
-
-TEST(PlatformErrors, ZohRejectsDiscreteModel) {
-  const StateSpace d = discretize_zoh_local(platform_model(PlatformParameters::defaults(), 0.0), 1e-3);
-  EXPECT_EQ(error_text([&] { discretize_zoh_local(d, 1e-3); }),
-            "ZOH discretisation: the model is already discrete (ts = 0.001 s); pass a continuous model (ts = 0)");
 }
 
 }  // namespace
