@@ -19,8 +19,6 @@ namespace {
 
 // Entries built from a handful of sums/products of O(1) numbers: a few ulps.
 constexpr double kExactTolerance = 1e-12;
-// Eigen's Padé-based matrix exponential is accurate to ~1e-15 relative for
-// ‖A Ts‖ << 1; 1e-12 leaves three decades for the scaling-and-squaring steps.
 constexpr std::uint64_t kRandomStateSeed = 20240601;
 constexpr std::array<double, 2> kPaperSamplePeriods_s = {1e-3, 1e-4};  // 1 kHz, 10 kHz
 // Decay requirement of the brief: every closed-loop pole at least 5 rad/s left
