@@ -1,0 +1,30 @@
+// lpvid — internals shared by the FRD readers and writers (frd_csv.cc,
+// frd_mat.cc).  Not a public interface: include only from formats/io/frd_*.cc.
+#pragma once
+
+#include <numbers>
+#include <string>
+#include <string_view>
+
+#include "idlib/core/types.h"
+
+namespace lpvid::frd_detail {
+
+// omega_rad_s = freq_hz * kTwoPi, one rounding (both readers use this product,
+// so a CSV and a .mat file holding the same freq_hz give identical omegas).
+inline constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+// A quantity prefix: letters and digits, not "coh".
+bool quantity_allowed(std::string_view quantity);
+
+double omega_from_hz(double hz);
+// The freq_hz whose omega_from_hz is exactly omega when such a double exists
+// (searched within a few ulps of omega / 2pi), else omega / 2pi.
+double hz_from_omega(double omega);
+
+// Throws InputError "cannot write 'path': ..." unless frd is writable: at least
+// one frequency, finite positive strictly increasing omegas, consistent shapes,
+// finite responses, coherence in [0, 1], name counts and names that are allowed.
+void check_frd_for_writing(const std::string& path, const FrequencyResponse& frd);
+
+}  // namespace lpvid::frd_detail
