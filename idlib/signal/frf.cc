@@ -1,0 +1,300 @@
+#include "idlib/signal/frf.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "idlib/signal/real_fft.h"
+
+namespace lpvid {
+namespace {
+
+using signal_detail::alloc_complex;
+using signal_detail::alloc_real;
+using signal_detail::ComplexArray;
+using signal_detail::RealArray;
+using signal_detail::RealFft;
+
+struct Channel {
+  const double* data = nullptr;
+  double offset = 0.0;
+  double rms = 0.0;
+};
+
+Channel channel(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bool remove_mean, Index experiment,
+                const char* what) {
+  const Index n = a.rows();
+  Channel ch;
+  ch.data = a.data() + c * a.outerStride();
+  const double* x = ch.data;
+  // Shifted sums (shift = first sample) keep the variance accurate for large offsets.
+  const double shift = x[0];
+  double s1 = 0.0, s2 = 0.0;
+  for (Index t = 0; t < n; ++t) {
+    const double d = x[t] - shift;
+    s1 += d;
+    s2 += d * d;
+  }
+  if (!std::isfinite(s1) || !std::isfinite(s2)) {
+    for (Index t = 0; t < n; ++t)
+      if (!std::isfinite(x[t]))
+        throw InputError(fmt::format(
+            "estimate_frf: experiment {}: {}({}, {}) = {}; every sample must be finite: remove or "
+            "interpolate the bad samples first",
+            experiment, what, t, c, x[t]));
+    throw InputError(fmt::format(
+        "estimate_frf: experiment {}: {} column {} overflows a double when squared and summed; "
+        "rescale the signal (e.g. to SI units)",
+        experiment, what, c));
+  }
+  const double dn = static_cast<double>(n);
+  if (remove_mean) {
+    ch.offset = shift + s1 / dn;
+    ch.rms = std::sqrt(std::max(0.0, s2 - s1 * s1 / dn) / dn);
+  } else {
+    double raw = 0.0;
+    for (Index t = 0; t < n; ++t) raw += x[t] * x[t];
+    ch.rms = std::sqrt(raw / dn);
+  }
+  return ch;
+}
+
+// acc[b] += a[b] * conj(c[b]), b = 0..nb-1, on doubles so that it vectorises.
+void mac_conj(const Complex* a, const Complex* c, Complex* acc, Index nb) {
+  const double* ad = reinterpret_cast<const double*>(a);
+  const double* cd = reinterpret_cast<const double*>(c);
+  double* sd = reinterpret_cast<double*>(acc);
+  for (Index b = 0; b < nb; ++b) {
+    const double ar = ad[2 * b], ai = ad[2 * b + 1];
+    const double cr = cd[2 * b], ci = cd[2 * b + 1];
+    sd[2 * b] += ar * cr + ai * ci;
+    sd[2 * b + 1] += ai * cr - ar * ci;
+  }
+}
+
+// acc[b] += |a[b]|².
+void mac_abs2(const Complex* a, double* acc, Index nb) {
+  const double* ad = reinterpret_cast<const double*>(a);
+  for (Index b = 0; b < nb; ++b) acc[b] += ad[2 * b] * ad[2 * b] + ad[2 * b + 1] * ad[2 * b + 1];
+}
+
+// Unscaled spectra of one experiment group, one column per matrix entry, rows = bins.
+struct Spectra {
+  Eigen::MatrixXcd uu;  // bins x m(m+1)/2: entries (a, b), a <= b, row-major upper triangle
+  Eigen::MatrixXcd yu;  // bins x p m: entry (i, j) in column i * m + j
+  Eigen::MatrixXd yy;   // bins x p: S_yiyi
+  Spectra(Index bins, Index m, Index p)
+      : uu(Eigen::MatrixXcd::Zero(bins, m * (m + 1) / 2)),
+        yu(Eigen::MatrixXcd::Zero(bins, p * m)),
+        yy(Eigen::MatrixXd::Zero(bins, p)) {}
+};
+
+Index upper_index(Index a, Index b, Index m) { return a * m - a * (a - 1) / 2 + (b - a); }
+
+Index prev_pow2(Index n) {
+  Index p = 1;
+  while (2 * p <= n) p *= 2;
+  return p;
+}
+
+}  // namespace
+
+void FrfOptions::validate() const {
+  if (segment_length != 0 && segment_length < 4)
+    throw InputError(fmt::format(
+        "FRF options: segment_length = {}; it must be 0 (automatic) or >= 4 samples", segment_length));
+  if (!(overlap >= 0.0 && overlap < 0.95))
+    throw InputError(fmt::format(
+        "FRF options: overlap = {}; it must be a fraction in [0, 0.95) (0.5 is usual with the Hann "
+        "window)",
+        overlap));
+  if (!(std::isfinite(sample_period_s) && sample_period_s > 0.0))
+    throw InputError(fmt::format(
+        "FRF options: sample_period_s = {}; it must be finite and > 0 (the sample period of the "
+        "logs, s)",
+        sample_period_s));
+  if (!(max_condition > 1.0))
+    throw InputError(fmt::format(
+        "FRF options: max_condition = {}; it must be > 1 (e.g. 1e6)", max_condition));
+}
+
+FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
+  options.validate();
+  if (experiments.empty())
+    throw InputError(
+        "estimate_frf: no experiments; pass at least one experiment (excitation and output logs)");
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
+  if (m == 0 || p == 0)
+    throw InputError(fmt::format(
+        "estimate_frf: experiment 0 has {} excitation and {} output columns; each needs at least one",
+        m, p));
+  Index n_min = 0;
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    if (x.excitation.rows() != x.output.rows())
+      throw InputError(fmt::format(
+          "estimate_frf: experiment {}: excitation has {} samples and output has {}; both must "
+          "cover the same N samples",
+          e, x.excitation.rows(), x.output.rows()));
+    if (x.excitation.cols() != m || x.output.cols() != p)
+      throw InputError(fmt::format(
+          "estimate_frf: experiment {} has {} excitation and {} output channels, experiment 0 has {} "
+          "and {}; every experiment must log the same channels",
+          e, x.excitation.cols(), x.output.cols(), m, p));
+    n_min = e == 0 ? x.excitation.rows() : std::min(n_min, x.excitation.rows());
+  }
+  Index nseg = options.segment_length;
+  if (nseg == 0) {
+    if (n_min < kFrfMinAutoSegment)
+      throw InputError(fmt::format(
+          "estimate_frf: the shortest experiment has N = {} samples; the automatic segment length "
+          "needs N >= {}: use longer records or set segment_length",
+          n_min, kFrfMinAutoSegment));
+    nseg = std::max(kFrfMinAutoSegment, prev_pow2(n_min / kFrfAutoSegments));
+  } else if (nseg > n_min) {
+    throw InputError(fmt::format(
+        "estimate_frf: segment_length = {} but the shortest experiment has N = {} samples; every "
+        "experiment needs N >= segment_length: use a shorter segment",
+        nseg, n_min));
+  }
+  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
+  const Index bins = nseg / 2 + 1;
+  const Index F = nseg / 2;
+
+  // Channel statistics (also the finiteness check) and classification.
+  std::vector<std::vector<Channel>> vs(E), ys(E);
+  std::vector<std::vector<Index>> excited(E);
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    double rms_max = 0.0;
+    for (Index a = 0; a < m; ++a) {
+      vs[e].push_back(channel(x.excitation, a, options.remove_mean, e, "excitation"));
+      rms_max = std::max(rms_max, vs[e].back().rms);
+    }
+    for (Index i = 0; i < p; ++i) ys[e].push_back(channel(x.output, i, options.remove_mean, e, "output"));
+    if (!(rms_max > 0.0))
+      throw InputError(fmt::format(
+          "estimate_frf: experiment {}: every excitation column is constant{}, so it carries no "
+          "information about the response: drop the experiment",
+          e, options.remove_mean ? " (zero after mean removal)" : " zero"));
+    for (Index a = 0; a < m; ++a)
+      if (vs[e][a].rms >= kFrfExcitedFraction * rms_max) excited[e].push_back(a);
+  }
+  bool single_input = true;
+  std::vector<bool> input_covered(static_cast<size_t>(m), false);
+  for (Index e = 0; e < E; ++e) {
+    if (excited[e].size() != 1) {
+      single_input = false;
+      break;
+    }
+    input_covered[static_cast<size_t>(excited[e][0])] = true;
+  }
+  if (single_input)
+    single_input = std::all_of(input_covered.begin(), input_covered.end(), [](bool b) { return b; });
+  const Index num_groups = single_input ? m : 1;
+  std::vector<Spectra> groups(static_cast<size_t>(num_groups), Spectra(bins, m, p));
+
+  // Window.
+  RealArray window = alloc_real(nseg);
+  for (Index t = 0; t < nseg; ++t)
+    window[t] = options.window == FrfOptions::Window::kHann
+                    ? 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(t) / static_cast<double>(nseg))
+                    : 1.0;
+
+  // One plan for every segment and channel.
+  const RealFft fft(nseg);
+  RealArray in = alloc_real(nseg);
+  std::vector<ComplexArray> X;
+  for (Index c = 0; c < m + p; ++c) X.push_back(alloc_complex(bins));
+
+  for (Index e = 0; e < E; ++e) {
+    Spectra& g = groups[static_cast<size_t>(single_input ? excited[e][0] : 0)];
+    const Index n = experiments[e].excitation.rows();
+    for (Index s0 = 0; s0 + nseg <= n; s0 += step) {
+      for (Index c = 0; c < m + p; ++c) {
+        const Channel& ch = c < m ? vs[e][c] : ys[e][c - m];
+        const double* src = ch.data + s0;
+        const double off = ch.offset;
+        for (Index t = 0; t < nseg; ++t) in[t] = (src[t] - off) * window[t];
+        fft.forward(in.get(), X[c].get());
+      }
+      for (Index a = 0; a < m; ++a)
+        for (Index b = a; b < m; ++b) mac_conj(X[a].get(), X[b].get(), g.uu.col(upper_index(a, b, m)).data(), bins);
+      for (Index i = 0; i < p; ++i) {
+        for (Index j = 0; j < m; ++j) mac_conj(X[m + i].get(), X[j].get(), g.yu.col(i * m + j).data(), bins);
+        mac_abs2(X[m + i].get(), g.yy.col(i).data(), bins);
+      }
+    }
+  }
+
+  FrequencyResponse out;
+  out.omega_rad_s.resize(F);
+  out.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(p, m));
+  out.coherence.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(p, m));
+  out.flagged.assign(static_cast<size_t>(F), false);
+
+  Eigen::MatrixXcd Suu(m, m), Syu(p, m);
+  Eigen::VectorXd Syy(p);
+  for (Index k = 1; k <= F; ++k) {
+    const size_t kk = static_cast<size_t>(k - 1);
+    out.omega_rad_s(k - 1) =
+        2.0 * std::numbers::pi * static_cast<double>(k) / (static_cast<double>(nseg) * options.sample_period_s);
+    Suu.setZero();
+    Syu.setZero();
+    Syy.setZero();
+    for (const Spectra& g : groups) {
+      for (Index a = 0; a < m; ++a)
+        for (Index b = a; b < m; ++b) Suu(a, b) += g.uu(k, upper_index(a, b, m));
+      for (Index i = 0; i < p; ++i) {
+        for (Index j = 0; j < m; ++j) Syu(i, j) += g.yu(k, i * m + j);
+        Syy(i) += g.yy(k, i);
+      }
+    }
+    for (Index a = 0; a < m; ++a) {
+      Suu(a, a) = Complex(Suu(a, a).real(), 0.0);
+      for (Index b = a + 1; b < m; ++b) Suu(b, a) = std::conj(Suu(a, b));
+    }
+    const Eigen::VectorXd d = Suu.diagonal().real();
+    if (!(d.minCoeff() > 0.0)) {
+      out.flagged[kk] = true;
+      continue;
+    }
+    const Eigen::VectorXd dinv_sqrt = d.cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXcd Nrm = dinv_sqrt.asDiagonal() * Suu * dinv_sqrt.asDiagonal();
+    const Eigen::LLT<Eigen::MatrixXcd> llt(Nrm);
+    if (llt.info() != Eigen::Success || !(llt.rcond() * options.max_condition >= 1.0)) {
+      out.flagged[kk] = true;
+      continue;
+    }
+    // H Suu = Syu  ⇔  Suu Hᴴ = Syuᴴ;  Suu⁻¹ = D^-½ Nrm⁻¹ D^-½.
+    const Eigen::MatrixXcd Hh =
+        dinv_sqrt.asDiagonal() * llt.solve(dinv_sqrt.asDiagonal() * Syu.adjoint());
+    const Eigen::MatrixXcd H = Hh.adjoint();
+    out.response[kk] = H;
+    Eigen::MatrixXd& coh = out.coherence[kk];
+    if (single_input) {
+      for (Index j = 0; j < m; ++j) {
+        const Spectra& g = groups[static_cast<size_t>(j)];
+        const double svv = g.uu(k, upper_index(j, j, m)).real();
+        for (Index i = 0; i < p; ++i) {
+          const double den = g.yy(k, i) * svv;
+          coh(i, j) = den > 0.0 ? std::clamp(std::norm(g.yu(k, i * m + j)) / den, 0.0, 1.0) : 0.0;
+        }
+      }
+    } else {
+      // (S_yu S_uu⁻¹ S_yuᴴ)_ii = (H S_yuᴴ)_ii, real for the exact product.
+      for (Index i = 0; i < p; ++i) {
+        const double explained = (H.row(i) * Syu.row(i).adjoint())(0, 0).real();
+        coh.row(i).setConstant(Syy(i) > 0.0 ? std::clamp(explained / Syy(i), 0.0, 1.0) : 0.0);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace lpvid
