@@ -12,18 +12,18 @@ namespace lpvid::cli {
 
 std::vector<std::string> split_names(const std::string& text, const std::string& flag) {
   std::vector<std::string> names;
-  std::string current;
-  for (char c : text + ",") {
-    if (c == ',') {
-      if (current.empty())
-        throw InputError(fmt::format("{} '{}': empty channel name; give names separated by commas, e.g. v1,v2,v3", flag, text));
-      names.push_back(current);
-      current.clear();
-    } else if (c != ' ') {
-      current.push_back(c);
-    }
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    const std::size_t first = item.find_first_not_of(' ');
+    item = first == std::string::npos ? std::string() : item.substr(first, item.find_last_not_of(' ') - first + 1);
+    if (item.empty())
+      throw InputError(fmt::format("{} '{}': empty name; give names separated by commas, e.g. v1,v2,v3", flag, text));
+    names.push_back(item);
+    if (comma == std::string::npos) return names;
+    start = comma + 1;
   }
-  return names;
 }
 
 void print_summary(bool as_json, const nlohmann::json& summary, const std::string& text) {

@@ -8,7 +8,8 @@
 
 namespace lpvid::cli {
 
-// Splits "a,b,c" into names; rejects empty names (InputError naming the flag).
+// Splits "a,b,c" into names, trimming spaces around each (inner spaces stay:
+// "P from S, truth"); rejects empty names (InputError naming the flag).
 std::vector<std::string> split_names(const std::string& text, const std::string& flag);
 
 // Prints a summary: as JSON when as_json, else as the given human text.

@@ -8,6 +8,9 @@
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/model_json.h"
+#include "cli/responses.h"
+#include "formats/io/frd_csv.h"
+#include "idlib/closedloop/sensitivity.h"
 #include "idlib/closedloop/unloop.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/analysis.h"
@@ -21,15 +24,71 @@ Example:
 The interconnection G (I - C G)^-1 has order n_G + n_C; the controller's modes cancel
 only nearly in an estimated G (they may sit just outside the unit circle), so they are
 removed by an ordered Schur form and decoupling, leaving order n_G - n_C (6 for the
-3-DOF platform) unless --order says otherwise.)";
+3-DOF platform) unless --order says otherwise.
+Frequency-domain data (per frequency, no model order involved):
+  lpvid unloop --sensitivity S.csv --controller controller.json --out P.csv
+  lpvid unloop --sensitivity S_v1.csv S_v2.csv S_v3.csv --controller controller.json --out P.csv
+  lpvid unloop --closed-loop G.csv --controller controller.json --out P.csv
+P = C^-1 (S^-1 - I) from the input sensitivity S (v -> u; the paper's printed eq 15,
+C^-1 (S - I)^-1, is wrong: see docs/math.md), or P = G (I - C G)^-1 from closed-loop data,
+with C evaluated at z = exp(j w Ts).  Files that each hold one excited input are merged.
+Frequencies where C or S^-1 - I is ill-conditioned, or the coherence is low, are flagged
+in the output (column flag) and counted in the summary.)";
 
 struct UnloopCliOptions {
   std::string closed_loop, controller, out;
+  std::vector<std::string> sensitivity;
+  double max_condition = 1e6, min_coherence = 0.5;
   Index order = 0;
   bool json = false;
 };
 
+// Per-frequency route: S (or G) data and the controller -> plant FRD.
+void run_frd(const UnloopCliOptions& o) {
+  std::vector<std::string> inputs = o.sensitivity;
+  if (!o.closed_loop.empty()) inputs.push_back(o.closed_loop);
+  inputs.push_back(o.controller);
+  check_not_overwriting(inputs, o.out);
+  const StateSpace c = read_state_space(o.controller);
+  SensitivityUnloopOptions options;
+  options.max_condition = o.max_condition;
+  options.min_coherence = o.min_coherence;
+  options.validate();
+  FrequencyResponse plant;
+  Index flagged = 0;
+  std::vector<std::string> warnings;
+  std::string route;
+  if (!o.sensitivity.empty()) {
+    const FrequencyResponse s = load_frd_merged(o.sensitivity);
+    const SensitivityUnloopResult r = plant_from_sensitivity(s, c, options);
+    plant = r.plant;
+    flagged = r.flagged_count;
+    warnings = r.report.warnings;
+    route = "P = C^-1 (S^-1 - I)";
+  } else {
+    plant = plant_from_closed_loop_frd(load_frd_merged({o.closed_loop}), c);
+    for (bool f : plant.flagged) flagged += f ? 1 : 0;
+    route = "P = G (I - C G)^-1";
+  }
+  // The plant's outputs are the measured q; the controller's inputs are their
+  // errors e = -q, conventionally named e_<q> (as lpvid simulate writes them).
+  for (auto& name : plant.output_names)
+    if (name.rfind("e_", 0) == 0) name = name.substr(2);
+  write_frd_csv(o.out, plant, "P", {"lpvid unloop: " + route + " per frequency"});
+  nlohmann::json summary = {{"route", route}, {"frequencies", plant.num_frequencies()}, {"flagged", flagged},
+                            {"warnings", warnings}, {"out", o.out}};
+  std::string text = fmt::format("unloop: {} at {} frequencies, {} flagged as untrustworthy\n", route,
+                                 plant.num_frequencies(), flagged);
+  for (const auto& w : warnings) text += "warning: " + w + "\n";
+  if (o.out != "-") print_summary(o.json, summary, text);
+}
+
 void run(const UnloopCliOptions& o) {
+  if (!o.sensitivity.empty() && !o.closed_loop.empty())
+    throw InputError("give either --sensitivity (S data) or --closed-loop (G), not both");
+  if (o.sensitivity.empty() && o.closed_loop.empty())
+    throw InputError("give --closed-loop G.json (or G data) or --sensitivity S.csv");
+  if (!o.sensitivity.empty() || !is_model_path(o.closed_loop)) return run_frd(o);
   if (o.order < 0) throw InputError(fmt::format("--order {}: must be positive (omit it for automatic)", o.order));
   check_not_overwriting({o.closed_loop, o.controller}, o.out);
   const StateSpace g = read_state_space(o.closed_loop);
@@ -61,10 +120,16 @@ Command make_unloop_command() {
             auto o = std::make_shared<UnloopCliOptions>();
             auto* app = parent.add_subcommand("unloop", "Plant P = G (I - C G)^-1 from the closed loop G and controller C" +
                                                             std::string(kExample));
-            app->add_option("--closed-loop", o->closed_loop, "closed-loop model G (v -> q), state-space JSON")
-                ->required();
+            app->add_option("--closed-loop", o->closed_loop,
+                            "closed-loop G (v -> q): state-space JSON, or FRD data (.csv, .mat)");
+            app->add_option("--sensitivity", o->sensitivity,
+                            "input sensitivity S (v -> u) FRD file(s) (.csv, .mat); several are merged");
+            app->add_option("--max-condition", o->max_condition,
+                            "flag frequencies where C or S^-1 - I has a larger condition number");
+            app->add_option("--min-coherence", o->min_coherence, "flag frequencies with lower coherence");
             app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON")->required();
-            app->add_option("--out", o->out, "plant model JSON to write ('-' = stdout)")->required();
+            app->add_option("--out", o->out, "plant to write: model JSON, or FRD CSV for data ('-' = stdout)")
+                ->required();
             app->add_option("--order", o->order, "plant order (default: closed-loop order minus controller order)");
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });

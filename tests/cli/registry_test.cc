@@ -15,7 +15,8 @@ using ::testing::HasSubstr;
 TEST(Registry, ListsTheSubcommandsInOrder) {
   std::vector<std::string> names;
   for (const auto& c : commands()) names.push_back(c.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"simulate", "markov", "hankel", "realize", "unloop", "bode", "identify"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"simulate", "markov", "hankel", "realize", "unloop", "bode", "identify",
+                                             "frf", "compare"}));
 }
 
 TEST(Registry, EverySubcommandHasHelpWithAWorkedExample) {

@@ -1,0 +1,73 @@
+#include "cli/responses.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "formats/io/frd_csv.h"
+#include "formats/io/frd_mat.h"
+#include "formats/io/model_json.h"
+#include "idlib/core/error.h"
+#include "idlib/lti/frequency_response.h"
+
+namespace lpvid::cli {
+namespace {
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+}  // namespace
+
+bool is_model_path(const std::string& path) { return ends_with(path, ".json"); }
+
+LoadedResponse load_response(const std::string& path) {
+  LoadedResponse r;
+  r.path = path;
+  if (is_model_path(path)) {
+    r.model = read_state_space(path);
+  } else if (ends_with(path, ".mat")) {
+    r.frd = read_frd_mat(path);
+  } else {
+    r.frd = read_frd_csv(path);
+  }
+  return r;
+}
+
+FrequencyResponse load_frd_merged(const std::vector<std::string>& paths) {
+  if (paths.empty()) throw InputError("no frequency-response file given");
+  if (paths.size() == 1) return load_response(paths.front()).frd.value_or(FrequencyResponse{});
+  std::vector<FrdPart> parts;
+  for (const auto& p : paths) {
+    if (ends_with(p, ".mat")) {
+      // A .mat file holds the whole array: every pair.
+      FrdPart part;
+      part.path = p;
+      part.frd = read_frd_mat(p);
+      for (Index i = 0; i < part.frd.num_outputs(); ++i)
+        for (Index j = 0; j < part.frd.num_inputs(); ++j) part.pairs.emplace_back(i, j);
+      parts.push_back(std::move(part));
+    } else {
+      parts.push_back(read_frd_part(p));
+    }
+  }
+  return merge_frd_parts(parts);
+}
+
+FrequencyResponse response_on(const LoadedResponse& r, const Eigen::VectorXd& omega) {
+  if (r.model) return frequency_response(*r.model, omega);
+  const FrequencyResponse& f = *r.frd;
+  // Two grids are the same when every frequency agrees to 1e-9 relative
+  // (CSV round trips are exact; analyzers write the same grid for every file).
+  constexpr double kSameGrid = 1e-9;
+  bool same = f.omega_rad_s.size() == omega.size();
+  for (Index k = 0; same && k < omega.size(); ++k)
+    same = std::abs(f.omega_rad_s(k) - omega(k)) <= kSameGrid * omega(k);
+  if (!same)
+    throw InputError(fmt::format("{}: its {} frequencies are not those of the other response; compare data on one grid "
+                                 "(or compare a model with data)",
+                                 r.path, f.omega_rad_s.size()));
+  return f;
+}
+
+}  // namespace lpvid::cli
