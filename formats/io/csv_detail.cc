@@ -9,12 +9,18 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <limits>
 #include <memory>
+#include <mutex>
 #include <new>
+#include <optional>
+#include <thread>
 
 #include "idlib/core/error.h"
 
@@ -77,10 +83,18 @@ std::string_view cell_text(const char* p, const char* e) {
   return trim(std::string_view(p, static_cast<size_t>(q - p)));
 }
 
-// Per-column growable arrays of doubles in their own anonymous mappings:
-// growing is an mremap (no copy), and the pages are backed by huge pages where
-// the kernel allows (malloc/realloc would copy whenever glibc's adaptive mmap
-// threshold puts a buffer on the heap).
+[[noreturn]] void changed_while_reading(const std::string& path) {
+  throw InputError(fmt::format("{}: the file changed while it was read; read it again once it is complete",
+                               display_path(path)));
+}
+
+// Threads that read one regular file at most (each with its own read buffer).
+constexpr size_t kMaxThreads = 4;
+
+// Per-column growable arrays of doubles in their own anonymous mappings, for
+// input of unknown length (stdin, pipes): growing is an mremap (no copy), and
+// the pages are backed by huge pages where the kernel allows (malloc/realloc
+// would copy whenever glibc's adaptive mmap threshold puts a buffer on the heap).
 class ColumnStore {
  public:
   explicit ColumnStore(size_t columns) : cols_(columns, nullptr) {}
@@ -114,22 +128,29 @@ class ColumnStore {
   size_t capacity_ = 0;
 };
 
-// Owns the file descriptor being read.
+// Owns the file descriptor being read.  A regular file is read with pread at
+// explicit offsets (so several threads can read parts of it); anything else
+// (stdin, a pipe) sequentially.
 class Source {
  public:
   explicit Source(const std::string& path) : path_(path) {
     if (path == "-") {
       fd_ = STDIN_FILENO;
-      return;
+    } else {
+      fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+      if (fd_ < 0)
+        throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
     }
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd_ < 0)
-      throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
     struct stat st;
-    if (::fstat(fd_, &st) == 0 && S_ISDIR(st.st_mode)) {
-      ::close(fd_);
+    if (::fstat(fd_, &st) != 0) return;
+    if (S_ISDIR(st.st_mode)) {
+      if (fd_ > STDIN_FILENO) ::close(fd_);
       fd_ = -1;
       throw InputError(fmt::format("cannot open '{}': {}; give a file, not a directory", path, std::strerror(EISDIR)));
+    }
+    if (S_ISREG(st.st_mode) && path != "-") {
+      regular_ = true;
+      size_ = static_cast<uint64_t>(st.st_size);
     }
   }
   ~Source() {
@@ -138,10 +159,14 @@ class Source {
   Source(const Source&) = delete;
   Source& operator=(const Source&) = delete;
 
-  // Reads up to size bytes; 0 at end of file.
-  size_t read(char* into, size_t size) {
+  bool regular() const { return regular_; }
+  uint64_t size() const { return size_; }  // of a regular file, at open
+
+  // Reads up to size bytes at offset (a regular file) or the next bytes (else);
+  // 0 at end of file.
+  size_t fetch(char* into, size_t size, uint64_t offset) {
     for (;;) {
-      const ssize_t n = ::read(fd_, into, size);
+      const ssize_t n = regular_ ? ::pread(fd_, into, size, static_cast<off_t>(offset)) : ::read(fd_, into, size);
       if (n >= 0) return static_cast<size_t>(n);
       if (errno == EINTR) continue;
       throw InputError(fmt::format("cannot read '{}': {}; check the file", display_path(path_), std::strerror(errno)));
@@ -151,57 +176,184 @@ class Source {
  private:
   std::string path_;
   int fd_ = -1;
+  bool regular_ = false;
+  uint64_t size_ = 0;
 };
 
-// The read buffer is reused across calls on one thread: its pages are already
+// Read buffers are reused across calls and threads: their pages are already
 // mapped after the first file (BUILD-NOTES.md: first touch is expensive).
 constexpr size_t kChunkBytes = size_t{4} << 20;
+// Bytes kept free after the data in a read buffer, so that number parsing may
+// load 8 bytes at any position up to the end of the data.
+constexpr size_t kPadBytes = 64;
+constexpr size_t kMaxPooledBuffers = 4;  // one per reading thread (kMaxThreads)
 
-std::vector<char>& read_buffer() {
-  thread_local std::vector<char> buffer;
-  if (buffer.size() < kChunkBytes) buffer.resize(kChunkBytes);
-  return buffer;
+class PooledBuffer {
+ public:
+  PooledBuffer() {
+    {
+      std::lock_guard<std::mutex> lock(mutex());
+      if (!pool().empty()) {
+        buffer_ = std::move(pool().back());
+        pool().pop_back();
+      }
+    }
+    if (buffer_.size() < kChunkBytes) buffer_.resize(kChunkBytes);
+  }
+  ~PooledBuffer() {
+    if (buffer_.size() != kChunkBytes) return;  // grown for a very long line: let it go
+    std::lock_guard<std::mutex> lock(mutex());
+    if (pool().size() < kMaxPooledBuffers) pool().push_back(std::move(buffer_));
+  }
+  PooledBuffer(const PooledBuffer&) = delete;
+  PooledBuffer& operator=(const PooledBuffer&) = delete;
+  std::vector<char>& get() { return buffer_; }
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static std::vector<std::vector<char>>& pool() {
+    static std::vector<std::vector<char>> p;
+    return p;
+  }
+  std::vector<char> buffer_;
+};
+
+constexpr uint64_t kToEnd = std::numeric_limits<uint64_t>::max();
+
+// Calls on_line(b, e) for every line of the bytes [begin, end) of source, without
+// its '\n' (a last line without '\n' included), reading in chunks through buffer.
+// on_line returns false to stop.  Returns the offset just after the line where
+// it stopped, or after the last byte read.
+template <typename OnLine>
+uint64_t scan_lines(Source& source, uint64_t begin, uint64_t end, std::vector<char>& buffer, OnLine&& on_line) {
+  uint64_t base_offset = begin;  // file offset of buffer[0]
+  uint64_t next = begin;         // file offset of the next byte to fetch
+  size_t have = 0;               // bytes in buffer
+  for (;;) {
+    const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size() - kPadBytes - have, end - next));
+    const size_t n = want == 0 ? 0 : source.fetch(buffer.data() + have, want, next);
+    next += n;
+    have += n;
+    const char* const base = buffer.data();
+    const char* const stop = base + have;
+    const char* p = base;
+    for (;;) {
+      const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(stop - p)));
+      if (nl == nullptr) break;
+      if (!on_line(p, nl)) return base_offset + static_cast<uint64_t>(nl + 1 - base);
+      p = nl + 1;
+    }
+    const size_t rest = static_cast<size_t>(stop - p);
+    if (n == 0) {  // end of file (or of the range)
+      if (rest > 0) on_line(p, stop);
+      return base_offset + have;
+    }
+    std::memmove(buffer.data(), p, rest);
+    base_offset += have - rest;
+    have = rest;
+    if (have == buffer.size() - kPadBytes) buffer.resize(buffer.size() * 2);  // a line longer than the buffer
+  }
 }
 
-class Parser {
+// Exact powers of ten 10^0 .. 10^22 (all representable as doubles).
+constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                             1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+// Reads the digits at q (at most 8, not past e) as an integer m; returns how
+// many.  Reads 8 bytes at q: the read buffer has kPadBytes after its data.
+// SWAR digit test and conversion as in fast_float's parse_eight_digits_unrolled.
+inline size_t take_digits(const char* q, const char* e, uint64_t& m) {
+  uint64_t w;
+  std::memcpy(&w, q, sizeof w);
+  const uint64_t x = w ^ 0x3030303030303030;  // digit bytes become 0..9
+  // High bit of a byte set iff x >= 10 there (no carries between bytes).
+  const uint64_t non_digit = (((x & 0x7F7F7F7F7F7F7F7F) + 0x7676767676767676) | x) & 0x8080808080808080;
+  size_t n = non_digit == 0 ? 8 : static_cast<size_t>(std::countr_zero(non_digit)) / 8;  // little-endian
+  n = std::min(n, static_cast<size_t>(e - q));
+  if (n == 0) {
+    m = 0;
+    return 0;
+  }
+  uint64_t v = x << (8 * (8 - n));  // the n digits as the last of 8, after leading zeros
+  v = v * 10 + (v >> 8);
+  v = (((v & 0x000000FF000000FF) * (100 + (uint64_t{1000000} << 32))) +
+       (((v >> 16) & 0x000000FF000000FF) * (1 + (uint64_t{10000} << 32)))) >> 32;
+  m = static_cast<uint32_t>(v);
+  return n;
+}
+
+inline bool is_digit(const char* q, const char* e) { return q < e && static_cast<unsigned>(*q - '0') < 10; }
+
+// The common cell "[-]digits[.digits]" (no exponent) with at most 8 digits
+// before and 8 after the point, all digits as an integer m <= 2^53: then m and
+// 10^k are exact doubles and one division gives the correctly rounded value,
+// bit-identical to fast_float (whose fast path is the same: Clinger 1990).
+// Returns the end of the number, or nullptr to use the general parser.
+inline const char* parse_plain_decimal(const char* p, const char* e, double& value) {
+  static constexpr uint64_t kPow10Int[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000};
+  static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8};
+  const char* q = p;
+  const bool negative = q < e && *q == '-';
+  if (negative) ++q;
+  uint64_t m = 0;
+  const size_t whole = take_digits(q, e, m);
+  q += whole;
+  size_t fraction = 0;
+  if (q < e && *q == '.') {
+    ++q;
+    uint64_t f = 0;
+    fraction = take_digits(q, e, f);
+    q += fraction;
+    m = m * kPow10Int[fraction] + f;
+  }
+  constexpr uint64_t kMaxExact = uint64_t{1} << 53;
+  if (whole + fraction == 0 || m > kMaxExact || is_digit(q, e) || (q < e && (*q == 'e' || *q == 'E'))) return nullptr;
+  const double x = static_cast<double>(m) / kPow10[fraction];
+  value = negative ? -x : x;
+  return q;
+}
+
+// Whether a line after the header holds a row (not blank, not a comment): the
+// same test as RowParser::line.
+inline bool is_row_line(const char* b, const char* e) {
+  if (e > b && e[-1] == '\r') --e;
+  const char* p = skip_blanks(b, e);
+  return p != e && *p != '#';
+}
+
+// The lines up to and including the header row.
+class HeaderParser {
  public:
-  Parser(NumericCsv& out, const std::string& key_name, const std::string& key_hint)
+  HeaderParser(NumericCsv& out, const std::string& key_name, const std::string& key_hint)
       : out_(out), key_name_(key_name), key_hint_(key_hint) {}
 
-  // One line without its '\n'.  line_ is its 1-based number.
-  void line(const char* b, const char* e) {
+  bool done() const { return have_header_; }
+  int64_t lines() const { return line_; }
+
+  // One line without its '\n'; line number lines() + 1.  Returns done().
+  bool line(const char* b, const char* e) {
     ++line_;
     if (line_ == 1 && e - b >= 3 && std::memcmp(b, "\xEF\xBB\xBF", 3) == 0) b += 3;  // UTF-8 byte-order mark
     if (e > b && e[-1] == '\r') --e;
-    if (have_header_) {
-      row(b, e);
-      return;
-    }
     const char* p = skip_blanks(b, e);
-    if (p == e) return;  // blank line
+    if (p == e) return false;  // blank line
     if (*p == '#') {
       out_.leading_comments.push_back({line_, p + 1 - b + 1, std::string(p + 1, e)});
-      return;
+      return false;
     }
     header(b, e);
+    return true;
   }
 
-  void finish(bool file_empty) {
-    out_.end_line = line_ + 1;
-    if (!have_header_) {
-      if (file_empty)
-        fail_at(out_.path, 1, 1, "the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'");
-      fail_at(out_.path, out_.end_line, 1,
-              "no header row, only comments and blank lines; the first other line must name the columns, e.g. 't,v1,q1'");
-    }
-    const size_t n = rows_;
-    const size_t c = out_.names.size();
-    out_.data.resize(static_cast<Index>(n), static_cast<Index>(c));
-    advise_huge_pages(out_.data.data(), n * c * sizeof(double));
-    for (size_t j = 0; j < c; ++j) {
-      if (n > 0) std::memcpy(out_.data.data() + j * n, store_->column(j), n * sizeof(double));
-      store_->release(j);
-    }
+  // At the end of the input without a header: throws.
+  [[noreturn]] void fail_no_header(bool file_empty) const {
+    if (file_empty)
+      fail_at(out_.path, 1, 1, "the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'");
+    fail_at(out_.path, line_ + 1, 1,
+            "no header row, only comments and blank lines; the first other line must name the columns, e.g. 't,v1,q1'");
   }
 
  private:
@@ -239,109 +391,292 @@ class Parser {
     if (it == out_.names.end())
       fail_at(out_.path, line_, 1, fmt::format("no column '{}' in the header; {}", key_name_, key_hint_));
     out_.key = it - out_.names.begin();
-    columns_ = out_.names.size();
-    store_ = std::make_unique<ColumnStore>(columns_);
-  }
-
-  [[noreturn]] void bad_cell(const char* b, const char* cell, const char* e, size_t j) {
-    const std::string_view text = cell_text(cell, e);
-    const int64_t column = cell - b + 1;
-    if (text.empty())
-      fail_at(out_.path, line_, column,
-              fmt::format("empty cell in column '{}'; every cell after the header must be a number", out_.names[j]));
-    fail_at(out_.path, line_, column,
-            fmt::format("cannot parse {} as a number in column '{}'; every cell after the header must be a number",
-                        quote_cell(text), out_.names[j]));
-  }
-
-  [[noreturn]] void wrong_count(const char* b, const char* e, const char* at) {
-    const size_t cells = static_cast<size_t>(std::count(b, e, ',')) + 1;
-    fail_at(out_.path, line_, at - b + 1,
-            fmt::format("row has {} cells but the header names {} columns; give every row one cell per column", cells,
-                        columns_));
-  }
-
-  void row(const char* b, const char* e) {
-    const char* p = skip_blanks(b, e);
-    if (p == e) return;          // blank line
-    if (*p == '#') return;       // comment line
-    if (rows_ == store_->capacity()) store_->grow();
-    const size_t c = columns_;
-    int64_t key_column = 0;
-    for (size_t j = 0; j < c; ++j) {
-      p = skip_blanks(p, e);
-      const char* cell = p;
-      if (j == static_cast<size_t>(out_.key)) key_column = cell - b + 1;
-      if (p < e && *p == '+' && p + 1 < e && (p[1] == '.' || (p[1] >= '0' && p[1] <= '9'))) ++p;
-      double value;
-      const auto result = fast_float::from_chars(p, e, value);
-      if (result.ec != std::errc()) bad_cell(b, cell, e, j);
-      p = skip_blanks(result.ptr, e);
-      if (j + 1 < c) {
-        if (p == e) wrong_count(b, e, e);
-        if (*p != ',') bad_cell(b, cell, e, j);
-        ++p;
-      } else if (p != e) {
-        if (*p == ',') wrong_count(b, e, skip_blanks(p + 1, e));
-        bad_cell(b, cell, e, j);
-      }
-      if (!std::isfinite(value))
-        fail_at(out_.path, line_, cell - b + 1,
-                fmt::format("{} in column '{}' is not a finite number; NaN/Inf not allowed, every cell must be a finite number",
-                            quote_cell(cell_text(cell, e)), out_.names[j]));
-      store_->column(j)[rows_] = value;
-    }
-    const int64_t delta = line_ - static_cast<int64_t>(rows_);
-    if (out_.runs.empty() || delta != run_delta_ || key_column != out_.runs.back().column) {
-      out_.runs.push_back({static_cast<Index>(rows_), line_, key_column});
-      run_delta_ = delta;
-    }
-    ++rows_;
   }
 
   NumericCsv& out_;
   const std::string& key_name_;
   const std::string& key_hint_;
-  std::unique_ptr<ColumnStore> store_;
   bool have_header_ = false;
   int64_t line_ = 0;
-  size_t columns_ = 0;
+};
+
+// The lines after the header: rows of numbers written to columns (column j of
+// row r at cols[j][r]).  Either into a ColumnStore that grows (input of unknown
+// length), or into a fixed capacity of rows counted beforehand.
+class RowParser {
+ public:
+  // Lines from first_line on; runs record rows from first_row on.
+  RowParser(const NumericCsv& csv, int64_t first_line, size_t first_row, std::vector<NumericCsv::Run>& runs)
+      : csv_(csv), runs_(runs), line_(first_line - 1), first_row_(first_row), columns_(csv.names.size()),
+        key_(static_cast<size_t>(csv.key)), cols_(columns_, nullptr) {}
+
+  void grow_into(ColumnStore* store) { store_ = store; }
+  void write_into(double* const* cols, size_t capacity) {
+    std::copy(cols, cols + columns_, cols_.begin());
+    capacity_ = capacity;
+  }
+
+  size_t rows() const { return rows_; }
+  int64_t last_line() const { return line_; }
+
+  // One line without its '\n'; line number last_line() + 1.
+  void line(const char* b, const char* e) {
+    ++line_;
+    if (e > b && e[-1] == '\r') --e;
+    const char* p = skip_blanks(b, e);
+    if (p == e) return;     // blank line
+    if (*p == '#') return;  // comment line
+    row(b, p, e);
+  }
+
+ private:
+  [[noreturn]] void bad_cell(const char* b, const char* cell, const char* e, size_t j) const {
+    const std::string_view text = cell_text(cell, e);
+    const int64_t column = cell - b + 1;
+    if (text.empty())
+      fail_at(csv_.path, line_, column,
+              fmt::format("empty cell in column '{}'; every cell after the header must be a number", csv_.names[j]));
+    fail_at(csv_.path, line_, column,
+            fmt::format("cannot parse {} as a number in column '{}'; every cell after the header must be a number",
+                        quote_cell(text), csv_.names[j]));
+  }
+
+  [[noreturn]] void wrong_count(const char* b, const char* e, const char* at) const {
+    const size_t cells = static_cast<size_t>(std::count(b, e, ',')) + 1;
+    fail_at(csv_.path, line_, at - b + 1,
+            fmt::format("row has {} cells but the header names {} columns; give every row one cell per column", cells,
+                        columns_));
+  }
+
+  [[noreturn]] void not_finite(const char* b, const char* cell, const char* e, size_t j) const {
+    fail_at(csv_.path, line_, cell - b + 1,
+            fmt::format("{} in column '{}' is not a finite number; NaN/Inf not allowed, every cell must be a finite number",
+                        quote_cell(cell_text(cell, e)), csv_.names[j]));
+  }
+
+  void make_room() {
+    if (store_ == nullptr) changed_while_reading(csv_.path);
+    store_->grow();
+    for (size_t j = 0; j < columns_; ++j) cols_[j] = store_->column(j);
+    capacity_ = store_->capacity();
+  }
+
+  // The general number syntax (fast_float, and '+' before a digit or '.').
+  const char* parse_general(const char* b, const char* cell, const char* e, size_t j, double& value) const {
+    const char* p = cell;
+    if (p < e && *p == '+' && p + 1 < e && (p[1] == '.' || (p[1] >= '0' && p[1] <= '9'))) ++p;
+    const auto result = fast_float::from_chars(p, e, value);
+    if (result.ec != std::errc()) bad_cell(b, cell, e, j);
+    return result.ptr;
+  }
+
+  // p: the first non-blank byte of the row.
+  void row(const char* b, const char* p, const char* e) {
+    if (rows_ == capacity_) make_room();
+    const size_t c = columns_;
+    const size_t r = rows_;
+    int64_t key_column = 0;
+    for (size_t j = 0; j < c; ++j) {
+      const char* cell = p;
+      if (j == key_) key_column = cell - b + 1;
+      double value;
+      const char* q = parse_plain_decimal(p, e, value);
+      const bool general = q == nullptr;
+      if (general) q = parse_general(b, cell, e, j, value);
+      if (j + 1 < c) {
+        if (q == e || *q != ',') {
+          q = skip_blanks(q, e);
+          if (q == e) wrong_count(b, e, e);
+          if (*q != ',') bad_cell(b, cell, e, j);
+        }
+        p = q + 1;
+        if (p < e && is_blank(*p)) p = skip_blanks(p, e);
+      } else if (q != e) {
+        q = skip_blanks(q, e);
+        if (q != e) {
+          if (*q == ',') wrong_count(b, e, skip_blanks(q + 1, e));
+          bad_cell(b, cell, e, j);
+        }
+      }
+      if (general && !std::isfinite(value)) not_finite(b, cell, e, j);
+      cols_[j][r] = value;
+    }
+    const int64_t delta = line_ - static_cast<int64_t>(first_row_ + r);
+    if (runs_.empty() || delta != run_delta_ || key_column != runs_.back().column) {
+      runs_.push_back({static_cast<Index>(first_row_ + r), line_, key_column});
+      run_delta_ = delta;
+    }
+    rows_ = r + 1;
+  }
+
+  const NumericCsv& csv_;
+  std::vector<NumericCsv::Run>& runs_;
+  int64_t line_;
+  size_t first_row_;
+  size_t columns_;
+  size_t key_;
+  std::vector<double*> cols_;
+  ColumnStore* store_ = nullptr;
+  size_t capacity_ = 0;
   size_t rows_ = 0;
   int64_t run_delta_ = 0;
 };
 
+// Input of unknown length (stdin, a pipe): one pass into growing columns, then
+// one copy into the matrix.
+void read_stream(Source& source, NumericCsv& out, HeaderParser& header) {
+  PooledBuffer buffer;
+  std::unique_ptr<ColumnStore> store;
+  std::optional<RowParser> rows;
+  const uint64_t read = scan_lines(source, 0, kToEnd, buffer.get(), [&](const char* b, const char* e) {
+    if (rows) {
+      rows->line(b, e);
+    } else if (header.line(b, e)) {
+      store = std::make_unique<ColumnStore>(out.names.size());
+      rows.emplace(out, header.lines() + 1, 0, out.runs);
+      rows->grow_into(store.get());
+    }
+    return true;
+  });
+  if (!rows) header.fail_no_header(read == 0);
+  out.end_line = rows->last_line() + 1;
+  const size_t n = rows->rows();
+  const size_t c = out.names.size();
+  out.data.resize(static_cast<Index>(n), static_cast<Index>(c));
+  advise_huge_pages(out.data.data(), n * c * sizeof(double));
+  for (size_t j = 0; j < c; ++j) {
+    if (n > 0) std::memcpy(out.data.data() + j * n, store->column(j), n * sizeof(double));
+    store->release(j);
+  }
+}
+
+// Runs task(k) for k = 0 .. parts - 1, part 0 on this thread and the others on
+// their own threads; rethrows the exception of the lowest-numbered part that
+// threw (the first error in file order).
+template <typename Task>
+void run_parts(size_t parts, Task&& task) {
+  std::vector<std::exception_ptr> errors(parts);
+  std::vector<std::thread> threads;
+  threads.reserve(parts - 1);
+  auto guarded = [&](size_t k) {
+    try {
+      task(k);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  };
+  for (size_t k = 1; k < parts; ++k) threads.emplace_back(guarded, k);
+  guarded(0);
+  for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+// The start of the first line at or after offset `at` in [begin, end], `begin`
+// being a line start; end if there is none.
+uint64_t line_start_at(Source& source, uint64_t begin, uint64_t end, uint64_t at) {
+  if (at <= begin) return begin;
+  char probe[4096];
+  for (uint64_t p = at - 1; p < end;) {
+    const size_t n = source.fetch(probe, static_cast<size_t>(std::min<uint64_t>(sizeof probe, end - p)), p);
+    if (n == 0) break;
+    if (const void* nl = std::memchr(probe, '\n', n)) return p + static_cast<uint64_t>(static_cast<const char*>(nl) - probe) + 1;
+    p += n;
+  }
+  return end;
+}
+
+// A regular file: the header, then the rows counted in parts (in parallel),
+// then each part parsed straight into its rows of the matrix (in parallel).
+// Line numbers and the first-error-wins order are those of a serial read.
+void read_file(Source& source, NumericCsv& out, HeaderParser& header, const CsvReadTuning& tuning) {
+  const uint64_t size = source.size();
+  uint64_t data_begin = 0;
+  {
+    PooledBuffer buffer;
+    data_begin = scan_lines(source, 0, size, buffer.get(), [&](const char* b, const char* e) { return !header.line(b, e); });
+  }
+  if (!header.done()) header.fail_no_header(size == 0);
+
+  // Part boundaries, each the start of a line.
+  std::vector<uint64_t> hints = tuning.split_offsets;
+  if (hints.empty() && size - data_begin >= tuning.parallel_min_bytes) {
+    const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, kMaxThreads);
+    for (size_t k = 1; k < threads; ++k) hints.push_back(data_begin + (size - data_begin) * k / threads);
+  }
+  std::sort(hints.begin(), hints.end());
+  std::vector<uint64_t> bounds{data_begin};
+  for (const uint64_t hint : hints) {
+    const uint64_t at = line_start_at(source, bounds.back(), size, std::max(hint, bounds.back()));
+    if (at > bounds.back() && at < size) bounds.push_back(at);
+  }
+  bounds.push_back(size);
+  const size_t parts = bounds.size() - 1;
+
+  struct Part {
+    int64_t lines = 0;
+    size_t rows = 0;
+  };
+  std::vector<Part> counted(parts);
+  run_parts(parts, [&](size_t k) {
+    PooledBuffer buffer;
+    Part& part = counted[k];
+    scan_lines(source, bounds[k], bounds[k + 1], buffer.get(), [&](const char* b, const char* e) {
+      ++part.lines;
+      part.rows += is_row_line(b, e) ? 1 : 0;
+      return true;
+    });
+  });
+
+  size_t n = 0;
+  int64_t lines = header.lines();
+  std::vector<size_t> first_row(parts);
+  std::vector<int64_t> first_line(parts);
+  for (size_t k = 0; k < parts; ++k) {
+    first_row[k] = n;
+    first_line[k] = lines + 1;
+    n += counted[k].rows;
+    lines += counted[k].lines;
+  }
+  const size_t c = out.names.size();
+  out.data.resize(static_cast<Index>(n), static_cast<Index>(c));
+  advise_huge_pages(out.data.data(), n * c * sizeof(double));
+
+  std::vector<std::vector<NumericCsv::Run>> runs(parts);
+  run_parts(parts, [&](size_t k) {
+    PooledBuffer buffer;
+    RowParser parser(out, first_line[k], first_row[k], runs[k]);
+    std::vector<double*> cols(c);
+    for (size_t j = 0; j < c; ++j) cols[j] = out.data.data() + j * n + first_row[k];
+    parser.write_into(cols.data(), counted[k].rows);
+    scan_lines(source, bounds[k], bounds[k + 1], buffer.get(), [&](const char* b, const char* e) {
+      parser.line(b, e);
+      return true;
+    });
+    if (parser.rows() != counted[k].rows || parser.last_line() != first_line[k] + counted[k].lines - 1)
+      changed_while_reading(out.path);
+  });
+  for (std::vector<NumericCsv::Run>& part : runs)
+    for (const NumericCsv::Run& run : part) {
+      const bool continues = !out.runs.empty() && out.runs.back().column == run.column &&
+                             out.runs.back().line - out.runs.back().row == run.line - run.row;
+      if (!continues) out.runs.push_back(run);
+    }
+  out.end_line = lines + 1;
+}
+
 }  // namespace
 
-NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint) {
+NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint,
+                            const CsvReadTuning& tuning) {
   NumericCsv out;
   out.path = path;
   Source source(path);
-  Parser parser(out, key_name, key_hint);
-  std::vector<char>& buffer = read_buffer();
-  size_t have = 0;  // bytes in buffer
-  bool any = false;
-  for (;;) {
-    const size_t n = source.read(buffer.data() + have, buffer.size() - have);
-    if (n > 0) any = true;
-    have += n;
-    const char* p = buffer.data();
-    const char* end = p + have;
-    for (;;) {
-      const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(end - p)));
-      if (nl == nullptr) break;
-      parser.line(p, nl);
-      p = nl + 1;
-    }
-    const size_t rest = static_cast<size_t>(end - p);
-    if (n == 0) {  // end of file
-      if (rest > 0) parser.line(p, end);
-      break;
-    }
-    std::memmove(buffer.data(), p, rest);
-    have = rest;
-    if (have == buffer.size()) buffer.resize(buffer.size() * 2);  // a line longer than the buffer
-  }
-  parser.finish(!any);
+  HeaderParser header(out, key_name, key_hint);
+  if (source.regular())
+    read_file(source, out, header, tuning);
+  else
+    read_stream(source, out, header);
   return out;
 }
 

@@ -1,5 +1,5 @@
 // lpvid — internals shared by the CSV readers and writers of formats/io.
-// Not a public interface: include only from formats/io/*.cc.
+// Not a public interface: include only from formats/io/*.cc (and their tests).
 #pragma once
 
 #include <Eigen/Core>
@@ -61,10 +61,29 @@ struct NumericCsv {
   std::vector<Run> runs;
 };
 
-// Reads path ("-": stdin) in large chunks and parses it with fast_float.
-// key_name must be a column of the header, else
-// "path:L:1: no column 'key_name' in the header; <key_hint>".
-NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint);
+// How read_numeric_csv splits a regular file between threads.
+struct CsvReadTuning {
+  // Files with at least this many bytes of rows are read on up to
+  // min(hardware threads, 4) threads.  Below it one thread is faster: starting
+  // a thread and the extra row-counting pass cost more than they save.
+  uint64_t parallel_min_bytes = uint64_t{8} << 20;
+  // For tests: when non-empty, the file is split at the first line start at or
+  // after each of these byte offsets (whatever its size) instead.
+  std::vector<uint64_t> split_offsets;
+};
+
+// Reads path ("-": stdin) in 4 MiB chunks and parses it with fast_float.
+// A regular file is read in two passes: its rows are counted (one memchr per
+// line), then parsed straight into `data`; large files are split at line starts
+// into parts that are counted and parsed on parallel threads, with the line
+// numbers and the first-error-in-file-order of a serial read.  Stdin and pipes
+// are read in one pass on one thread, into growing columns copied once into
+// `data` (slower).  key_name must be a column of the header, else
+// "path:L:1: no column 'key_name' in the header; <key_hint>".  A regular file
+// that changes length while it is read gives
+// "path: the file changed while it was read; read it again once it is complete".
+NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint,
+                            const CsvReadTuning& tuning = {});
 
 // Checks names for a CSV header: non-empty, unique, no ',', '"', '#' at the start,
 // or line breaks.  what = "cannot write 'x.csv'" prefix for messages.

@@ -50,8 +50,9 @@ struct Log {
   Eigen::MatrixXd columns(const std::vector<std::string>& names) const;
 };
 
-// Reads a log; "-" reads stdin.  Reads in 4 MiB chunks and parses with
-// fast_float.  Throws InputError "path:line:column: what; what to do" for every
+// Reads a log; "-" reads stdin.  Reads in 4 MiB chunks; a regular file of 8 MiB
+// or more is counted and parsed on parallel threads (csv_detail.h; stdin on one
+// thread, slower).  Throws InputError "path:line:column: what; what to do" for every
 // broken rule above, and "cannot open 'x.csv': <strerror>; check the path".
 Log read_log(const std::string& path, const LogReadOptions& options = {});
 
