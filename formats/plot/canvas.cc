@@ -1,11 +1,16 @@
 #include "formats/plot/canvas.h"
 
+#include <png.h>
+
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -528,11 +533,75 @@ void draw_legend(cv::Mat& image, const std::vector<LegendEntry>& entries, cv::Po
 
 // ------------------------------------------------------------------ png --
 
-std::vector<unsigned char> encode_png(const cv::Mat& image) {
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", image, bytes)) {
-    throw std::runtime_error("plot: OpenCV could not encode the figure as PNG");
+// PNG encoding with libpng rather than OpenCV's imgcodecs: imgcodecs pulls in
+// ~140 shared libraries (GDAL, GDCM, ...) whose relocation costs 0.18 s at the
+// start of every lpvid run, measured.  libpng's defaults (adaptive filters, zlib
+// level 6) took 0.15 s for a 1514 x 1492 Bode figure; plots are mostly flat
+// white, so the UP filter with zlib level 3 is used: `lpvid bode` of a 3 x 3 model
+// went from 0.36 s to 0.14 s and its PNG from 221 KB to 251 KB (measured).
+namespace {
+
+constexpr int kPngZlibLevel = 3;
+
+void append_png_bytes(png_structp png, png_bytep data, png_size_t length) {
+  auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + length);
+}
+
+void flush_png_bytes(png_structp) {}
+
+// libpng reports errors by longjmp to the setjmp in write_png; that frame holds
+// no C++ objects, so nothing is skipped (the canonical libpng pattern).
+struct PngError {
+  char message[256] = {0};
+};
+
+void png_failure(png_structp png, png_const_charp message) {
+  auto* error = static_cast<PngError*>(png_get_error_ptr(png));
+  std::snprintf(error->message, sizeof error->message, "%s", message);
+  png_longjmp(png, 1);
+}
+
+void png_warning_ignored(png_structp, png_const_charp) {}
+
+// Returns false (with error->message) when libpng fails.
+bool write_png(const cv::Mat& rgb, std::vector<unsigned char>* bytes, PngError* error) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, error, png_failure, png_warning_ignored);
+  if (!png) return false;
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
   }
+  png_set_write_fn(png, bytes, append_png_bytes, flush_png_bytes);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(rgb.cols), static_cast<png_uint_32>(rgb.rows), 8,
+               rgb.channels() == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  png_set_compression_level(png, kPngZlibLevel);
+  png_write_info(png, info);
+  for (int r = 0; r < rgb.rows; ++r) png_write_row(png, const_cast<png_bytep>(rgb.ptr<png_byte>(r)));
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+}  // namespace
+
+std::vector<unsigned char> encode_png(const cv::Mat& image) {
+  if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1))
+    throw std::runtime_error("plot: encode_png needs an 8-bit BGR or grey image");
+  cv::Mat rgb;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, rgb, cv::COLOR_BGR2RGB);
+  } else {
+    rgb = image;
+  }
+  std::vector<unsigned char> bytes;
+  bytes.reserve(static_cast<std::size_t>(rgb.total()) / 8);
+  PngError error;
+  if (!write_png(rgb, &bytes, &error))
+    throw std::runtime_error(std::string("plot: libpng could not encode the figure: ") + error.message);
   return bytes;
 }
 
