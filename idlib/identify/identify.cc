@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "idlib/core/error.h"
+#include "idlib/lti/analysis.h"
 
 namespace lpvid {
 
@@ -78,6 +79,17 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
   era_options.estimate_feedthrough = false;
   result.closed_loop = realize_era(result.markov.g, era_options);
   for (const auto& w : result.closed_loop.report.warnings) result.warnings.push_back("realize: " + w);
+  // The experiments ran in a stable closed loop, so an unstable model of it is
+  // wrong, and inverting the loop around it would only hide that.
+  if (!is_stable(result.closed_loop.model)) {
+    double radius = 0;
+    for (const auto& z : poles(result.closed_loop.model)) radius = std::max(radius, std::abs(z));
+    throw NumericalError(fmt::format(
+        "the realised closed loop (order {}) is unstable (largest pole magnitude {:.6f}) although the loop that ran "
+        "was stable; the Markov parameters have not died out within the horizon or the order is wrong: try a longer "
+        "--horizon-s, a longer record, or --order",
+        result.closed_loop.model.order(), radius));
+  }
 
   UnloopOptions unloop_options;
   unloop_options.plant_order = options.plant_order;

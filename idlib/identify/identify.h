@@ -57,7 +57,9 @@ struct IdentifyResult {
 // @throws InputError  controller/log sample periods differ; controller shape does
 //                     not match the channel counts; a record too short for the
 //                     lags (and every InputError of the steps).
-// @throws NumericalError  no model order stands above the noise floor.
+// @throws NumericalError  no model order stands above the noise floor; the
+//                         realised closed loop is unstable (the loop that ran was
+//                         stable, so such a model is wrong).
 IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
                                     const StateSpace& controller, const IdentifyOptions& options);
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <random>
 
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
@@ -124,6 +125,34 @@ TEST(PlatformAt10kHz, IdentifyIsAccurateTo1PercentMean) {
               100 * e.wpw.mean, 100 * e.wpw.max, 100 * e.wpw_inv.mean, static_cast<long>(r.closed_loop.stride), static_cast<long>(r.closed_loop.block_rows),
               static_cast<long>(r.closed_loop.block_cols));
   EXPECT_LE(e.wpw.mean, kMaxMeanError);
+}
+
+// Logs from a "closed loop" with a pole outside the unit circle (z = 1.01):
+// the realised model is unstable, which a loop that ran stably cannot be.
+TEST(IdentifyErrors, UnstableRealisationIsAComputationFailure) {
+  constexpr std::uint64_t kNoiseSeed = 7;
+  const Index n = 3000;  // short: 1.01^3000 stays finite (1e13)
+  std::mt19937_64 rng(kNoiseSeed);
+  std::normal_distribution<double> N(0.0, 1.0);
+  Eigen::MatrixXd v(n, 3), q = Eigen::MatrixXd::Zero(n, 3);
+  for (Index t = 0; t < n; ++t)
+    for (Index j = 0; j < 3; ++j) v(t, j) = N(rng);
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  for (Index t = 0; t < n; ++t) {  // q = x, x+ = 1.01 x + v (per channel)
+    q.row(t) = x.transpose();
+    x = 1.01 * x + v.row(t).transpose();
+  }
+  const PlatformParameters params = PlatformParameters::defaults();
+  const StateSpace controller = discrete_pi_controller(default_pi_gains(params), 1e-3);
+  IdentifyOptions options;
+  options.num_lags = 300;  // 1.01^300 = 20: the growth is plain in the Markov parameters
+  options.closed_loop_order = 3;
+  try {
+    identify_closed_loop({ExperimentView{v, q}}, 1e-3, controller, options);
+    FAIL() << "expected NumericalError";
+  } catch (const NumericalError& e) {
+    EXPECT_NE(std::string(e.what()).find("is unstable"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
