@@ -62,19 +62,6 @@ Channel channel(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bool remove
   return ch;
 }
 
-// acc[b] += a[b] * conj(c[b]), b = 0..nb-1, on doubles so that it vectorises.
-void mac_conj(const Complex* a, const Complex* c, Complex* acc, Index nb) {
-  const double* ad = reinterpret_cast<const double*>(a);
-  const double* cd = reinterpret_cast<const double*>(c);
-  double* sd = reinterpret_cast<double*>(acc);
-  for (Index b = 0; b < nb; ++b) {
-    const double ar = ad[2 * b], ai = ad[2 * b + 1];
-    const double cr = cd[2 * b], ci = cd[2 * b + 1];
-    sd[2 * b] += ar * cr + ai * ci;
-    sd[2 * b + 1] += ai * cr - ar * ci;
-  }
-}
-
 // acc[b] += |a[b]|².
 void mac_abs2(const Complex* a, double* acc, Index nb) {
   const double* ad = reinterpret_cast<const double*>(a);
@@ -224,9 +211,9 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
         fft.forward(in.get(), X[c].get());
       }
       for (Index a = 0; a < m; ++a)
-        for (Index b = a; b < m; ++b) mac_conj(X[a].get(), X[b].get(), g.uu.col(upper_index(a, b, m)).data(), bins);
+        for (Index b = a; b < m; ++b) signal_detail::mac_conj(X[a].get(), X[b].get(), g.uu.col(upper_index(a, b, m)).data(), bins);
       for (Index i = 0; i < p; ++i) {
-        for (Index j = 0; j < m; ++j) mac_conj(X[m + i].get(), X[j].get(), g.yu.col(i * m + j).data(), bins);
+        for (Index j = 0; j < m; ++j) signal_detail::mac_conj(X[m + i].get(), X[j].get(), g.yu.col(i * m + j).data(), bins);
         mac_abs2(X[m + i].get(), g.yy.col(i).data(), bins);
       }
     }

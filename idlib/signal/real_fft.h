@@ -72,4 +72,8 @@ void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
                                     const std::vector<ChannelView>& qs, Index n,
                                     const MarkovSequence& g, Eigen::VectorXd& sum_sq);
 
+// acc[b] += a[b] * conj(c[b]), b = 0..nb-1 (cross-spectrum accumulation),
+// written on doubles so that it vectorises.
+void mac_conj(const Complex* a, const Complex* c, Complex* acc, Index nb);
+
 }  // namespace lpvid::signal_detail
