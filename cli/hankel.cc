@@ -34,7 +34,20 @@ void run(const HankelOptions& o) {
   const MarkovFile file = read_markov_csv(o.markov);
   EraOptions options = era_options_from(file);
   options.max_order = std::max<Index>(o.count, options.max_order);
-  const EraResult era = realize_era(file.g, options);
+  // hankel shows the singular values even when none stands above the noise
+  // floor (then realize would fail): the values are computed with order 1 and
+  // the chosen order is reported as 0.
+  EraResult era;
+  std::string no_order;
+  try {
+    era = realize_era(file.g, options);
+  } catch (const NumericalError& e) {
+    options.order = 1;
+    era = realize_era(file.g, options);
+    era.selection.order = 0;
+    era.selection.reason = e.what();
+    no_order = e.what();
+  }
   const Eigen::VectorXd& sv = era.selection.singular_values;
   const Index n = std::min<Index>(sv.size(), std::max<Index>(o.count, era.selection.order + 1));
   Eigen::MatrixXd table(n, 3);
@@ -64,9 +77,12 @@ void run(const HankelOptions& o) {
                             {"block_rows", era.block_rows},
                             {"block_cols", era.block_cols},
                             {"stride", era.stride},
-                            {"singular_values", std::vector<double>(sv.data(), sv.data() + n)}};
+                            {"singular_values", std::vector<double>(sv.data(), sv.data() + n)},
+                            {"warnings", no_order.empty() ? std::vector<std::string>{}
+                                                          : std::vector<std::string>{"no model order stands above the noise floor"}}};
   std::string text = fmt::format("hankel: {} x {} blocks, stride {}; order {}: {}\n", era.block_rows, era.block_cols,
                                  era.stride, era.selection.order, era.selection.reason);
+  if (!no_order.empty()) text += "warning: no model order stands above the noise floor; realize would fail on these data\n";
   if (o.out != "-") print_summary(o.json, summary, text);
 }
 

@@ -235,6 +235,14 @@ TEST_F(CliBadInput, ExcitationWithoutSignalGivesNoModel) {
   const auto f = identify_with(paths);
   EXPECT_EQ(f.exit_code, 1) << f.err;
   EXPECT_EQ(f.files_written, 0);
+  // hankel still shows the singular values, with order 0 and a warning.
+  TempDir out("hankel0");
+  auto r = run_lpvid("markov --excitation v1,v2,v3 --output q1,q2,q3 --out " + (out / "g.csv") + paths);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("hankel " + (out / "g.csv") + " --out " + (out / "sv.csv") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["order"], 0);
+  EXPECT_TRUE(std::filesystem::exists(out / "sv.csv"));
 }
 
 TEST_F(CliBadInput, SingularIMinusCGIsRejected) {
