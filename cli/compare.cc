@@ -54,11 +54,11 @@ void run(const CompareCliOptions& o) {
     omega = log_frequency_grid(lo, hi, o.points);
   }
   const FrequencyResponse fa = response_on(a, omega), fb = response_on(b, omega);
-  if (b.frd && !b.frd->flagged.empty())
-    for (std::size_t k = 0; k < flagged.size() || k < b.frd->flagged.size(); ++k) {
-      if (flagged.size() < b.frd->flagged.size()) flagged.resize(b.frd->flagged.size(), false);
-      flagged[k] = flagged[k] || b.frd->flagged[k];
-    }
+  // A frequency flagged in either data set is skipped (both are on one grid here).
+  if (a.frd && b.frd && !b.frd->flagged.empty()) {
+    if (flagged.empty()) flagged.assign(b.frd->flagged.size(), false);
+    for (std::size_t k = 0; k < flagged.size(); ++k) flagged[k] = flagged[k] || b.frd->flagged[k];
+  }
   if (!o.weights.empty()) {
     const auto w = split_names(o.weights, "--weights");
     Eigen::VectorXd v(static_cast<Index>(w.size()));
