@@ -1,0 +1,165 @@
+// lpvid — the frequency-domain model-error model (Ljung, "Model validation and
+// model error models", 1999; System Identification, 2nd ed., §16.6): the map
+// input -> residual, E(jω) = P_data(jω) − P_model(jω), shown as a response of its
+// own with a confidence region from the measurement's coherence, and the
+// frequencies where E is larger than the noise of the measurement ("significant")
+// grouped into failing bands with their size and a plain-words signature.
+// Layout: idlib/core/types.h (responses indexed (output, input, frequency)).
+//
+// Noise of an H1 estimate (Bendat & Piersol, Random Data, 4th ed., §9.2.4,
+// eqs 9.52 and 9.90 — normalized random error of the gain and standard deviation
+// of the phase of Ĥ with n_d independent averages and coherence γ²):
+//
+//   ε[|Ĥ|] = σ[φ̂] = sqrt(1 − γ²) / (|γ| sqrt(2 n_d))
+//
+// i.e. the complex error Ĥ − H is (to first order, for large n_d) circular with a
+// standard deviation of  σ_c = |Ĥ| sqrt((1 − γ²) / (2 n_d γ²))  in each of its real
+// and imaginary parts (the radial part is the gain error, the tangential part
+// |Ĥ|·σ[φ̂]).  Then |Ĥ − H| / σ_c is Rayleigh distributed:
+//
+//   P(|Ĥ − H| > k σ_c) = exp(−k² / 2),   so   k = sqrt(−2 ln(1 − confidence))
+//
+// (k = 3.035 for 99 %).  A frequency of channel (i, j) is SIGNIFICANT when
+// |E_ij| > k σ_c,ij: the model differs from the measurement by more than the
+// measurement's own noise explains at that confidence.  σ_c uses
+//   - coherence γ²_ij of the data when it has any (FrequencyResponse::coherence),
+//     with n_d = ModelErrorOptions::averages;
+//   - else default_relative_sigma · |Ĥ_ij| (no coherence: a documented default
+//     noise level, reported as such by ModelErrorModel::coherence_used = false);
+//   - never below relative_sigma_floor · |Ĥ_ij| (coherence 1 does not make a
+//     measurement exact: leakage and the coherence bias ~1/n_d remain).
+// γ² = 0 gives σ_c = ∞ (nothing can be significant there).  Frequencies flagged in
+// the data are skipped (never significant, not counted).
+//
+// Failing bands.  Per channel, over the unflagged frequencies in order: a band
+// starts and ends at a significant frequency, bridges at most max_gap_points
+// non-significant frequencies in a row, and is kept when it holds at least
+// min_band_points significant frequencies.  A single frequency beyond k σ_c happens
+// by chance with probability 1 − confidence; three in a row about (1 − c)³, so the
+// minimum count keeps noise from being mistaken for a missing effect when many
+// frequencies and channels are tested at once.  Kept bands of one channel closer
+// than merge_decades (next lo / previous hi <= 10^merge_decades) are then joined:
+// an error that grows across the threshold flickers in and out of significance
+// near it, and is one failure, not several (joining kept bands adds no false ones).
+//
+// Size of a band (over its significant frequencies):
+//   gain_db   = 20 log10 |P_data / P_model|   (mean, and the value of largest size)
+//   phase_deg = arg(P_data / P_model) in deg (mean, and the value of largest size)
+//   relative  = 100 |E| / |P_data| percent   (mean and max)
+// gain and phase are NaN when P_model is zero somewhere in the band.
+//
+// Signature (the first rule that holds; `signature` is the key, `hint` the words):
+//   "narrow_peak"   |E| peaks inside the band (not at its first or last 15 %),
+//                   the peak is >= 3 x |E| at both ends and the band spans less than
+//                   half a decade: "narrow peak at 612 rad/s (a mode missing from
+//                   the model, or placed wrongly)".
+//   "delay"         phase error of one sign whose least-squares fit −ω τ leaves
+//                   less than 30 % of its RMS, and the gain error explains less of
+//                   |E| than the phase: "phase lag growing with frequency (like a
+//                   delay of 1.0 ms)" (or "phase lead ..." when τ < 0).
+//   "coupling"      an off-diagonal channel (i ≠ j): "off-diagonal coupling the
+//                   model lacks (model at 5 % of the measured)" when the model's
+//                   mean |P_model| is below 30 % of the data's, else "off-diagonal
+//                   coupling error".
+//   "low_frequency_gain"  gain dominates and the band starts at the lowest
+//                   unflagged frequency: "low-frequency gain error (+1.6 dB):
+//                   static gain or stiffness".
+//   "high_frequency_gain" gain dominates and the band ends at the highest one:
+//                   "high-frequency gain error (−2.0 dB): mass or inertia".
+//   "gain" / "phase"      whichever of gain and phase explains more of |E|.
+// ("gain dominates": |10^(gain_db/20) − 1| >= |phase in rad| at the largest |E|.)
+// With several data sets, mark_differences_between_data adds "differs between data
+// sets" to failures that do not appear (overlapping band, same channel) in every set.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "idlib/core/types.h"
+
+namespace lpvid {
+
+struct ModelErrorOptions {
+  // n_d: independent averages of the H1 estimate.  lpvid frf's automatic
+  // segments give ~31 Hann segments at 50 % overlap per experiment, about 29
+  // independent ones; 16 (kFrfAutoSegments) is the conservative default (a band
+  // sqrt(29/16) = 1.35 times wider).  Must be >= 1.
+  double averages = 16;
+  // Confidence of the band, in (0, 1): 0.99 gives k = 3.035.
+  double confidence = 0.99;
+  // σ_c / |P_data| per real part when the data carry no coherence (2 %: the
+  // random error of an H1 estimate with γ² = 0.99 and 16 averages is 1.8 %).  > 0.
+  double default_relative_sigma = 0.02;
+  // σ_c / |P_data| is never taken below this (0.1 %).  >= 0.
+  double relative_sigma_floor = 1e-3;
+  // A failing band holds at least this many significant frequencies (>= 1).
+  Index min_band_points = 3;
+  // Non-significant frequencies in a row bridged inside a band (>= 0).
+  Index max_gap_points = 1;
+  // Kept bands of one channel whose gap spans at most this many decades are joined
+  // (0.1 decade: 26 % in frequency; two modes closer than that read as one band).  >= 0.
+  double merge_decades = 0.1;
+
+  // @throws InputError naming the first field that breaks its rule.
+  void validate() const;
+};
+
+// k = sqrt(−2 ln(1 − confidence)): the radius of the confidence circle in units of σ_c.
+double confidence_radius(double confidence);
+
+using BoolMatrix = Eigen::Matrix<bool, Eigen::Dynamic, Eigen::Dynamic>;
+
+// The model-error model of one data set.  F = data.num_frequencies(); every
+// vector has F entries of p x m matrices.
+struct ModelErrorModel {
+  Eigen::VectorXd omega_rad_s;             // the data's grid
+  std::vector<Eigen::MatrixXcd> data;      // P_data
+  std::vector<Eigen::MatrixXcd> model;     // P_model on the same grid
+  std::vector<Eigen::MatrixXcd> error;     // E = P_data − P_model
+  std::vector<Eigen::MatrixXd> sigma;      // σ_c (per real part; +inf where γ² = 0)
+  std::vector<Eigen::MatrixXd> radius;     // k σ_c: the confidence radius
+  std::vector<BoolMatrix> significant;     // |E| > k σ_c (false where skipped)
+  std::vector<bool> skipped;               // flagged in the data
+  bool coherence_used = false;             // false: default_relative_sigma was used
+  double k = 0;                            // confidence_radius(options.confidence)
+};
+
+struct FailingBand {
+  Index data_index = 0;              // which data set (as passed by the caller)
+  Index output = 0, input = 0;       // channel, 0-based
+  double lo_rad_s = 0, hi_rad_s = 0; // first and last significant frequency
+  Index first = 0, last = 0;         // their indices in the data's grid
+  Index points = 0;                  // significant frequencies in the band
+  double gain_db_mean = 0, gain_db_max = 0;    // max = the value of largest size
+  double phase_deg_mean = 0, phase_deg_max = 0;
+  double relative_percent_mean = 0, relative_percent_max = 0;
+  double omega_at_max_rad_s = 0;     // where |E| / |P_data| is largest
+  double max_sigma_ratio = 0;        // max |E| / σ_c (how far beyond the noise)
+  std::string signature;             // key, see the header comment
+  std::string hint;                  // plain words
+  bool differs_between_data = false; // set by mark_differences_between_data
+};
+
+// E, σ_c and significance for one data set.
+//
+// | argument | shape |
+// |----------|-------|
+// | data     | F frequencies of p x m, coherence empty or F x (p x m), flagged empty or F |
+// | model    | F matrices p x m: the model evaluated on data.omega_rad_s |
+// @throws InputError  bad options; no frequencies; model count or shapes differ from
+//                     the data's; a non-finite entry.
+ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eigen::MatrixXcd>& model,
+                            const ModelErrorOptions& options);
+
+// The failing bands of every channel, ordered by channel (output, then input) and
+// frequency; data_index is copied into each.
+std::vector<FailingBand> failing_bands(const ModelErrorModel& mem, const ModelErrorOptions& options,
+                                       Index data_index = 0);
+
+// failures[d] are the bands of data set d.  A band whose channel has no
+// overlapping band in some other data set gets differs_between_data = true and
+// "; differs between data sets (only in set 1 of 3)" appended to its hint.
+// Does nothing for fewer than two data sets.
+void mark_differences_between_data(std::vector<std::vector<FailingBand>>& failures);
+
+}  // namespace lpvid

@@ -1,0 +1,230 @@
+#include "idlib/validate/model_error.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "idlib/core/error.h"
+#include "idlib/lti/frequency_response.h"
+#include "idlib/models/platform.h"
+
+namespace lpvid {
+namespace {
+
+// The measurement the tests fake: an H1 estimate with coherence kCoherence and
+// kAverages averages (the defaults of ModelErrorOptions are not used, so the test
+// states its own noise).
+constexpr double kCoherence = 0.95;
+constexpr double kAverages = 16;
+// σ_c / |P| per real part of that estimate (model_error.h): sqrt(0.05 / 30.4) = 4.06 %.
+const double kRelSigma = std::sqrt((1 - kCoherence) / (2 * kAverages * kCoherence));
+
+ModelErrorOptions options() {
+  ModelErrorOptions o;
+  o.averages = kAverages;
+  return o;
+}
+
+// The platform at the right beam position (every tilt-z coupling but psi-z is
+// non-zero there), 400 log-spaced frequencies over 1..1000 rad/s.
+struct Truth {
+  Eigen::VectorXd omega = log_frequency_grid(1, 1000, 400);
+  StateSpace plant = platform_model(PlatformParameters::defaults(), kBeamRight_m);
+  std::vector<Eigen::MatrixXcd> model = evaluate_response(plant, omega);
+};
+
+// Data = response + circular complex noise of σ_c = kRelSigma |response| per real
+// part (what an H1 estimate with kCoherence and kAverages gives), with coherence.
+FrequencyResponse measured(const Eigen::VectorXd& omega, const std::vector<Eigen::MatrixXcd>& response,
+                           unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01;
+  FrequencyResponse d;
+  d.omega_rad_s = omega;
+  for (const auto& r : response) {
+    Eigen::MatrixXcd noisy = r;
+    for (Index i = 0; i < r.rows(); ++i)
+      for (Index j = 0; j < r.cols(); ++j) {
+        const double s = kRelSigma * std::abs(r(i, j));
+        const double re = n01(rng), im = n01(rng);
+        noisy(i, j) += Complex(s * re, s * im);
+      }
+    d.response.push_back(noisy);
+    d.coherence.push_back(Eigen::MatrixXd::Constant(r.rows(), r.cols(), kCoherence));
+  }
+  return d;
+}
+
+TEST(ConfidenceRadius, IsTheRayleighQuantile) {
+  // P(|E| > k σ) = exp(−k²/2) for a circular complex Gaussian.
+  for (double c : {0.9, 0.99, 0.999}) EXPECT_NEAR(std::exp(-0.5 * std::pow(confidence_radius(c), 2)), 1 - c, 1e-14);
+  EXPECT_NEAR(confidence_radius(0.99), 3.0349, 1e-4);
+}
+
+TEST(ModelError, SigmaFollowsTheH1FormulaFromCoherence) {
+  const Truth t;
+  const FrequencyResponse d = measured(t.omega, t.model, 3);
+  const ModelErrorModel mem = model_error(d, t.model, options());
+  EXPECT_TRUE(mem.coherence_used);
+  for (std::size_t f = 0; f < d.response.size(); f += 37)
+    for (Index i = 0; i < 3; ++i) {
+      // The defining equation: σ_c = |Ĥ| sqrt((1 − γ²) / (2 n γ²)); 1e-12 is rounding.
+      EXPECT_NEAR(mem.sigma[f](i, i), kRelSigma * std::abs(d.response[f](i, i)), 1e-12 * std::abs(d.response[f](i, i)));
+      EXPECT_NEAR(mem.radius[f](i, i), mem.k * mem.sigma[f](i, i), 1e-12 * mem.radius[f](i, i));
+      EXPECT_EQ(mem.error[f](i, i), d.response[f](i, i) - t.model[f](i, i));
+    }
+}
+
+TEST(ModelError, WithoutCoherenceTheDefaultNoiseLevelIsUsedAndSaid) {
+  const Truth t;
+  FrequencyResponse d = measured(t.omega, t.model, 4);
+  d.coherence.clear();
+  const ModelErrorModel mem = model_error(d, t.model, options());
+  EXPECT_FALSE(mem.coherence_used);
+  EXPECT_NEAR(mem.sigma[10](2, 2), 0.02 * std::abs(d.response[10](2, 2)), 1e-15);
+}
+
+TEST(ModelError, NoiseConsistentWithCoherenceIsNotSignificantInNineOfTenSeeds) {
+  const Truth t;
+  int clean = 0;
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    const FrequencyResponse d = measured(t.omega, t.model, seed);
+    const auto bands = failing_bands(model_error(d, t.model, options()), options());
+    clean += bands.empty() ? 1 : 0;
+  }
+  // 3600 tests per seed at 1 % each: single outliers are expected, three in a band
+  // (with one gap) have a chance of about 3600 · 3 · 1e-6 ≈ 1 % per seed.
+  EXPECT_GE(clean, 9);
+}
+
+TEST(ModelError, MissingDelayFailsAboveWhereItExceedsTheNoiseAndIsNamedADelay) {
+  const Truth t;
+  constexpr double kDelay_s = 1e-3;
+  std::vector<Eigen::MatrixXcd> delayed = t.model;
+  for (Index f = 0; f < t.omega.size(); ++f) delayed[f] *= std::polar(1.0, -t.omega(f) * kDelay_s);
+  const FrequencyResponse d = measured(t.omega, delayed, 11);
+  const auto bands = failing_bands(model_error(d, t.model, options()), options());
+  // |1 − e^{−jωτ}| = 2 sin(ωτ/2) crosses k σ_rel at ω_on (about 123 rad/s).
+  const double k = confidence_radius(0.99);
+  const double on = 2 * std::asin(k * kRelSigma / 2) / kDelay_s;
+  int diagonal = 0;
+  for (const auto& b : bands) {
+    // Short bands near ω_on (where the error flickers around the threshold) may
+    // be too short to fit a delay; every band of 10 or more points must read as one.
+    if (b.points >= 10) {
+      EXPECT_EQ(b.signature, "delay") << b.output << "," << b.input << ": " << b.hint;
+    }
+    // The main band of each diagonal channel: the one that reaches the top.
+    if (b.output != b.input || b.hi_rad_s != t.omega(t.omega.size() - 1)) continue;
+    ++diagonal;
+    // Noise moves the first crossing: at 0.5 ω_on the error is 1.5 σ and a point
+    // exceeds the 3 σ circle with about 8 % chance, three of them together rarely;
+    // above 1.5 ω_on the error is 4.5 σ and nearly every point exceeds it.
+    EXPECT_GT(b.lo_rad_s, 0.5 * on);
+    EXPECT_LT(b.lo_rad_s, 1.5 * on);
+    EXPECT_NEAR(b.phase_deg_max, -1000 * kDelay_s * 180 / M_PI, 8.0);  // noise: 4 % of 1 rad ~ 2.3 deg; 3.5 sigma
+    EXPECT_NEAR(std::abs(b.gain_db_mean), 0.0, 0.5);                  // a delay has no gain error
+    EXPECT_NE(b.hint.find("phase lag growing with frequency"), std::string::npos) << b.hint;
+    // The fitted delay: the hint prints it with 3 digits; 10 % covers the phase noise.
+    const auto at = b.hint.find("delay of ");
+    ASSERT_NE(at, std::string::npos);
+    EXPECT_NEAR(std::stod(b.hint.substr(at + 9)), 1.0, 0.1) << b.hint;
+  }
+  EXPECT_EQ(diagonal, 3);
+}
+
+TEST(ModelError, MissingModeIsANarrowPeakAtItsFrequencyOnItsChannelOnly) {
+  const Truth t;
+  constexpr double kModeOmega = 612, kZeta = 0.02;
+  // A mode of 5 % of the mass line's gain (a / ω_n² against 1/(m ω_n²)) on z <- F_z.
+  const double a = 0.05 / 7.0;
+  std::vector<Eigen::MatrixXcd> with_mode = t.model;
+  for (Index f = 0; f < t.omega.size(); ++f) {
+    const Complex s(0, t.omega(f));
+    with_mode[f](2, 2) += a / (s * s + 2 * kZeta * kModeOmega * s + kModeOmega * kModeOmega);
+  }
+  const FrequencyResponse d = measured(t.omega, with_mode, 12);
+  const auto bands = failing_bands(model_error(d, t.model, options()), options());
+  ASSERT_EQ(bands.size(), 1u);
+  const FailingBand& b = bands.front();
+  EXPECT_EQ(b.output, 2);
+  EXPECT_EQ(b.input, 2);
+  EXPECT_LT(b.lo_rad_s, kModeOmega);
+  EXPECT_GT(b.hi_rad_s, kModeOmega);
+  // The mode's own error exceeds 12 % of the plant within 0.84..1.31 ω_n.
+  EXPECT_GT(b.lo_rad_s, 0.7 * kModeOmega);
+  EXPECT_LT(b.hi_rad_s, 1.5 * kModeOmega);
+  EXPECT_EQ(b.signature, "narrow_peak") << b.hint;
+  // The peak on a 133-per-decade grid is within one step (1.7 %) of ω_n.
+  const auto at = b.hint.find("narrow peak at ");
+  ASSERT_NE(at, std::string::npos) << b.hint;
+  EXPECT_NEAR(std::stod(b.hint.substr(at + 15)), kModeOmega, 0.02 * kModeOmega) << b.hint;
+}
+
+TEST(ModelError, ModelWithoutTheBeamOffsetLacksTheTiltHeightCoupling) {
+  const Truth t;  // data at x_b = +0.1 m; the model at x_b = 0 has no theta-z coupling
+  const auto centred = evaluate_response(platform_model(PlatformParameters::defaults(), kBeamMiddle_m), t.omega);
+  const FrequencyResponse d = measured(t.omega, t.model, 13);
+  const auto bands = failing_bands(model_error(d, centred, options()), options());
+  int coupling = 0;
+  for (const auto& b : bands)
+    if ((b.output == 1 && b.input == 2) || (b.output == 2 && b.input == 1)) {
+      EXPECT_EQ(b.signature, "coupling") << b.hint;
+      EXPECT_NE(b.hint.find("coupling the model lacks"), std::string::npos) << b.hint;
+      // The centred model's coupling is zero up to the rounding of the Hessenberg solve.
+      EXPECT_NEAR(b.relative_percent_mean, 100.0, 1e-6);
+      ++coupling;
+    }
+  EXPECT_EQ(coupling, 2);
+}
+
+TEST(ModelError, FailuresInOnlySomeDataSetsAreMarked) {
+  const Truth t;
+  std::vector<Eigen::MatrixXcd> delayed = t.model;
+  for (Index f = 0; f < t.omega.size(); ++f) delayed[f] *= std::polar(1.0, -t.omega(f) * 1e-3);
+  std::vector<std::vector<FailingBand>> all;
+  all.push_back(failing_bands(model_error(measured(t.omega, delayed, 21), t.model, options()), options(), 0));
+  all.push_back(failing_bands(model_error(measured(t.omega, t.model, 22), t.model, options()), options(), 1));
+  ASSERT_FALSE(all[0].empty());
+  ASSERT_TRUE(all[1].empty());
+  mark_differences_between_data(all);
+  for (const auto& b : all[0]) {
+    EXPECT_TRUE(b.differs_between_data);
+    EXPECT_NE(b.hint.find("differs between data sets (only in set 1 of 2)"), std::string::npos) << b.hint;
+  }
+}
+
+TEST(ModelError, FlaggedFrequenciesAreNeverSignificant) {
+  const Truth t;
+  FrequencyResponse d = measured(t.omega, t.model, 5);
+  d.flagged.assign(t.omega.size(), false);
+  for (Index f = 100; f < 120; ++f) {
+    d.flagged[f] = true;
+    d.response[f] *= 10.0;  // garbage at flagged frequencies
+  }
+  const ModelErrorModel mem = model_error(d, t.model, options());
+  for (Index f = 100; f < 120; ++f) EXPECT_FALSE(mem.significant[f].any());
+  EXPECT_TRUE(failing_bands(mem, options()).empty());
+}
+
+TEST(ModelError, BadOptionsAndShapesAreInputErrors) {
+  const Truth t;
+  const FrequencyResponse d = measured(t.omega, t.model, 6);
+  ModelErrorOptions o = options();
+  o.averages = 0;
+  try {
+    model_error(d, t.model, o);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "model error: 0 averages; the H1 estimate needs at least 1 (use --averages N)");
+  }
+  o = options();
+  o.confidence = 1.0;
+  EXPECT_THROW(model_error(d, t.model, o), InputError);
+  std::vector<Eigen::MatrixXcd> short_model(t.model.begin(), t.model.end() - 1);
+  EXPECT_THROW(model_error(d, short_model, options()), InputError);
+}
+
+}  // namespace
+}  // namespace lpvid
