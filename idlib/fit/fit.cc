@@ -4,6 +4,7 @@
 #include <ceres/jet.h>
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <chrono>
@@ -106,28 +107,77 @@ class Engine {
     for (Index q = 0; q < p; ++q)
       if (free_[static_cast<std::size_t>(q)] == layout_.delay) tau_free = q;
     const Index n = A.rows();
-    const Eigen::MatrixXcd Ac = A.cast<Cx>(), Bc = B.cast<Cx>(), Cc = C.cast<Cx>();
-    const Eigen::Matrix3cd Dc = D.cast<Cx>();
     const std::size_t F = d.omega.size();
     T.resize(F);
     if (dT != nullptr) dT->resize(F);
+
+    // Modal route: A = V diag(μ) V⁻¹, so (λI − A)⁻¹ = V diag(1/(λ − μ)) V⁻¹ and
+    // every frequency costs O(n·9) (plus O(n²·9) per parameter for the
+    // derivatives) instead of a complex LU.  Used when cond(V) (Frobenius
+    // estimate) is below kMaxModalCondition, so that round-off stays below
+    // ~1e-16·1e6 = 1e-10 relative; otherwise (near-defective A, e.g. repeated
+    // lag poles) the per-frequency LU route below.
+    constexpr double kMaxModalCondition = 1e6;
+    using CxN = Eigen::Matrix<Cx, Eigen::Dynamic, Eigen::Dynamic, 0, 16, 16>;
+    using Cx3N = Eigen::Matrix<Cx, 3, Eigen::Dynamic, 0, 3, 16>;
+    using CxN3 = Eigen::Matrix<Cx, Eigen::Dynamic, 3, 0, 16, 3>;
+    bool modal = n <= 16;
+    Eigen::VectorXcd mu;
+    Cx3N Ch;
+    CxN3 Bh;
+    std::vector<CxN> dAh;
+    std::vector<CxN3> dBh;
+    std::vector<Cx3N> dCh;
+    if (modal) {
+      const Eigen::EigenSolver<Eigen::MatrixXd> es(A);
+      modal = es.info() == Eigen::Success;
+      if (modal) {
+        const Eigen::MatrixXcd V = es.eigenvectors();
+        const Eigen::MatrixXcd Vinv = V.partialPivLu().inverse();
+        modal = Vinv.allFinite() && V.norm() * Vinv.norm() < kMaxModalCondition;
+        if (modal) {
+          mu = es.eigenvalues();
+          Ch = C.cast<Cx>() * V;
+          Bh = Vinv * B.cast<Cx>();
+          if (dT != nullptr)
+            for (Index q = 0; q < p; ++q) {
+              const auto s = static_cast<std::size_t>(q);
+              dAh.push_back(Vinv * dA[s].cast<Cx>() * V);
+              dBh.push_back(Vinv * dB[s].cast<Cx>());
+              dCh.push_back(dC[s].cast<Cx>() * V);
+            }
+        }
+      }
+    }
+    const Eigen::MatrixXcd Ac = A.cast<Cx>(), Bc = B.cast<Cx>(), Cc = C.cast<Cx>();
+    const Eigen::Matrix3cd Dc = D.cast<Cx>();
     Eigen::MatrixXcd Z(n, n);
+    Cx3N Chd(3, n);
+    CxN3 Bhd(n, 3);
     for (std::size_t k = 0; k < F; ++k) {
       const double w = d.omega[k];
       const Cx lambda = ts > 0.0 ? std::exp(Cx(0.0, w * ts)) : Cx(0.0, w);
-      Z = -Ac;
-      Z.diagonal().array() += lambda;
-      const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Z);
       const Cx f = std::exp(Cx(0.0, -w * tau));
       Eigen::Matrix3cd P;
       Eigen::MatrixXcd X, Y;
-      if (dT == nullptr) {
-        X = lu.solve(Bc);
-        P = (Cc * X + Dc) * f;
+      if (modal) {
+        for (Index a = 0; a < n; ++a) {
+          const Cx da = 1.0 / (lambda - mu(a));
+          Chd.col(a) = Ch.col(a) * da;
+          Bhd.row(a) = Bh.row(a) * da;
+        }
+        P = (Ch * Bhd + Dc) * f;
       } else {
-        const Eigen::MatrixXcd R = lu.inverse();
-        X = R * Bc;
-        Y = Cc * R;
+        Z = -Ac;
+        Z.diagonal().array() += lambda;
+        const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Z);
+        if (dT == nullptr) {
+          X = lu.solve(Bc);
+        } else {
+          const Eigen::MatrixXcd R = lu.inverse();
+          X = R * Bc;
+          Y = Cc * R;
+        }
         P = (Cc * X + Dc) * f;
       }
       // The target and its sensitivity to P: dT = Lm dP Rm.
@@ -156,9 +206,12 @@ class Engine {
       out.resize(static_cast<std::size_t>(p));
       for (Index q = 0; q < p; ++q) {
         const auto s = static_cast<std::size_t>(q);
-        Eigen::Matrix3cd dP = (Y * (dA[s].cast<Cx>() * X) + Y * dB[s].cast<Cx>() + dC[s].cast<Cx>() * X +
-                               dD[s].cast<Cx>()) *
-                              f;
+        Eigen::Matrix3cd dP;
+        if (modal) {
+          dP = (Chd * (dAh[s] * Bhd) + Chd * dBh[s] + dCh[s] * Bhd + dD[s].cast<Cx>()) * f;
+        } else {
+          dP = (Y * (dA[s].cast<Cx>() * X) + Y * dB[s].cast<Cx>() + dC[s].cast<Cx>() * X + dD[s].cast<Cx>()) * f;
+        }
         if (q == tau_free) dP += Cx(0.0, -w) * P;
         out[s] = Lm * dP * Rm;
       }

@@ -1,0 +1,306 @@
+// lpvid fit — fit a physical (grey-box) model, LPV in the beam position x_b,
+// jointly to responses measured at several x_b (seed 000, Fig. 13).
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <memory>
+
+#include "cli/common.h"
+#include "cli/registry.h"
+#include "cli/responses.h"
+#include "formats/io/atomic_file.h"
+#include "formats/io/model_json.h"
+#include "formats/io/physical_model_json.h"
+#include "formats/io/table_csv.h"
+#include "formats/plot/bode_plot.h"
+#include "idlib/core/error.h"
+#include "idlib/fit/fit.h"
+#include "idlib/lti/frequency_response.h"
+
+namespace lpvid::cli {
+namespace {
+
+constexpr const char* kExample = R"(
+Example:
+  lpvid model init --out start.json
+  lpvid fit --model start.json --rate-hz 1000 --data P_left.csv@-0.1 --data P_mid.csv@0 --data P_right.csv@0.1 \
+            --out fitted.json --plot fit.png --bands bands.csv
+Each --data is FILE@X_B: a plant FRD (.csv, .mat) or a state-space model (.json, evaluated
+on --grid-count log-spaced frequencies from --grid-lo to --grid-hi rad/s), and the beam
+position x_b in metres at which it was measured.  The free parameters of the model file
+are fitted jointly to all files: NLopt BOBYQA from the start and --starts - 1 random points
+(a global start on a subsample), then Ceres Levenberg-Marquardt on all data.  The error is
+the complex relative error per channel and frequency (docs/math.md, "Physical fit").
+--rate-hz: the data were identified from samples at this rate, so the model's ZOH response
+is fitted (default: the rate of a discrete data model or of the controller, else continuous).
+Closed-loop-aware: fit the closed-loop data through the known controller instead of the
+recovered plant:
+  lpvid fit --model start.json --target S --controller controller.json --data S_mid.csv@0 ... --out fitted.json
+The fitted model file gets a "fit" section (estimates, standard errors, correlation, flags,
+per-channel figures, cost, AIC/BIC).  --bands writes the model's magnitude and phase with
+their delta-method standard deviations at the data frequencies; the plot shows +-2 sigma.)";
+
+struct FitCliOptions {
+  std::string model, out, plot, bands, controller, target = "plant";
+  std::vector<std::string> data;
+  double rate_hz = 0.0, grid_lo = 1.0, grid_hi = 600.0;
+  Index grid_count = 200;
+  int starts = 8, max_iterations = 200;
+  unsigned seed = 1;
+  bool no_global = false, json = false;
+};
+
+struct DataSpec {
+  std::string path;
+  double beam_position_m = 0.0;
+};
+
+DataSpec parse_data_spec(const std::string& spec) {
+  const size_t at = spec.rfind('@');
+  if (at == std::string::npos || at == 0)
+    throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
+                                 "e.g. P_left.csv@-0.1",
+                                 spec));
+  DataSpec d;
+  d.path = spec.substr(0, at);
+  const std::string xb = spec.substr(at + 1);
+  size_t used = 0;
+  try {
+    d.beam_position_m = std::stod(xb, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (xb.empty() || used != xb.size() || !std::isfinite(d.beam_position_m))
+    throw InputError(fmt::format("--data '{}': the x_b tag '{}' is not a number; write FILE@X_B with x_b in metres, "
+                                 "e.g. P_left.csv@-0.1",
+                                 spec, xb));
+  return d;
+}
+
+std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
+
+void run(const FitCliOptions& o) {
+  // Options first, before any data is read.
+  FitOptions options;
+  options.target = parse_target(o.target);
+  options.global_start = !o.no_global;
+  options.global_starts = o.starts;
+  options.max_iterations = o.max_iterations;
+  options.seed = o.seed;
+  if (!std::isfinite(o.rate_hz) || o.rate_hz < 0)
+    throw InputError(fmt::format("--rate-hz {}: give the sample rate in Hz (> 0), or omit it", o.rate_hz));
+  if (!(o.grid_lo > 0) || !(o.grid_hi > o.grid_lo) || o.grid_count < 2)
+    throw InputError("--grid-lo/--grid-hi/--grid-count: need 0 < lo < hi and count >= 2");
+  if (o.data.empty()) throw InputError("give at least one --data FILE@X_B");
+  std::vector<DataSpec> specs;
+  for (const auto& s : o.data) specs.push_back(parse_data_spec(s));
+  if (options.target != FitTarget::kPlant && o.controller.empty())
+    throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c)",
+                                 o.target));
+  std::vector<std::string> inputs = {o.model};
+  for (const auto& s : specs) inputs.push_back(s.path);
+  if (!o.controller.empty()) inputs.push_back(o.controller);
+  for (const auto& out : {o.out, o.plot, o.bands})
+    if (!out.empty()) check_not_overwriting(inputs, out);
+
+  const PhysicalModel start = read_physical_model(o.model);
+  if (!o.controller.empty()) options.controller = read_state_space(o.controller);
+  std::vector<LoadedResponse> loaded;
+  for (const auto& s : specs) loaded.push_back(load_response(s.path));
+  // Sample period: flag, else a discrete data model's, else the controller's.
+  double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
+  std::string ts_source = o.rate_hz > 0 ? "--rate-hz" : "";
+  for (const auto& l : loaded)
+    if (ts == 0.0 && l.model && l.model->is_discrete()) {
+      ts = l.model->sample_period_s;
+      ts_source = l.path;
+    }
+  if (ts == 0.0 && options.controller && options.controller->is_discrete()) {
+    ts = options.controller->sample_period_s;
+    ts_source = o.controller;
+  }
+  options.sample_period_s = ts;
+  options.validate();
+
+  std::vector<FitDataset> data;
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    FitDataset d;
+    d.beam_position_m = specs[i].beam_position_m;
+    d.label = specs[i].path;
+    if (loaded[i].model) {
+      double hi = o.grid_hi;
+      const double period = loaded[i].model->sample_period_s;
+      // Below 0.9 of the data model's Nyquist frequency.
+      if (period > 0) hi = std::min(hi, 0.9 * M_PI / period);
+      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, hi, o.grid_count));
+    } else {
+      d.response = *loaded[i].frd;
+    }
+    data.push_back(std::move(d));
+  }
+
+  const FitResult r = fit_physical_model(start, data, options);
+
+  // The fit section of the model file.
+  nlohmann::json params = nlohmann::json::object();
+  std::vector<std::string> names;
+  for (const auto& e : r.parameters) {
+    names.push_back(e.name);
+    params[e.name] = {{"start", e.start}, {"estimate", e.estimate}, {"std_error", e.std_error},
+                      {"unit", e.unit},   {"flags", e.flags}};
+  }
+  nlohmann::json corr = nlohmann::json::array();
+  for (Index a = 0; a < r.correlation.rows(); ++a) {
+    std::vector<double> row;
+    for (Index b = 0; b < r.correlation.cols(); ++b) row.push_back(r.correlation(a, b));
+    corr.push_back(row);
+  }
+  static const char* const kOut[3] = {"psi", "theta", "z"};
+  static const char* const kIn[3] = {"T_psi", "T_theta", "F_z"};
+  nlohmann::json channels = nlohmann::json::array();
+  for (const auto& c : r.channels)
+    channels.push_back({{"output", kOut[c.output]}, {"input", kIn[c.input]},
+                        {"relative_rms_error", c.relative_rms_error}, {"per_dataset", c.per_dataset}});
+  nlohmann::json used = nlohmann::json::array();
+  for (const auto& s : specs) used.push_back({{"file", s.path}, {"x_b_m", s.beam_position_m}});
+  const nlohmann::json fit_section = {
+      {"target", target_name(options.target)},
+      {"sample_period_s", ts},
+      {"data", used},
+      {"controller", o.controller},
+      {"cost_start", r.cost_start},
+      {"cost_after_global_start", r.cost_global},
+      {"cost_final", r.cost_final},
+      {"residuals", r.residual_count},
+      {"sigma2", r.sigma2},
+      {"aic", r.aic},
+      {"bic", r.bic},
+      {"iterations", r.iterations},
+      {"termination", r.report.termination},
+      {"warnings", r.report.warnings},
+      {"parameters", params},
+      {"correlation", {{"names", names}, {"matrix", corr}}},
+      {"relative_singular_values", std::vector<double>(r.singular_values.data(),
+                                                       r.singular_values.data() + r.singular_values.size())},
+      {"identifiability", r.identifiability},
+      {"channels", channels},
+  };
+
+  AtomicOutputSet outputs;
+  outputs.stage(o.out, physical_model_to_json(r.model, fit_section));
+  if (!o.bands.empty() || !o.plot.empty()) {
+    // Bands at the data frequencies of each x_b; 2σ in the plot.
+    constexpr double kPlotSigmas = 2.0;
+    std::vector<BodeSeries> series;
+    std::vector<std::vector<double>> rows;
+    for (const auto& d : data) {
+      const ResponseBand band = response_band(r.model, r.covariance, d.beam_position_m, d.response.omega_rad_s, options);
+      const std::string tag = fmt::format("x_b = {} m", d.beam_position_m);
+      BodeSeries measured{tag + " data", d.response, BodeSeries::Style::kMarkers};
+      BodeSeries model{tag + " model", band.response, BodeSeries::Style::kLine};
+      BodeSeries lower{tag + " model -2 sigma", band.response, BodeSeries::Style::kDashed};
+      BodeSeries upper{tag + " model +2 sigma", band.response, BodeSeries::Style::kDashed};
+      for (std::size_t k = 0; k < band.response.response.size(); ++k) {
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            const Complex v = band.response.response[k](i, j);
+            const double mag = std::abs(v), sm = band.magnitude_sigma[k](i, j);
+            const Complex unit = mag > 0 ? v / mag : Complex(1.0, 0.0);
+            lower.response.response[k](i, j) = unit * std::max(mag - kPlotSigmas * sm, 0.0);
+            upper.response.response[k](i, j) = unit * (mag + kPlotSigmas * sm);
+            rows.push_back({d.beam_position_m, band.response.omega_rad_s(static_cast<Index>(k)) / (2 * M_PI),
+                            static_cast<double>(i + 1), static_cast<double>(j + 1), mag, sm,
+                            std::max(mag - kPlotSigmas * sm, 0.0), mag + kPlotSigmas * sm,
+                            std::arg(v) * 180.0 / M_PI, band.phase_sigma_rad[k](i, j) * 180.0 / M_PI});
+          }
+      }
+      series.push_back(std::move(measured));
+      series.push_back(std::move(model));
+      series.push_back(std::move(lower));
+      series.push_back(std::move(upper));
+    }
+    if (!o.bands.empty()) {
+      Eigen::MatrixXd table(static_cast<Index>(rows.size()), 10);
+      for (std::size_t i = 0; i < rows.size(); ++i)
+        for (int c = 0; c < 10; ++c) table(static_cast<Index>(i), c) = rows[i][static_cast<std::size_t>(c)];
+      write_table_csv(outputs.stage(o.bands),
+                      {"x_b_m", "freq_hz", "output", "input", "magnitude", "magnitude_sigma", "magnitude_lower",
+                       "magnitude_upper", "phase_deg", "phase_sigma_deg"},
+                      table,
+                      {"lpvid fit: fitted model response with delta-method standard deviations (docs/formats.md)",
+                       fmt::format("target {}; output 1..3 = {}; input 1..3 = {}", target_name(options.target),
+                                   options.target == FitTarget::kInputSensitivity ? "u_psi,u_theta,u_z" : "psi,theta,z",
+                                   options.target == FitTarget::kPlant ? "T_psi,T_theta,F_z" : "v_psi,v_theta,v_z"),
+                       "magnitude_lower/upper = magnitude -/+ 2 magnitude_sigma (lower clamped at 0)"});
+    }
+    if (!o.plot.empty()) {
+      BodePlotOptions plot;
+      plot.title = fmt::format("lpvid fit: {} model (lines, +-2 sigma dashed) over data (markers)",
+                               target_name(options.target));
+      const auto bytes = bode_png(series, plot);
+      outputs.stage(o.plot, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+    }
+  }
+  outputs.commit();
+
+  // Report.
+  std::string text = fmt::format("fit: {} free parameters to {} data sets ({} target, {}), {} residuals\n",
+                                 r.parameters.size(), data.size(), target_name(options.target),
+                                 ts > 0 ? fmt::format("ZOH at Ts = {} s from {}", ts, ts_source) : "continuous",
+                                 r.residual_count);
+  text += fmt::format("cost: start {:.4g}, after global start {:.4g}, final {:.4g}; AIC {:.1f}, BIC {:.1f}\n",
+                      r.cost_start, r.cost_global, r.cost_final, r.aic, r.bic);
+  text += fmt::format("{:<26} {:>12} {:>12} {:>11} {:>9}  {}\n", "parameter", "start", "estimate", "std error", "unit",
+                      "flags");
+  for (const auto& e : r.parameters) {
+    std::string flags;
+    for (const auto& f : e.flags) flags += (flags.empty() ? "" : "; ") + f;
+    text += fmt::format("{:<26} {:>12} {:>12} {:>11} {:>9}  {}\n", e.name, fmt_value(e.start), fmt_value(e.estimate),
+                        fmt_value(e.std_error), e.unit, flags);
+  }
+  text += "per-channel relative rms error (%), pooled over x_b:\n";
+  for (int i = 0; i < 3; ++i) {
+    text += fmt::format("  {:<6}", kOut[i]);
+    for (int j = 0; j < 3; ++j)
+      text += fmt::format("  {}: {:8.3f}", kIn[j], 100.0 * r.channels[static_cast<std::size_t>(3 * i + j)].relative_rms_error);
+    text += "\n";
+  }
+  for (const auto& w : r.identifiability) text += "identifiability: " + w + "\n";
+  for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
+  text += fmt::format("{} in {:.2f} s; wrote {}\n", r.report.termination, r.seconds, o.out);
+  nlohmann::json summary = fit_section;
+  summary["out"] = o.out;
+  summary["seconds"] = r.seconds;
+  print_summary(o.json, summary, text);
+}
+
+}  // namespace
+
+Command make_fit_command() {
+  return {"fit", "fit a physical LPV model to responses at several x_b", [](CLI::App& parent) {
+            auto o = std::make_shared<FitCliOptions>();
+            auto* app = parent.add_subcommand("fit", "Fit a physical model's free parameters to responses at several "
+                                                     "beam positions" + std::string(kExample));
+            app->add_option("--model", o->model, "start model file (lpvid model init)")->required();
+            app->add_option("--data", o->data, "FILE@X_B: FRD (.csv/.mat) or state-space .json, x_b in m (repeat)")
+                ->required();
+            app->add_option("--out", o->out, "fitted model file to write (JSON, with a \"fit\" section)")->required();
+            app->add_option("--target", o->target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
+            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON; for G and S");
+            app->add_option("--rate-hz", o->rate_hz, "sample rate of the data's experiment: fit the ZOH response");
+            app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data");
+            app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
+            app->add_option("--starts", o->starts, "global start: number of BOBYQA starts (default 8)");
+            app->add_flag("--no-global", o->no_global, "skip the global start (Levenberg-Marquardt from the start only)");
+            app->add_option("--seed", o->seed, "seed of the global start's random points (default 1)");
+            app->add_option("--max-iterations", o->max_iterations, "Levenberg-Marquardt iterations (default 200)");
+            app->add_option("--grid-lo", o->grid_lo, "model data: lowest frequency in rad/s (default 1)");
+            app->add_option("--grid-hi", o->grid_hi, "model data: highest frequency in rad/s (default 600)");
+            app->add_option("--grid-count", o->grid_count, "model data: number of frequencies (default 200)");
+            app->add_flag("--json", o->json, "print the summary as JSON");
+            app->callback([o] { run(*o); });
+          }};
+}
+
+}  // namespace lpvid::cli

@@ -1,0 +1,182 @@
+// lpvid fit and lpvid model through the program: simulated data with known truth.
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "formats/io/frd_csv.h"
+#include "formats/io/model_json.h"
+#include "formats/io/physical_model_json.h"
+#include "idlib/fit/fit.h"
+#include "idlib/lti/frequency_response.h"
+#include "idlib/models/platform.h"
+#include "idlib/physical/evaluate.h"
+#include "tests/support/run_lpvid.h"
+
+namespace lpvid {
+namespace {
+
+using ::testing::HasSubstr;
+using lpvid::testing::count_files;
+using lpvid::testing::run_lpvid;
+using lpvid::testing::TempDir;
+
+constexpr double kRecovery = 0.01;  // the 1 % on noise-free data
+
+PhysicalModel truth_model() {
+  PhysicalModel m = PhysicalModel::default_platform();
+  m.parameter("com_x_m").value = 0.006;
+  m.parameter("com_y_m").value = -0.004;
+  return m;
+}
+
+// Plant FRD files (ZOH at 1 kHz) at the paper's three positions; returns the --data arguments.
+std::string write_plant_frds(const TempDir& dir, const PhysicalModel& truth) {
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 100);
+  std::string args;
+  const char* names[3] = {"P_left.csv", "P_mid.csv", "P_right.csv"};
+  for (int i = 0; i < 3; ++i) {
+    FrequencyResponse f;
+    f.omega_rad_s = w;
+    f.response = physical_response(truth, kPaperBeamPositions_m[static_cast<std::size_t>(i)], w, 1e-3);
+    f.input_names = {"T_psi", "T_theta", "F_z"};
+    f.output_names = {"psi", "theta", "z"};
+    write_frd_csv(dir / names[i], f, "P");
+    args += fmt::format(" --data {}@{}", dir / names[i], kPaperBeamPositions_m[static_cast<std::size_t>(i)]);
+  }
+  return args;
+}
+
+PhysicalModel two_times_off(const PhysicalModel& truth) {
+  PhysicalModel m = truth;
+  int k = 0;
+  for (auto& p : m.parameters)
+    if (p.free) p.value = std::clamp(k++ % 2 == 0 ? 2.0 * p.value : 0.5 * p.value, p.lower, p.upper);
+  return m;
+}
+
+TEST(FitCli, FrdAtThreePositionsRecoversTruthAndWritesModelPlotAndBands) {
+  TempDir dir("fit");
+  const PhysicalModel truth = truth_model();
+  const std::string data = write_plant_frds(dir, truth);
+  write_physical_model(dir / "start.json", two_times_off(truth));
+  const auto r = run_lpvid(fmt::format("fit --model {} {} --rate-hz 1000 --out {} --plot {} --bands {}",
+                                       dir / "start.json", data, dir / "fitted.json", dir / "fit.png",
+                                       dir / "bands.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("parameter"));
+  EXPECT_THAT(r.out, HasSubstr("per-channel relative rms error"));
+  const PhysicalModel fitted = read_physical_model(dir / "fitted.json");
+  for (const auto& p : fitted.parameters)
+    if (p.free) {
+      EXPECT_NEAR(p.value, truth.parameter(p.name).value, kRecovery * std::max(std::abs(p.value), 1e-3)) << p.name;
+    }
+  const std::string text = lpvid::testing::slurp(dir / "fitted.json");
+  EXPECT_THAT(text, HasSubstr("\"fit\""));
+  EXPECT_THAT(text, HasSubstr("\"std_error\""));
+  EXPECT_GT(std::filesystem::file_size(dir / "fit.png"), 10000u);
+  const std::string bands = lpvid::testing::slurp(dir / "bands.csv");
+  EXPECT_THAT(bands, HasSubstr("x_b_m,freq_hz,output,input,magnitude,magnitude_sigma"));
+}
+
+TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
+  TempDir dir("fit_s");
+  const PhysicalModel truth = truth_model();
+  FitOptions o;
+  o.target = FitTarget::kInputSensitivity;
+  o.sample_period_s = 1e-3;
+  o.controller = discrete_pi_controller(default_pi_gains(to_platform_parameters(truth)), 1e-3);
+  write_state_space(dir / "C.json", *o.controller);
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 100);
+  std::string data;
+  for (double xb : kPaperBeamPositions_m) {
+    const auto path = dir / fmt::format("S_{}.csv", xb);
+    write_frd_csv(path, target_response(truth, xb, w, o), "S");
+    data += fmt::format(" --data {}@{}", path, xb);
+  }
+  write_physical_model(dir / "start.json", two_times_off(truth));
+  // The ZOH rate comes from the discrete controller.
+  const auto r = run_lpvid(fmt::format("fit --model {} {} --target S --controller {} --out {} --json",
+                                       dir / "start.json", data, dir / "C.json", dir / "fitted.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("\"sample_period_s\": 0.001"));
+  EXPECT_THAT(r.out, HasSubstr("\"target\": \"S\""));
+  const PhysicalModel fitted = read_physical_model(dir / "fitted.json");
+  for (const auto& p : fitted.parameters)
+    if (p.free) {
+      EXPECT_NEAR(p.value, truth.parameter(p.name).value, kRecovery * std::max(std::abs(p.value), 1e-3)) << p.name;
+    }
+}
+
+TEST(FitCli, MissingXbTagIsExit2WithOneLineAndNoOutput) {
+  TempDir dir("fit_bad");
+  write_physical_model(dir / "start.json", PhysicalModel::default_platform());
+  const auto r = run_lpvid(fmt::format("fit --model {} --data P.csv --out {}", dir / "start.json", dir / "out.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("missing @x_b tag"));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(count_files(dir.path()), 1);
+}
+
+TEST(FitCli, BadModelFilesAreExit2WithFileLineColumn) {
+  TempDir dir("fit_badmodel");
+  const std::string good = physical_model_to_json(PhysicalModel::default_platform());
+  const std::string data = write_plant_frds(dir, truth_model());
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"\"coil_damping_Ns_per_m\"", "\"coil_damping\""},                      // unknown parameter
+      {"\"lower\": 0.001, \"upper\": 10000.0", "\"lower\": 10000, \"upper\": 0.001"},  // bounds reversed
+      {"\"value\": 1500.0,", "\"value\": 1e9,"},                               // value outside bounds
+  };
+  for (const auto& [from, to] : cases) {
+    std::string text = good;
+    text.replace(text.find(from), from.size(), to);
+    lpvid::testing::TempDir sub("m");
+    {
+      std::ofstream(sub / "bad.json") << text;
+    }
+    const auto r = run_lpvid(fmt::format("fit --model {} {} --out {}", sub / "bad.json", data, sub / "out.json"));
+    EXPECT_EQ(r.exit_code, 2) << to;
+    EXPECT_THAT(r.err, HasSubstr(sub / "bad.json:")) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(sub / "out.json"));
+  }
+}
+
+TEST(FitCli, TargetSWithoutControllerIsExit2) {
+  TempDir dir("fit_noc");
+  write_physical_model(dir / "start.json", PhysicalModel::default_platform());
+  const auto r = run_lpvid(fmt::format("fit --model {} --target S --data S.csv@0 --out {}", dir / "start.json",
+                                       dir / "out.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--controller"));
+}
+
+TEST(ModelCli, InitAddEffectsAndExport) {
+  TempDir dir("model");
+  ASSERT_EQ(run_lpvid(fmt::format("model init --out {}", dir / "m.json")).exit_code, 0);
+  const auto add = run_lpvid(fmt::format("model add input_delay --model {}", dir / "m.json"));
+  ASSERT_EQ(add.exit_code, 0) << add.err;
+  EXPECT_TRUE(read_physical_model(dir / "m.json").has_effect("input_delay"));
+  const auto unknown = run_lpvid(fmt::format("model add friction --model {}", dir / "m.json"));
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_THAT(unknown.err, HasSubstr("unknown effect 'friction'"));
+  const auto effects = run_lpvid("model effects");
+  EXPECT_EQ(effects.exit_code, 0);
+  EXPECT_THAT(effects.out, HasSubstr("structural_mode"));
+  const auto exp = run_lpvid(fmt::format("model export --model {} --xb 0.05 --rate-hz 1000 --out {}", dir / "m.json",
+                                         dir / "ss.json"));
+  ASSERT_EQ(exp.exit_code, 0) << exp.err;
+  const StateSpace ss = read_state_space(dir / "ss.json");
+  // Default delay 0.5 ms at 1 kHz rounds to 1 sample (llround(0.5) = 1): 6 + 3 states.
+  EXPECT_EQ(ss.order(), 9);
+  EXPECT_EQ(ss.sample_period_s, 1e-3);
+  const auto out_of_stroke =
+      run_lpvid(fmt::format("model export --model {} --xb 0.5 --out {}", dir / "m.json", dir / "x.json"));
+  EXPECT_EQ(out_of_stroke.exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.json"));
+}
+
+}  // namespace
+}  // namespace lpvid
