@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cli/common.h"
+#include "cli/fit_inputs.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
@@ -42,103 +43,21 @@ per-channel figures, cost, AIC/BIC).  --bands writes the model's magnitude and p
 their delta-method standard deviations at the data frequencies; the plot shows +-2 sigma.)";
 
 struct FitCliOptions {
-  std::string model, out, plot, bands, controller, target = "plant";
-  std::vector<std::string> data;
-  double rate_hz = 0.0, grid_lo = 1.0, grid_hi = 600.0;
-  Index grid_count = 200;
-  int starts = 8, max_iterations = 200;
-  unsigned seed = 1;
-  bool no_global = false, json = false;
+  FitInputOptions in;
+  std::string out, plot, bands;
+  bool json = false;
 };
-
-struct DataSpec {
-  std::string path;
-  double beam_position_m = 0.0;
-};
-
-DataSpec parse_data_spec(const std::string& spec) {
-  const size_t at = spec.rfind('@');
-  if (at == std::string::npos || at == 0)
-    throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
-                                 "e.g. P_left.csv@-0.1",
-                                 spec));
-  DataSpec d;
-  d.path = spec.substr(0, at);
-  const std::string xb = spec.substr(at + 1);
-  size_t used = 0;
-  try {
-    d.beam_position_m = std::stod(xb, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (xb.empty() || used != xb.size() || !std::isfinite(d.beam_position_m))
-    throw InputError(fmt::format("--data '{}': the x_b tag '{}' is not a number; write FILE@X_B with x_b in metres, "
-                                 "e.g. P_left.csv@-0.1",
-                                 spec, xb));
-  return d;
-}
 
 std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
 
 void run(const FitCliOptions& o) {
-  // Options first, before any data is read.
-  FitOptions options;
-  options.target = parse_target(o.target);
-  options.global_start = !o.no_global;
-  options.global_starts = o.starts;
-  options.max_iterations = o.max_iterations;
-  options.seed = o.seed;
-  if (!std::isfinite(o.rate_hz) || o.rate_hz < 0)
-    throw InputError(fmt::format("--rate-hz {}: give the sample rate in Hz (> 0), or omit it", o.rate_hz));
-  if (!(o.grid_lo > 0) || !(o.grid_hi > o.grid_lo) || o.grid_count < 2)
-    throw InputError("--grid-lo/--grid-hi/--grid-count: need 0 < lo < hi and count >= 2");
-  if (o.data.empty()) throw InputError("give at least one --data FILE@X_B");
-  std::vector<DataSpec> specs;
-  for (const auto& s : o.data) specs.push_back(parse_data_spec(s));
-  if (options.target != FitTarget::kPlant && o.controller.empty())
-    throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c)",
-                                 o.target));
-  std::vector<std::string> inputs = {o.model};
-  for (const auto& s : specs) inputs.push_back(s.path);
-  if (!o.controller.empty()) inputs.push_back(o.controller);
-  for (const auto& out : {o.out, o.plot, o.bands})
-    if (!out.empty()) check_not_overwriting(inputs, out);
-
-  const PhysicalModel start = read_physical_model(o.model);
-  if (!o.controller.empty()) options.controller = read_state_space(o.controller);
-  std::vector<LoadedResponse> loaded;
-  for (const auto& s : specs) loaded.push_back(load_response(s.path));
-  // Sample period: flag, else a discrete data model's, else the controller's.
-  double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
-  std::string ts_source = o.rate_hz > 0 ? "--rate-hz" : "";
-  for (const auto& l : loaded)
-    if (ts == 0.0 && l.model && l.model->is_discrete()) {
-      ts = l.model->sample_period_s;
-      ts_source = l.path;
-    }
-  if (ts == 0.0 && options.controller && options.controller->is_discrete()) {
-    ts = options.controller->sample_period_s;
-    ts_source = o.controller;
-  }
-  options.sample_period_s = ts;
-  options.validate();
-
-  std::vector<FitDataset> data;
-  for (std::size_t i = 0; i < specs.size(); ++i) {
-    FitDataset d;
-    d.beam_position_m = specs[i].beam_position_m;
-    d.label = specs[i].path;
-    if (loaded[i].model) {
-      double hi = o.grid_hi;
-      const double period = loaded[i].model->sample_period_s;
-      // Below 0.9 of the data model's Nyquist frequency.
-      if (period > 0) hi = std::min(hi, 0.9 * M_PI / period);
-      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, hi, o.grid_count));
-    } else {
-      d.response = *loaded[i].frd;
-    }
-    data.push_back(std::move(d));
-  }
+  const FitInputs in = load_fit_inputs(o.in, {o.out, o.plot, o.bands});
+  const FitOptions& options = in.options;
+  const std::vector<FitDataset>& data = in.data;
+  const std::vector<FitDataSpec>& specs = in.specs;
+  const double ts = options.sample_period_s;
+  const std::string& ts_source = in.sample_period_source;
+  const PhysicalModel& start = in.start;
 
   const FitResult r = fit_physical_model(start, data, options);
 
@@ -168,7 +87,7 @@ void run(const FitCliOptions& o) {
       {"target", target_name(options.target)},
       {"sample_period_s", ts},
       {"data", used},
-      {"controller", o.controller},
+      {"controller", o.in.controller},
       {"cost_start", r.cost_start},
       {"cost_after_global_start", r.cost_global},
       {"cost_final", r.cost_final},
@@ -282,22 +201,10 @@ Command make_fit_command() {
             auto o = std::make_shared<FitCliOptions>();
             auto* app = parent.add_subcommand("fit", "Fit a physical model's free parameters to responses at several "
                                                      "beam positions" + std::string(kExample));
-            app->add_option("--model", o->model, "start model file (lpvid model init)")->required();
-            app->add_option("--data", o->data, "FILE@X_B: FRD (.csv/.mat) or state-space .json, x_b in m (repeat)")
-                ->required();
+            add_fit_input_options(*app, o->in);
             app->add_option("--out", o->out, "fitted model file to write (JSON, with a \"fit\" section)")->required();
-            app->add_option("--target", o->target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
-            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON; for G and S");
-            app->add_option("--rate-hz", o->rate_hz, "sample rate of the data's experiment: fit the ZOH response");
             app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
-            app->add_option("--starts", o->starts, "global start: number of BOBYQA starts (default 8)");
-            app->add_flag("--no-global", o->no_global, "skip the global start (Levenberg-Marquardt from the start only)");
-            app->add_option("--seed", o->seed, "seed of the global start's random points (default 1)");
-            app->add_option("--max-iterations", o->max_iterations, "Levenberg-Marquardt iterations (default 200)");
-            app->add_option("--grid-lo", o->grid_lo, "model data: lowest frequency in rad/s (default 1)");
-            app->add_option("--grid-hi", o->grid_hi, "model data: highest frequency in rad/s (default 600)");
-            app->add_option("--grid-count", o->grid_count, "model data: number of frequencies (default 200)");
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });
           }};
