@@ -19,12 +19,13 @@ Command make_bode_command();
 Command make_identify_command();
 Command make_frf_command();
 Command make_compare_command();
+Command make_history_command();
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> all = {
       make_simulate_command(), make_markov_command(), make_hankel_command(), make_realize_command(),
       make_unloop_command(),   make_bode_command(),   make_identify_command(), make_frf_command(),
-      make_compare_command(),
+      make_compare_command(),  make_history_command(),
   };
   return all;
 }

@@ -20,6 +20,9 @@ constexpr double kPeakOverEdges = 3.0;      // peak >= 3 x |E| at both ends
 constexpr double kNarrowDecades = 0.5;      // a narrow band spans less than half a decade
 constexpr double kDelayFitResidual = 0.3;   // −ωτ leaves < 30 % of the phase RMS
 constexpr double kCouplingLacking = 0.3;    // model below 30 % of the data: coupling lacking
+// A model below 1e-6 of the data (−120 dB) is numerically zero there (e.g. a
+// coupling that cancels only up to rounding): no gain or phase is reported.
+constexpr double kModelZeroShare = 1e-6;
 
 bool finite(const Complex& z) { return std::isfinite(z.real()) && std::isfinite(z.imag()); }
 
@@ -123,7 +126,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
     rel[t] = std::abs(d) > 0 ? 100.0 * err[t] / std::abs(d) : kInf;
     sum_model += std::abs(mo);
     sum_data += std::abs(d);
-    if (std::abs(mo) == 0 || std::abs(d) == 0) {
+    if (std::abs(mo) <= kModelZeroShare * std::abs(d) || std::abs(d) == 0) {
       model_zero = true;
       gain[t] = phase[t] = kNaN;
     } else {

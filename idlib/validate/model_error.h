@@ -46,7 +46,8 @@
 //   gain_db   = 20 log10 |P_data / P_model|   (mean, and the value of largest size)
 //   phase_deg = arg(P_data / P_model) in deg (mean, and the value of largest size)
 //   relative  = 100 |E| / |P_data| percent   (mean and max)
-// gain and phase are NaN when P_model is zero somewhere in the band.
+// gain and phase are NaN when P_model is zero somewhere in the band (below 1e-6 of
+// |P_data|, i.e. −120 dB: a coupling that cancels only up to rounding).
 //
 // Signature (the first rule that holds; `signature` is the key, `hint` the words):
 //   "narrow_peak"   |E| peaks inside the band (not at its first or last 15 %),
