@@ -158,6 +158,12 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   b.omega_at_max_rad_s = w[at_rel];
 
   // --- signature (header comment: the first rule that holds) ---
+  if (i != j && sum_model < kCouplingLacking * sum_data) {
+    b.signature = "coupling";
+    b.hint = fmt::format("off-diagonal coupling the model lacks (model at {:.0f} % of the measured)",
+                         100.0 * sum_model / sum_data);
+    return;
+  }
   const std::size_t peak = static_cast<std::size_t>(std::max_element(err.begin(), err.end()) - err.begin());
   const double edge = kPeakEdgeShare * static_cast<double>(n - 1);
   const bool interior = static_cast<double>(peak) > edge && static_cast<double>(peak) < static_cast<double>(n - 1) - edge;
@@ -196,10 +202,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   }
   if (i != j) {
     b.signature = "coupling";
-    b.hint = sum_model < kCouplingLacking * sum_data
-                 ? fmt::format("off-diagonal coupling the model lacks (model at {:.0f} % of the measured)",
-                               100.0 * sum_model / sum_data)
-                 : "off-diagonal coupling error";
+    b.hint = "off-diagonal coupling error";
     return;
   }
   Index first_used = -1, last_used = -1;
