@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "cli/common.h"
@@ -22,7 +23,8 @@ Example:
 Reads plant.json.history.jsonl (one record per fit, appended by the fit; docs/formats.md,
 "Fit history") and prints the error model by model: effects, free parameters, cost,
 mean and largest weighted error, AIC/BIC and the change from the previous fit.  --png
-draws the error falling: one bar per fit (log scale), labelled with its effects.)";
+draws the error falling: one bar per fit (log scale), labelled with the effects the fit
+added or removed.)";
 
 struct HistoryCliOptions {
   std::string model, png;
@@ -33,6 +35,16 @@ nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::js
 
 std::string effects_text(const HistoryRecord& r) {
   return r.effects.empty() ? std::string("(no effects)") : fmt::format("{}", fmt::join(r.effects, ", "));
+}
+
+// What changed from the previous fit: "+ delay, - damping" (or "same effects").
+std::string effects_change(const HistoryRecord& before, const HistoryRecord& after) {
+  std::vector<std::string> parts;
+  for (const auto& e : after.effects)
+    if (std::find(before.effects.begin(), before.effects.end(), e) == before.effects.end()) parts.push_back("+ " + e);
+  for (const auto& e : before.effects)
+    if (std::find(after.effects.begin(), after.effects.end(), e) == after.effects.end()) parts.push_back("- " + e);
+  return parts.empty() ? std::string("same effects") : fmt::format("{}", fmt::join(parts, ", "));
 }
 
 void run(const HistoryCliOptions& o) {
@@ -80,7 +92,8 @@ void run(const HistoryCliOptions& o) {
       if (!(r.error_mean > 0))
         throw InputError(fmt::format("{}: fit {} has a mean error of 0, which a log-scale chart cannot show; use --json",
                                      path, k + 1));
-      bars.push_back({fmt::format("{}: {}", k + 1, effects_text(r)), 100 * r.error_mean, 100 * r.error_max});
+      bars.push_back({fmt::format("{}: {}", k + 1, k == 0 ? effects_text(r) : effects_change(records[k - 1], r)),
+                      100 * r.error_mean, 100 * r.error_max});
     }
     const auto png = history_png(bars, fmt::format("Model error, fit by fit: {}", o.model));
     write_file_atomic(o.png, std::string(reinterpret_cast<const char*>(png.data()), png.size()));

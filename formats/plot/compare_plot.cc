@@ -142,7 +142,8 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
                       plot::Marker::kNone});
   legend.push_back({"error |E|/|P| (lower axes)", plot::kAxisColor, plot::LineStyle::kSolid, plot::Marker::kNone});
   legend.push_back({o.band_label + " (grey)", kNoiseFill, plot::LineStyle::kSolid, plot::Marker::kSquare});
-  legend.push_back({"failing band (red)", cv::Scalar(150, 150, 250), plot::LineStyle::kSolid, plot::Marker::kSquare});
+  if (!bands.empty())
+    legend.push_back({"failing band (red)", cv::Scalar(150, 150, 250), plot::LineStyle::kSolid, plot::Marker::kSquare});
   const int width = grid_left + static_cast<int>(m) * col_w + kMargin;
   const cv::Size leg = plot::legend_size(legend, width - 2 * kMargin);
   const int height = grid_bottom + kXTickHeight + kXLabelHeight + leg.height + 2 * kMargin;

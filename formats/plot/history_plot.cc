@@ -22,7 +22,7 @@ constexpr int kTitleHeight = 40;
 constexpr int kAxesHeight = 360;
 constexpr int kBarSlot = 70;       // px per fit
 constexpr int kMinAxesWidth = 420;
-constexpr int kLabelMaxPx = 260;   // rotated labels under the axes
+constexpr int kLabelMaxPx = 300;   // rotated labels under the axes
 constexpr int kMarkerSize = 10;
 
 std::string fit(const std::string& text, const plot::TextStyle& style, int max_width) {

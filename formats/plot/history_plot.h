@@ -13,7 +13,7 @@
 namespace lpvid {
 
 struct HistoryBar {
-  std::string label;       // e.g. "3: rigid body, suspension, delay"
+  std::string label;       // e.g. "3: + delay" (lpvid history: the effects the fit added)
   double mean_percent = 0; // > 0
   double max_percent = 0;  // >= mean_percent
 };
