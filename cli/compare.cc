@@ -1,5 +1,11 @@
-// lpvid compare — where two frequency responses differ: per channel and band,
-// as a table or --json (a first version; the model-error issue grows it).
+// lpvid compare — where does a model fail?  Two forms:
+//   lpvid compare --model M --data FRD [--data FRD ...] [--out-png p.png] [--json]
+//     the model-error model (idlib/validate/model_error.h): E = P_data − P_model per
+//     channel with its noise band from coherence, the failing bands (significant
+//     beyond the noise) listed with size and signature, and a PNG;
+//   lpvid compare ESTIMATE REFERENCE
+//     the first version: distance between two responses per channel and band.
+// (A time-domain form, --log, is dispatched to cli/compare_time.cc.)
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
@@ -7,15 +13,29 @@
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
+#include "formats/plot/compare_plot.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/compare.h"
+#include "idlib/validate/model_error.h"
 
 namespace lpvid::cli {
 namespace {
 
 constexpr const char* kExample = R"(
 Example:
+  lpvid compare --model plant.json --data P_left.csv --data P_right.csv --out-png compare.png
+  lpvid compare --model left.json --model right.json --data P_left.csv --data P_right.csv --json
+With --model and --data: the model-error model E = P_data - P_model of every channel, its
+99 % noise band from the data's coherence (H1 estimate with --averages independent
+averages; without coherence a default noise level, --noise-level, and the output says so),
+and the failing bands: frequencies where |E| is beyond the noise, at least --min-points
+of them together.  The table (or --json) lists each failure: data set, channel, band
+rad/s, size in dB, degrees and percent of |P_data|, and a signature in plain words
+("phase lag growing with frequency", "narrow peak at 612 rad/s", "off-diagonal coupling",
+"low-frequency gain error", "differs between data sets").  One --model for all data, or
+one per --data (in order).  Failures are results: the exit code is 0.
+
   lpvid compare P_from_S.csv truth_plant.json --band-min 1 --band-max 400 --weights 0.1,0.1,1
   lpvid compare P_from_S.csv P_from_G.csv --json
 ESTIMATE and REFERENCE are models (.json) or FRD files (.csv, .mat); a model is evaluated on
@@ -29,9 +49,170 @@ struct CompareCliOptions {
   double band_min = 0, band_max = 0, per_decade = 1;
   Index top = 9, points = 400;
   bool json = false;
+  // Model-error form.
+  std::vector<std::string> models, data;
+  std::string out_png, labels;
+  ModelErrorOptions mem;
 };
 
+nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string channel_name(const std::vector<std::string>& names, Index i) {
+  return i < static_cast<Index>(names.size()) && !names[static_cast<std::size_t>(i)].empty()
+             ? names[static_cast<std::size_t>(i)]
+             : std::to_string(i + 1);
+}
+
+void run_model_error(const CompareCliOptions& o) {
+  o.mem.validate();
+  if (o.models.empty()) throw InputError("compare: --data needs --model (the model to compare the data with)");
+  if (o.models.size() != 1 && o.models.size() != o.data.size())
+    throw InputError(fmt::format("compare: {} --model for {} --data; give one model for all data or one per data set",
+                                 o.models.size(), o.data.size()));
+  if (!o.estimate.empty())
+    throw InputError(fmt::format("compare: '{}' given with --model/--data; use either ESTIMATE REFERENCE or "
+                                 "--model M --data FRD",
+                                 o.estimate));
+  std::vector<std::string> labels;
+  if (!o.labels.empty()) {
+    labels = split_names(o.labels, "--labels");
+    if (labels.size() != o.data.size())
+      throw InputError(fmt::format("--labels: {} labels for {} --data; give one per data set", labels.size(),
+                                   o.data.size()));
+  }
+  std::vector<std::string> inputs = o.models;
+  inputs.insert(inputs.end(), o.data.begin(), o.data.end());
+  for (const std::string& out : {o.out_png, o.out})
+    if (!out.empty()) check_not_overwriting(inputs, out);
+  if (!o.out_png.empty() && o.out_png == o.out)
+    throw InputError(fmt::format("compare: --out-png and --out are both '{}'; give two files", o.out));
+
+  std::vector<LoadedResponse> models;
+  for (const auto& m : o.models) models.push_back(load_response(m));
+  std::vector<ModelErrorModel> mems;
+  std::vector<std::vector<FailingBand>> failures;
+  std::vector<FrequencyResponse> datas;
+  for (std::size_t d = 0; d < o.data.size(); ++d) {
+    LoadedResponse data = load_response(o.data[d]);
+    if (!data.frd)
+      throw InputError(fmt::format("--data '{}' is a model; --data takes measured frequency-response data (FRD .csv "
+                                   "or .mat), --model the model",
+                                   o.data[d]));
+    const LoadedResponse& model = models[models.size() == 1 ? 0 : d];
+    const FrequencyResponse on = response_on(model, data.frd->omega_rad_s);
+    if (on.num_outputs() != data.frd->num_outputs() || on.num_inputs() != data.frd->num_inputs())
+      throw InputError(fmt::format("compare: '{}' is {}x{} but the model '{}' is {}x{}; give data and model of one plant",
+                                   o.data[d], data.frd->num_outputs(), data.frd->num_inputs(), model.path,
+                                   on.num_outputs(), on.num_inputs()));
+    mems.push_back(model_error(*data.frd, on.response, o.mem));
+    failures.push_back(failing_bands(mems.back(), o.mem, static_cast<Index>(d)));
+    datas.push_back(std::move(*data.frd));
+  }
+  mark_differences_between_data(failures);
+  const FrequencyResponse& first = datas.front();
+  const std::vector<std::string>& out_names =
+      !first.output_names.empty() ? first.output_names
+                                  : (models.front().model ? models.front().model->output_names : std::vector<std::string>{});
+  const std::vector<std::string>& in_names =
+      !first.input_names.empty() ? first.input_names
+                                 : (models.front().model ? models.front().model->input_names : std::vector<std::string>{});
+  auto label_of = [&](std::size_t d) { return labels.empty() ? o.data[d] : labels[d]; };
+
+  // --- report ---
+  nlohmann::json jdata = nlohmann::json::array(), jfail = nlohmann::json::array();
+  std::string text = fmt::format("compare: model-error model of {} data set(s) against {}; {:.3g} % noise band (k = {:.3f} sigma)\n",
+                                 o.data.size(), fmt::join(o.models, ", "), 100 * o.mem.confidence, mems.front().k);
+  std::size_t total = 0;
+  for (std::size_t d = 0; d < o.data.size(); ++d) {
+    const std::string noise =
+        mems[d].coherence_used
+            ? fmt::format("noise from the data's coherence, {:g} averages (--averages)", o.mem.averages)
+            : fmt::format("no coherence in the data: default noise level {:g} % of |P| (--noise-level)",
+                          100 * o.mem.default_relative_sigma);
+    Index skipped = 0;
+    for (bool s : mems[d].skipped) skipped += s ? 1 : 0;
+    jdata.push_back({{"file", o.data[d]},
+                     {"label", label_of(d)},
+                     {"frequencies", mems[d].omega_rad_s.size()},
+                     {"flagged_skipped", skipped},
+                     {"coherence_used", mems[d].coherence_used},
+                     {"noise", noise},
+                     {"failing_bands", failures[d].size()}});
+    text += fmt::format("  data {} '{}': {} frequencies ({} flagged, skipped); {}; {} failing band(s)\n", d + 1,
+                        label_of(d), mems[d].omega_rad_s.size(), skipped, noise, failures[d].size());
+    total += failures[d].size();
+  }
+  if (total == 0) {
+    text += "  no failing band: every difference is within the measurement's noise\n";
+  } else {
+    text += "  data  output    input     band [rad/s]         points  gain dB mean/max   phase deg mean/max  error % mean/max  signature\n";
+  }
+  for (const auto& set : failures)
+    for (const FailingBand& b : set) {
+      const std::string out = channel_name(out_names, b.output), in = channel_name(in_names, b.input);
+      jfail.push_back({{"data", b.data_index + 1},
+                       {"data_file", o.data[static_cast<std::size_t>(b.data_index)]},
+                       {"output", out},
+                       {"input", in},
+                       {"band_rad_s", {b.lo_rad_s, b.hi_rad_s}},
+                       {"points", b.points},
+                       {"gain_db", {{"mean", number_or_null(b.gain_db_mean)}, {"max", number_or_null(b.gain_db_max)}}},
+                       {"phase_deg", {{"mean", number_or_null(b.phase_deg_mean)}, {"max", number_or_null(b.phase_deg_max)}}},
+                       {"relative_percent",
+                        {{"mean", number_or_null(b.relative_percent_mean)}, {"max", number_or_null(b.relative_percent_max)}}},
+                       {"omega_at_max_rad_s", b.omega_at_max_rad_s},
+                       {"sigma_max", number_or_null(b.max_sigma_ratio)},
+                       {"signature", b.signature},
+                       {"hint", b.hint},
+                       {"differs_between_data", b.differs_between_data}});
+      auto num = [](double v, const char* f) { return std::isfinite(v) ? fmt::format(fmt::runtime(f), v) : std::string("-"); };
+      text += fmt::format("  {:<5} {:<9} {:<9} {:>8.4g} - {:<8.4g}  {:6d}  {:>7} / {:<7}  {:>7} / {:<7}   {:>6} / {:<7} {}\n",
+                          b.data_index + 1, out, in, b.lo_rad_s, b.hi_rad_s, b.points, num(b.gain_db_mean, "{:+.2f}"),
+                          num(b.gain_db_max, "{:+.2f}"), num(b.phase_deg_mean, "{:+.1f}"), num(b.phase_deg_max, "{:+.1f}"),
+                          num(b.relative_percent_mean, "{:.1f}"), num(b.relative_percent_max, "{:.1f}"), b.hint);
+    }
+  nlohmann::json summary = {{"models", o.models},
+                            {"data", jdata},
+                            {"confidence", o.mem.confidence},
+                            {"k_sigma", mems.front().k},
+                            {"averages", o.mem.averages},
+                            {"min_points", o.mem.min_band_points},
+                            {"failing_bands", total},
+                            {"failures", jfail}};
+
+  // --- outputs, staged and committed together ---
+  AtomicOutputSet outputs;
+  if (!o.out_png.empty()) {
+    std::vector<CompareSeries> series;
+    std::vector<CompareBandMark> marks;
+    for (std::size_t d = 0; d < mems.size(); ++d) {
+      series.push_back({o.data.size() > 1 ? label_of(d) : "", mems[d].omega_rad_s, mems[d].data, mems[d].model,
+                        mems[d].radius, mems[d].skipped});
+      for (const auto& b : failures[d]) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
+    }
+    ComparePlotOptions po;
+    po.same_model = o.models.size() == 1;
+    po.band_label = fmt::format("{:g} % noise band", 100 * o.mem.confidence);
+    po.title = fmt::format("Model {} vs measurement: {} failing band{}", fmt::join(o.models, ", "), total,
+                           total == 1 ? "" : "s");
+    if (static_cast<Index>(out_names.size()) == first.num_outputs()) po.output_labels = out_names;
+    if (static_cast<Index>(in_names.size()) == first.num_inputs()) po.input_labels = in_names;
+    const auto png = compare_png(series, marks, po);
+    outputs.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+    summary["png"] = o.out_png;
+  }
+  if (!o.out.empty()) outputs.stage(o.out, summary.dump(2) + "\n");
+  outputs.commit();
+  print_summary(o.json, summary, text);
+}
+
 void run(const CompareCliOptions& o) {
+  if (!o.data.empty()) return run_model_error(o);
+  if (!o.models.empty()) throw InputError("compare: --model needs --data (the measured FRD to compare it with)");
+  if (o.estimate.empty() || o.reference.empty())
+    throw InputError("compare: give --model M --data FRD (where the model fails), or ESTIMATE REFERENCE (distance "
+                     "between two responses)");
+  if (!o.out_png.empty()) throw InputError("compare: --out-png needs --model and --data");
   CompareOptions options;
   options.band_min_rad_s = o.band_min;
   options.band_max_rad_s = o.band_max;
@@ -121,12 +302,24 @@ void run(const CompareCliOptions& o) {
 }  // namespace
 
 Command make_compare_command() {
-  return {"compare", "where two responses differ, per channel and band", [](CLI::App& parent) {
+  return {"compare", "where a model fails against measurements (model-error model, failing bands, PNG)", [](CLI::App& parent) {
             auto o = std::make_shared<CompareCliOptions>();
-            auto* app = parent.add_subcommand("compare", "Distance between a response and a reference per channel and band" +
+            auto* app = parent.add_subcommand("compare", "Where a model fails: model-error model with noise band and failing bands" +
                                                              std::string(kExample));
-            app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)")->required();
-            app->add_option("reference", o->reference, "model (.json) or FRD (.csv, .mat)")->required();
+            app->add_option("--model", o->models, "model (.json) or FRD; once, or once per --data")
+                ->take_all()
+                ->expected(1);
+            app->add_option("--data", o->data, "measured FRD (.csv, .mat), repeatable")->take_all()->expected(1);
+            app->add_option("--out-png", o->out_png, "figure: measurement and model overlaid with error panels");
+            app->add_option("--labels", o->labels, "one label per --data for the table and figure (comma separated)");
+            app->add_option("--averages", o->mem.averages, "independent averages of the H1 estimate (default 16)");
+            app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)");
+            app->add_option("--noise-level", o->mem.default_relative_sigma,
+                            "noise per real part as a fraction of |P| when the data carry no coherence (default 0.02)");
+            app->add_option("--min-points", o->mem.min_band_points,
+                            "significant frequencies a failing band needs (default 3)");
+            app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)");
+            app->add_option("reference", o->reference, "model (.json) or FRD (.csv, .mat)");
             app->add_option("--band-min", o->band_min, "lowest frequency, rad/s (default: from the data)");
             app->add_option("--band-max", o->band_max, "highest frequency, rad/s (default: from the data)");
             app->add_option("--bands-per-decade", o->per_decade, "log-spaced bands per decade");

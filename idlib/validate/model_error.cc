@@ -20,6 +20,9 @@ constexpr double kPeakOverEdges = 3.0;      // peak >= 3 x |E| at both ends
 constexpr double kNarrowDecades = 0.5;      // a narrow band spans less than half a decade
 constexpr double kDelayFitResidual = 0.3;   // −ωτ leaves < 30 % of the phase RMS
 constexpr double kCouplingLacking = 0.3;    // model below 30 % of the data: coupling lacking
+// A model below 1e-6 of the data (−120 dB) is numerically zero there (e.g. a
+// coupling that cancels only up to rounding): no gain or phase is reported.
+constexpr double kModelZeroShare = 1e-6;
 
 bool finite(const Complex& z) { return std::isfinite(z.real()) && std::isfinite(z.imag()); }
 
@@ -123,7 +126,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
     rel[t] = std::abs(d) > 0 ? 100.0 * err[t] / std::abs(d) : kInf;
     sum_model += std::abs(mo);
     sum_data += std::abs(d);
-    if (std::abs(mo) == 0 || std::abs(d) == 0) {
+    if (std::abs(mo) <= kModelZeroShare * std::abs(d) || std::abs(d) == 0) {
       model_zero = true;
       gain[t] = phase[t] = kNaN;
     } else {
@@ -155,6 +158,12 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   b.omega_at_max_rad_s = w[at_rel];
 
   // --- signature (header comment: the first rule that holds) ---
+  if (i != j && sum_model < kCouplingLacking * sum_data) {
+    b.signature = "coupling";
+    b.hint = fmt::format("off-diagonal coupling the model lacks (model at {:.0f} % of the measured)",
+                         100.0 * sum_model / sum_data);
+    return;
+  }
   const std::size_t peak = static_cast<std::size_t>(std::max_element(err.begin(), err.end()) - err.begin());
   const double edge = kPeakEdgeShare * static_cast<double>(n - 1);
   const bool interior = static_cast<double>(peak) > edge && static_cast<double>(peak) < static_cast<double>(n - 1) - edge;
@@ -193,10 +202,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   }
   if (i != j) {
     b.signature = "coupling";
-    b.hint = sum_model < kCouplingLacking * sum_data
-                 ? fmt::format("off-diagonal coupling the model lacks (model at {:.0f} % of the measured)",
-                               100.0 * sum_model / sum_data)
-                 : "off-diagonal coupling error";
+    b.hint = "off-diagonal coupling error";
     return;
   }
   Index first_used = -1, last_used = -1;

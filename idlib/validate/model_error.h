@@ -46,9 +46,13 @@
 //   gain_db   = 20 log10 |P_data / P_model|   (mean, and the value of largest size)
 //   phase_deg = arg(P_data / P_model) in deg (mean, and the value of largest size)
 //   relative  = 100 |E| / |P_data| percent   (mean and max)
-// gain and phase are NaN when P_model is zero somewhere in the band.
+// gain and phase are NaN when P_model is zero somewhere in the band (below 1e-6 of
+// |P_data|, i.e. −120 dB: a coupling that cancels only up to rounding).
 //
 // Signature (the first rule that holds; `signature` is the key, `hint` the words):
+//   "coupling"      an off-diagonal channel (i ≠ j) where the model's mean |P_model|
+//                   is below 30 % of the data's: "off-diagonal coupling the model
+//                   lacks (model at 5 % of the measured)".
 //   "narrow_peak"   |E| peaks inside the band (not at its first or last 15 %),
 //                   the peak is >= 3 x |E| at both ends and the band spans less than
 //                   half a decade: "narrow peak at 612 rad/s (a mode missing from
@@ -57,10 +61,7 @@
 //                   less than 30 % of its RMS, and the gain error explains less of
 //                   |E| than the phase: "phase lag growing with frequency (like a
 //                   delay of 1.0 ms)" (or "phase lead ..." when τ < 0).
-//   "coupling"      an off-diagonal channel (i ≠ j): "off-diagonal coupling the
-//                   model lacks (model at 5 % of the measured)" when the model's
-//                   mean |P_model| is below 30 % of the data's, else "off-diagonal
-//                   coupling error".
+//   "coupling"      any other off-diagonal band: "off-diagonal coupling error".
 //   "low_frequency_gain"  gain dominates and the band starts at the lowest
 //                   unflagged frequency: "low-frequency gain error (+1.6 dB):
 //                   static gain or stiffness".

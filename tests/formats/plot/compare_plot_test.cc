@@ -1,0 +1,80 @@
+#include "formats/plot/compare_plot.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "formats/plot/history_plot.h"
+#include "tests/formats/plot/plot_test_util.h"
+
+namespace lpvid {
+namespace {
+
+using plot_test::input_error;
+
+// A 1 x 2 response over 1..1000 rad/s: 1/(s+1) on both channels, model = data
+// except a 20 % error on channel (0, 0) between 100 and 300 rad/s.
+CompareSeries series() {
+  CompareSeries s;
+  s.omega_rad_s = Eigen::VectorXd::LinSpaced(200, 0, 3).unaryExpr([](double e) { return std::pow(10.0, e); });
+  for (Index f = 0; f < s.omega_rad_s.size(); ++f) {
+    const Complex p = 1.0 / Complex(1, s.omega_rad_s(f));
+    Eigen::MatrixXcd d(1, 2), m(1, 2);
+    d << p, p;
+    m = d;
+    if (s.omega_rad_s(f) > 100 && s.omega_rad_s(f) < 300) m(0, 0) *= 1.2;
+    s.data.push_back(d);
+    s.model.push_back(m);
+    s.radius.push_back(Eigen::MatrixXd::Constant(1, 2, 0.05 * std::abs(p)));
+  }
+  return s;
+}
+
+// Pixels clearly redder than green: the translucent failing-band shade (the
+// data series is blue and the model black, neither counts).
+int reddish(const cv::Mat& image, const cv::Rect& r) {
+  int n = 0;
+  for (int y = r.y; y < r.br().y; ++y)
+    for (int x = r.x; x < r.br().x; ++x) {
+      const cv::Vec3b px = image.at<cv::Vec3b>(y, x);
+      n += (px[2] > px[1] + 15) ? 1 : 0;
+    }
+  return n;
+}
+
+TEST(RenderCompare, FailingBandIsShadedOnItsChannelOnly) {
+  const std::vector<CompareBandMark> bands = {{0, 0, 100, 300}};
+  const cv::Mat image = render_compare({series()}, bands, {});
+  // The panels occupy the upper part; the legend (with its red swatch) the bottom.
+  const int panels_bottom = image.rows * 3 / 4;
+  const cv::Rect left(0, 0, image.cols / 2, panels_bottom), right(image.cols / 2, 0, image.cols / 2, panels_bottom);
+  // The shade spans about half a decade of a three-decade axis over both axes
+  // (~60 x 300 px); thousands of pixels, while the other channel has none.
+  EXPECT_GT(reddish(image, left), 5000);
+  EXPECT_EQ(reddish(image, right), 0);
+  const cv::Mat none = render_compare({series()}, {}, {});
+  EXPECT_EQ(reddish(none, left), 0);
+}
+
+TEST(RenderCompare, BadInputIsAnInputError) {
+  EXPECT_EQ(input_error([] { render_compare({}, {}, {}); }), "compare plot: no measurement to draw");
+  CompareSeries s = series();
+  s.radius.pop_back();
+  EXPECT_NE(input_error([&] { render_compare({s}, {}, {}); }).find("they must match"), std::string::npos);
+  ComparePlotOptions o;
+  o.input_labels = {"only one"};
+  EXPECT_NE(input_error([&] { render_compare({series()}, {}, o); }).find("1 input and 0 output labels"),
+            std::string::npos);
+}
+
+TEST(RenderHistory, OneBarPerFitAndBadValuesAreRejected) {
+  const std::vector<HistoryBar> bars = {{"1: rigid body", 40, 90}, {"2: + suspension", 5, 20}, {"3: + delay", 1, 3}};
+  const cv::Mat image = render_history(bars, "title");
+  EXPECT_GT(image.cols, 400);
+  EXPECT_EQ(input_error([] { render_history({}, ""); }), "history plot: no fit to draw");
+  EXPECT_EQ(input_error([] { render_history({{"x", 0, 1}}, ""); }),
+            "history plot: fit 1 has mean 0 % and max 1 %; both finite, > 0, max >= mean");
+}
+
+}  // namespace
+}  // namespace lpvid
