@@ -3,7 +3,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 
 #include "cli/common.h"
@@ -11,6 +13,7 @@
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/history.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/io/table_csv.h"
@@ -161,6 +164,35 @@ void run(const FitCliOptions& o) {
       outputs.stage(o.plot, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
     }
   }
+  // The fit history beside the fitted model (formats/io/history.h): the start
+  // model's history, if it has one, then this fit, so that `lpvid history` on the
+  // newest model shows the whole lineage, model by model.
+  const std::string history_out = history_path_for(o.out);
+  {
+    check_not_overwriting({o.in.model, history_path_for(o.in.model)}, history_out);
+    std::vector<HistoryRecord> records;
+    if (std::filesystem::exists(history_path_for(o.in.model))) records = read_history(history_path_for(o.in.model));
+    HistoryRecord rec;
+    rec.timestamp = utc_timestamp_now();
+    rec.model = o.out;
+    rec.effects = r.model.effects;
+    rec.free_parameters = static_cast<Index>(r.parameters.size());
+    rec.cost = r.cost_final;
+    rec.error_mean = 0.0;
+    rec.error_max = 0.0;
+    for (const auto& c : r.channels) {
+      rec.error_mean += c.relative_rms_error / static_cast<double>(r.channels.size());
+      rec.error_max = std::max(rec.error_max, c.relative_rms_error);
+      rec.channels.push_back({kOut[c.output], kIn[c.input], c.relative_rms_error, c.relative_rms_error});
+    }
+    rec.aic = r.aic;
+    rec.bic = r.bic;
+    rec.note = fmt::format("fit of {} to {} data sets ({} target)", o.in.model, data.size(), target_name(options.target));
+    std::string text;
+    for (const auto& old : records) text += history_line(old) + "\n";
+    text += history_line(rec) + "\n";
+    outputs.stage(history_out, text);
+  }
   outputs.commit();
 
   // Report.
@@ -187,7 +219,7 @@ void run(const FitCliOptions& o) {
   }
   for (const auto& w : r.identifiability) text += "identifiability: " + w + "\n";
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
-  text += fmt::format("{} in {:.2f} s; wrote {}\n", r.report.termination, r.seconds, o.out);
+  text += fmt::format("{} in {:.2f} s; wrote {} (history: {})\n", r.report.termination, r.seconds, o.out, history_out);
   nlohmann::json summary = fit_section;
   summary["out"] = o.out;
   summary["seconds"] = r.seconds;
