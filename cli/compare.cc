@@ -127,7 +127,7 @@ void run_model_error(const CompareCliOptions& o) {
     const std::string noise =
         mems[d].coherence_used
             ? fmt::format("noise from the data's coherence, {:g} averages (--averages)", o.mem.averages)
-            : fmt::format("no coherence in the data: default noise level {:g} % of |P| (--noise-level)",
+            : fmt::format("no coherence in the data: default noise level {:g} % of |P| (row max; --noise-level)",
                           100 * o.mem.default_relative_sigma);
     Index skipped = 0;
     for (bool s : mems[d].skipped) skipped += s ? 1 : 0;
@@ -315,7 +315,7 @@ Command make_compare_command() {
             app->add_option("--averages", o->mem.averages, "independent averages of the H1 estimate (default 16)");
             app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)");
             app->add_option("--noise-level", o->mem.default_relative_sigma,
-                            "noise per real part as a fraction of |P| when the data carry no coherence (default 0.02)");
+                            "noise per real part as a fraction of the row's largest |P| when the data carry no coherence (default 0.02)");
             app->add_option("--min-points", o->mem.min_band_points,
                             "significant frequencies a failing band needs (default 3)");
             app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)");

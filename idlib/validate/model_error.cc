@@ -86,22 +86,26 @@ ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eig
     Eigen::MatrixXcd e = data.response[f] - model[f];
     Eigen::MatrixXd s(p, m), rad(p, m);
     BoolMatrix sig = BoolMatrix::Constant(p, m, false);
-    for (Index i = 0; i < p; ++i)
+    for (Index i = 0; i < p; ++i) {
+      // Without coherence the noise of output i is shared by its whole row.
+      const double row_max = data.response[f].row(i).cwiseAbs().maxCoeff();
       for (Index j = 0; j < m; ++j) {
         if (!r.skipped[f] && (!finite(data.response[f](i, j)) || !finite(model[f](i, j))))
           throw InputError(fmt::format("model error: non-finite response of output {}, input {} at {:.6g} rad/s",
                                        i + 1, j + 1, data.omega_rad_s(f)));
         const double mag = std::abs(data.response[f](i, j));
-        double rel = options.default_relative_sigma;
         if (r.coherence_used) {
           const double g2 = data.coherence[f](i, j);
-          rel = g2 > 0 ? std::sqrt(std::max(0.0, 1.0 - g2) / (2.0 * options.averages * g2)) : kInf;
+          double rel = g2 > 0 ? std::sqrt(std::max(0.0, 1.0 - g2) / (2.0 * options.averages * g2)) : kInf;
+          rel = std::max(rel, options.relative_sigma_floor);
+          s(i, j) = std::isinf(rel) ? kInf : rel * mag;
+        } else {
+          s(i, j) = std::max(options.default_relative_sigma * row_max, options.relative_sigma_floor * mag);
         }
-        rel = std::max(rel, options.relative_sigma_floor);
-        s(i, j) = std::isinf(rel) ? kInf : rel * mag;
         rad(i, j) = r.k * s(i, j);
         sig(i, j) = !r.skipped[f] && std::abs(e(i, j)) > rad(i, j);
       }
+    }
     r.error.push_back(std::move(e));
     r.sigma.push_back(std::move(s));
     r.radius.push_back(std::move(rad));

@@ -24,8 +24,12 @@
 // measurement's own noise explains at that confidence.  σ_c uses
 //   - coherence γ²_ij of the data when it has any (FrequencyResponse::coherence),
 //     with n_d = ModelErrorOptions::averages;
-//   - else default_relative_sigma · |Ĥ_ij| (no coherence: a documented default
-//     noise level, reported as such by ModelErrorModel::coherence_used = false);
+//   - else default_relative_sigma · max_l |Ĥ_il| (no coherence: a documented
+//     default noise level, reported as such by ModelErrorModel::coherence_used =
+//     false; the largest entry of row i because the noise of output i is shared by
+//     its row — a weak cross-coupling is not measured more precisely than the
+//     row's largest entry, and a channel that is zero in the data and the model
+//     is not "significant" for tiny differences);
 //   - never below relative_sigma_floor · |Ĥ_ij| (coherence 1 does not make a
 //     measurement exact: leakage and the coherence bias ~1/n_d remain).
 // γ² = 0 gives σ_c = ∞ (nothing can be significant there).  Frequencies flagged in
@@ -88,8 +92,9 @@ struct ModelErrorOptions {
   double averages = 16;
   // Confidence of the band, in (0, 1): 0.99 gives k = 3.035.
   double confidence = 0.99;
-  // σ_c / |P_data| per real part when the data carry no coherence (2 %: the
-  // random error of an H1 estimate with γ² = 0.99 and 16 averages is 1.8 %).  > 0.
+  // σ_c per real part, as a fraction of the largest |P_data| of the channel's row,
+  // when the data carry no coherence (2 %: the random error of an H1 estimate with
+  // γ² = 0.99 and 16 averages is 1.8 %).  > 0.
   double default_relative_sigma = 0.02;
   // σ_c / |P_data| is never taken below this (0.1 %).  >= 0.
   double relative_sigma_floor = 1e-3;
