@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
@@ -22,7 +23,12 @@ ESTIMATE and REFERENCE are models (.json) or FRD files (.csv, .mat); a model is 
 the data's frequencies, two models on a log grid.  For each channel and band: the
 largest error as a share of the weighted matrix gain (percent), the mean gain error (dB)
 and the mean phase error (degrees); per band the weighted matrix error
-|W(A - R)W| / |WRW| (mean, max).  Flagged frequencies of the data are skipped.)";
+|W(A - R)W| / |WRW| (mean, max).  Flagged frequencies of the data are skipped.
+  lpvid compare --log data/sweep_1000hz/run.csv --params model.json --controller data/sweep_1000hz/controller.json \
+      --out-png overlay.png --json
+time domain: simulates the platform model's closed loop on the logged excitation and beam
+trajectory; NRMSE fit % per output, residual whiteness and residual-input tests (99 %),
+and the time windows where the model fails (channel, t_start, t_end, size).)";
 
 struct CompareCliOptions {
   std::string estimate, reference, weights, out;
@@ -32,6 +38,8 @@ struct CompareCliOptions {
 };
 
 void run(const CompareCliOptions& o) {
+  if (o.estimate.empty() || o.reference.empty())
+    throw InputError("compare: give ESTIMATE and REFERENCE (models or FRD files), or --log RUN.csv for the time domain");
   CompareOptions options;
   options.band_min_rad_s = o.band_min;
   options.band_max_rad_s = o.band_max;
@@ -125,8 +133,8 @@ Command make_compare_command() {
             auto o = std::make_shared<CompareCliOptions>();
             auto* app = parent.add_subcommand("compare", "Distance between a response and a reference per channel and band" +
                                                              std::string(kExample));
-            app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)")->required();
-            app->add_option("reference", o->reference, "model (.json) or FRD (.csv, .mat)")->required();
+            app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)");
+            app->add_option("reference", o->reference, "model (.json) or FRD (.csv, .mat)");
             app->add_option("--band-min", o->band_min, "lowest frequency, rad/s (default: from the data)");
             app->add_option("--band-max", o->band_max, "highest frequency, rad/s (default: from the data)");
             app->add_option("--bands-per-decade", o->per_decade, "log-spaced bands per decade");
@@ -135,7 +143,9 @@ Command make_compare_command() {
             app->add_option("--points", o->points, "frequencies when both are models");
             app->add_option("--out", o->out, "also write the JSON summary to this file");
             app->add_flag("--json", o->json, "print the summary as JSON");
-            app->callback([o] { run(*o); });
+            auto t = std::make_shared<TimeCompareCliOptions>();
+            add_time_compare_options(app, *t);
+            app->callback([o, t] { t->active() ? run_time_compare(*t, o->out, o->json) : run(*o); });
           }};
 }
 

@@ -92,8 +92,7 @@ Index sample_count(const BeamTrajectory& traj, double Ts) {
 // (then drawn from rng with options.excitation_std); noise drawn when draw_noise.
 void run_loop(const PlatformParameters& params, const StateSpace& controller, const BeamTrajectory& traj,
               double start_s, Index N, const MovingBeamOptions& options, const Eigen::MatrixXd* excitation,
-              Eigen::MatrixXd& v_out, Eigen::MatrixXd& u_out, Eigen::MatrixXd& q_out,
-              const Eigen::Vector3d& start_input = Eigen::Vector3d::Zero()) {
+              Eigen::MatrixXd& v_out, Eigen::MatrixXd& u_out, Eigen::MatrixXd& q_out) {
   params.validate();
   const PlantConstants c{stiffness_matrix(params), damping_matrix(params), params.beam_mass_kg, params.beam_height_m,
                          params.gravity_m_per_s2};
@@ -116,7 +115,7 @@ void run_loop(const PlatformParameters& params, const StateSpace& controller, co
     S_mat.bottomLeftCorner(nc, 3) = -Bc;
     S_mat.bottomRightCorner(nc, nc) = Ac - Eigen::MatrixXd::Identity(nc, nc);
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(3 + nc);
-    rhs.head(3) = w0 + start_input;
+    rhs.head(3) = w0;
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(S_mat);
     if (!lu.isInvertible())
       throw InputError(
@@ -344,7 +343,7 @@ MovingBeamPrediction predict_moving_beam(const PlatformParameters& params, const
 
 Eigen::MatrixXd predict_moving_beam_from_input(const PlatformParameters& params, const BeamTrajectory& trajectory,
                                                double start_s, const Eigen::MatrixXd& plant_input,
-                                               const Eigen::Vector3d& start_input, const MovingBeamOptions& options) {
+                                               const MovingBeamOptions& options) {
   options.validate();
   params.validate();
   if (plant_input.cols() != 3 || plant_input.rows() < 1 || !plant_input.allFinite())
@@ -360,8 +359,9 @@ Eigen::MatrixXd predict_moving_beam_from_input(const PlatformParameters& params,
   open_loop.sample_period_s = options.sample_period_s;
   const Index N = plant_input.rows();
   Eigen::MatrixXd none, u(N, 3), q(N, 3);
-  if (!start_input.allFinite()) throw InputError("moving-beam prediction: the start input holds NaN or Inf");
-  run_loop(params, open_loop, trajectory, start_s, N, options, &plant_input, none, u, q, start_input);
+  MovingBeamOptions from_rest = options;
+  from_rest.start = MovingBeamOptions::Start::rest;
+  run_loop(params, open_loop, trajectory, start_s, N, from_rest, &plant_input, none, u, q);
   return q;
 }
 

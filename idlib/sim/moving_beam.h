@@ -148,17 +148,17 @@ MovingBeamPrediction predict_moving_beam(const PlatformParameters& params, const
 
 // The open-loop prediction from the measured plant input u (N × 3, row k at
 // t_k = start_s + k·Ts): q̂ = the plant (with the beam's effects) driven by u,
-// no controller, no noise.  With Start::equilibrium the plant starts at rest
-// under start_input + w(t_0), start_input = the constant plant input before the
-// record (for a logged run u(t_0) - v(t_0): the controller's part, as v = 0
-// before the record).  For a correct model the residual q_meas - q̂ is the
-// sensor noise alone (white), whereas the closed-loop prediction's residual is
-// that noise fed back through the loop (coloured by the sensitivity): the
+// no controller, no noise, starting at rest at q = 0, q' = 0 (where a logged run
+// that starts in closed-loop equilibrium has its plant, whatever the model; the
+// constant moment of the beam before t_0 was held by u, which the log holds).
+// options.start is not used.  For a correct model the residual q_meas - q̂ is
+// the sensor noise alone (white), whereas the closed-loop prediction's residual
+// is that noise fed back through the loop (coloured by the sensitivity): the
 // residual tests (idlib/validate/time_fit.h) belong on this residual.
 // Needs a stable open-loop plant (K positive definite, D > 0).
 // @throws InputError  as predict_moving_beam.
 Eigen::MatrixXd predict_moving_beam_from_input(const PlatformParameters& params, const BeamTrajectory& trajectory,
                                                double start_s, const Eigen::MatrixXd& plant_input,
-                                               const Eigen::Vector3d& start_input, const MovingBeamOptions& options);
+                                               const MovingBeamOptions& options);
 
 }  // namespace lpvid

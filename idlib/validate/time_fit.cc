@@ -220,6 +220,15 @@ TimeFitResult time_fit(const Eigen::MatrixXd& measured, const Eigen::MatrixXd& p
   TimeFitResult r;
   r.fit_percent = nrmse_fit_percent(measured, predicted);
   r.residual = measured - predicted;
+  const Index N = measured.rows();
+  r.noise_floor.resize(measured.cols());
+  r.fit_ceiling_percent.resize(measured.cols());
+  for (Index i = 0; i < measured.cols(); ++i) {
+    const auto e = r.residual.col(i);
+    r.noise_floor(i) = std::sqrt((e.tail(N - 1) - e.head(N - 1)).squaredNorm() / (2.0 * static_cast<double>(N - 1)));
+    const double spread = std::sqrt((measured.col(i).array() - measured.col(i).mean()).square().mean());
+    r.fit_ceiling_percent(i) = spread > 0 ? 100.0 * (1.0 - r.noise_floor(i) / spread) : 0.0;
+  }
   Eigen::MatrixXd test_residual;
   if (test_predicted.size() > 0) {
     require_same_shape(measured, test_predicted);

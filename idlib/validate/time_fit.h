@@ -97,6 +97,11 @@ std::vector<FailingWindow> failing_windows(const Eigen::MatrixXd& measured, cons
 struct TimeFitResult {
   Eigen::VectorXd fit_percent;   // per output
   Eigen::MatrixXd residual;      // N × p, measured - predicted
+  // Noise floor σ̂ = rms(Δe)/√2 of each output's residual, and the fit a perfect
+  // model would reach against that noise, 100·(1 - σ̂/rms(y - ȳ)) (the ceiling
+  // of fit_percent set by the sensor noise, not by the model).
+  Eigen::VectorXd noise_floor;
+  Eigen::VectorXd fit_ceiling_percent;
   std::vector<CorrelationTest> whiteness;
   std::vector<CorrelationTest> cross;
   std::vector<FailingWindow> failures;
