@@ -21,7 +21,8 @@
 // ZOH model that simulate_excitation uses (tests pin it to rounding); with x_b
 // moving the error is second order in h (measured in tests: substeps 1 vs 8).
 // The matrix exponential is recomputed only when (x_b, x_b') at the midpoint
-// changes, so a beam at rest costs one product per sample.
+// moves by more than 1e-12 (m, m/s) from the last one computed, so a beam at
+// rest costs one product per sample.
 #pragma once
 
 #include <Eigen/Core>
