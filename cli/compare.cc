@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
@@ -42,7 +43,12 @@ ESTIMATE and REFERENCE are models (.json) or FRD files (.csv, .mat); a model is 
 the data's frequencies, two models on a log grid.  For each channel and band: the
 largest error as a share of the weighted matrix gain (percent), the mean gain error (dB)
 and the mean phase error (degrees); per band the weighted matrix error
-|W(A - R)W| / |WRW| (mean, max).  Flagged frequencies of the data are skipped.)";
+|W(A - R)W| / |WRW| (mean, max).  Flagged frequencies of the data are skipped.
+  lpvid compare --log data/sweep_1000hz/run.csv --params model.json --controller data/sweep_1000hz/controller.json \
+      --out-png overlay.png --json
+time domain: simulates the platform model's closed loop on the logged excitation and beam
+trajectory; NRMSE fit % per output, residual whiteness and residual-input tests (99 %),
+and the time windows where the model fails (channel, t_start, t_end, size).)";
 
 struct CompareCliOptions {
   std::string estimate, reference, weights, out;
@@ -210,8 +216,8 @@ void run(const CompareCliOptions& o) {
   if (!o.data.empty()) return run_model_error(o);
   if (!o.models.empty()) throw InputError("compare: --model needs --data (the measured FRD to compare it with)");
   if (o.estimate.empty() || o.reference.empty())
-    throw InputError("compare: give --model M --data FRD (where the model fails), or ESTIMATE REFERENCE (distance "
-                     "between two responses)");
+    throw InputError("compare: give --model M --data FRD (where the model fails), ESTIMATE REFERENCE (distance "
+                     "between two responses), or --log RUN.csv (the time domain)");
   if (!o.out_png.empty()) throw InputError("compare: --out-png needs --model and --data");
   CompareOptions options;
   options.band_min_rad_s = o.band_min;
@@ -328,7 +334,9 @@ Command make_compare_command() {
             app->add_option("--points", o->points, "frequencies when both are models");
             app->add_option("--out", o->out, "also write the JSON summary to this file");
             app->add_flag("--json", o->json, "print the summary as JSON");
-            app->callback([o] { run(*o); });
+            auto t = std::make_shared<TimeCompareCliOptions>();
+            add_time_compare_options(app, *t);
+            app->callback([o, t] { t->active() ? run_time_compare(*t, o->out, o->json) : run(*o); });
           }};
 }
 

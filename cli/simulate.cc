@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/registry.h"
 #include "formats/io/csv_log.h"
@@ -29,7 +30,11 @@ per excited input: columns t, v1..v3, u1..u3, q1..q3), controller.json, and the 
 truth_plant.json (ZOH-sampled), truth_plant_continuous.json, truth_closed_loop.json.
 Beam positions: left, middle, right (see docs/assumptions.md) or a number in metres.
   lpvid simulate platform --out other --set coil_damping_Ns_per_m=40 --set J_psi_kgm2=0.07
-simulates a platform with other physical values (the PI gains are redesigned for them).)";
+simulates a platform with other physical values (the PI gains are redesigned for them).
+  lpvid simulate platform --out data --profile sweep --duration-s 12
+moves the beam (min-jerk sweeps left -> right -> left) and writes data/sweep_1000hz/{run.csv
+(columns t, v1..v3, u1..u3, q1..q3, x_b), controller.json, truth_parameters.json};
+--trajectory FILE (columns t, x_b) moves it along your reference instead.)";
 
 struct SimulateOptions {
   std::string out_dir;
@@ -183,7 +188,14 @@ Command make_simulate_command() {
                                  "override a physical parameter, NAME=VALUE in the units of its name "
                                  "(repeatable; see docs/assumptions.md); the PI gains follow the parameters");
             platform->add_flag("--json", opts->json, "print the summary as JSON");
-            platform->callback([opts] { run(*opts); });
+            auto beam = std::make_shared<TrajectoryCliOptions>();
+            add_trajectory_options(platform, *beam);
+            platform->callback([opts, beam] {
+              if (!beam->active()) return run(*opts);
+              run_simulate_trajectory(*beam, parameters_with(opts->overrides),
+                                      {opts->out_dir, opts->rates_hz, opts->duration_s, opts->seed, opts->noise_scale,
+                                       opts->json});
+            });
           }};
 }
 

@@ -1,0 +1,196 @@
+// lpvid compare --log RUN.csv — the time domain: simulate the model's closed
+// loop on the measured excitation and beam trajectory, and say how well it
+// predicts the measured outputs (fit %, residual tests, failing windows).
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "cli/beam_commands.h"
+#include "cli/common.h"
+#include "formats/io/atomic_file.h"
+#include "formats/io/csv_log.h"
+#include "formats/io/model_json.h"
+#include "formats/io/platform_json.h"
+#include "formats/plot/canvas.h"
+#include "formats/plot/time_plot.h"
+#include "idlib/core/error.h"
+#include "idlib/sim/moving_beam.h"
+#include "idlib/validate/time_fit.h"
+
+namespace lpvid::cli {
+namespace {
+
+const std::vector<std::string> kOutputs = {"q1", "q2", "q3"};
+const std::vector<std::string> kOutputNames = {"psi", "theta", "z"};
+const std::vector<std::string> kExcitations = {"v1", "v2", "v3"};
+const std::vector<std::string> kPlantInputs = {"u1", "u2", "u3"};
+
+nlohmann::json test_json(const CorrelationTest& t, const std::vector<std::string>& inputs) {
+  nlohmann::json j = {{"channel", kOutputNames[static_cast<std::size_t>(t.channel)]},
+                      {"pass", t.pass},
+                      {"worst_ratio", t.worst_ratio},
+                      {"worst_lag", t.worst_lag},
+                      {"bound", t.bound},
+                      {"bound_per_lag", t.bound_per_lag},
+                      {"lags_outside_per_lag_bound", t.lags_outside_per_lag_bound}};
+  if (t.input >= 0) j["input"] = inputs[static_cast<std::size_t>(t.input)];
+  return j;
+}
+
+std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::MatrixXd& measured,
+                                       const Eigen::MatrixXd& predicted, const TimeFitResult& r,
+                                       const std::string& title) {
+  const Index N = t.size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Eigen::MatrixXd meas = Eigen::MatrixXd::Constant(N, 6, nan), model = meas, resid = meas;
+  meas.leftCols(3) = measured;
+  model.leftCols(3) = predicted;
+  resid.rightCols(3) = r.residual;
+  std::vector<TimeSeries> series = {{"measured", t, meas}, {"model", t, model}, {"residual (measured - model)", t, resid}};
+  TimePlotOptions po;
+  po.channel_labels = {"psi [rad]", "theta [rad]", "z [m]", "psi residual [rad]", "theta residual [rad]",
+                       "z residual [m]"};
+  po.title = title;
+  po.panel_height_px = 150;
+  cv::Mat image = render_time_plot(series, po);
+  const TimePlotLayout layout = layout_time_plot(series, po);
+  // Failing windows: shaded in the residual panel of their channel.
+  cv::Mat shade = image.clone();
+  for (const auto& w : r.failures) {
+    const cv::Rect& panel = layout.panels_px[static_cast<std::size_t>(3 + w.channel)];
+    const int x0 = static_cast<int>(std::floor(layout.time.to_px(w.t_start_s)));
+    const int x1 = static_cast<int>(std::ceil(layout.time.to_px(w.t_end_s)));
+    cv::rectangle(shade, cv::Rect(cv::Point(std::max(x0, panel.x), panel.y),
+                                  cv::Point(std::min(x1, panel.x + panel.width), panel.y + panel.height)),
+                  cv::Scalar(80, 80, 255), cv::FILLED);
+  }
+  // 25 % red over the window, so the curves stay readable.
+  constexpr double kShadeAlpha = 0.25;
+  cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
+  return plot::encode_png(image);
+}
+
+}  // namespace
+
+void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
+  app->add_option("--log", o.log,
+                  "time domain: a measured run (columns t, v1..v3, u1..u3, q1..q3, x_b) to predict with the platform "
+                  "model");
+  app->add_option("--params", o.params, "with --log: platform parameter file (JSON; default: documented defaults)");
+  app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
+  app->add_option("--controller", o.controller, "with --log: the discrete controller of the run (JSON model)");
+  app->add_option("--out-png", o.out_png, "with --log: overlay PNG (measured vs model, residuals, failing windows)");
+  app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)");
+  app->add_option("--threshold-percent", o.threshold_percent,
+                  "with --log: a window fails when its residual rms exceeds this % of the output's rms (default 10)");
+  app->add_option("--max-lag", o.max_lag, "with --log: lags of the residual tests (default 25)");
+  app->add_option("--substeps", o.substeps, "with --log: integration pieces per sample (default 1)");
+}
+
+void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
+  PlatformParameters model = o.params.empty() ? PlatformParameters::defaults() : read_platform_parameters(o.params);
+  apply_parameter_overrides(model, o.overrides);
+  run_time_compare_with(o, model, out_json, json);
+}
+
+void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParameters& model,
+                           const std::string& out_json, bool json) {
+  TimeFitOptions fo;
+  fo.window_s = o.window_s;
+  fo.window_threshold_percent = o.threshold_percent;
+  fo.max_lag = o.max_lag;
+  fo.validate();
+  if (o.controller.empty())
+    throw InputError("compare --log: give --controller CONTROLLER.json, the discrete controller of the measured run");
+  std::vector<std::string> inputs = {o.log, o.controller};
+  if (!o.params.empty()) inputs.push_back(o.params);
+  for (const std::string& out : {o.out_png, out_json})
+    if (!out.empty()) check_not_overwriting(inputs, out);
+  if (!o.out_png.empty() && !out_json.empty() && o.out_png == out_json)
+    throw InputError(fmt::format("--out-png and --out are both '{}'; give two files", o.out_png));
+
+  const StateSpace controller = read_state_space(o.controller);
+  const Log log = read_log(o.log);
+  const Eigen::MatrixXd v = log.columns(kExcitations), q = log.columns(kOutputs), u = log.columns(kPlantInputs);
+  const Eigen::VectorXd t = log.data.col(0), xb = log.data.col(log.column("x_b"));
+  check_beam_stroke(o.log, xb, model.beam_stroke_m);
+  if (std::abs(controller.sample_period_s - log.sample_period_s) > 1e-6 * log.sample_period_s)
+    throw InputError(fmt::format("{}: the controller samples at {} s but the log '{}' at {} s; give the run's controller",
+                                 o.controller, controller.sample_period_s, o.log, log.sample_period_s));
+  MovingBeamOptions mo;
+  mo.sample_period_s = controller.sample_period_s;
+  mo.substeps = o.substeps;
+  const BeamTrajectory traj = BeamTrajectory::from_samples(t, xb);
+  const MovingBeamPrediction pr = predict_moving_beam(model, controller, traj, t(0), v, mo);
+  // The residual tests run on the open-loop prediction from the logged plant
+  // input (a correct model leaves the sensor noise alone; idlib/sim/moving_beam.h).
+  const Eigen::MatrixXd open_loop =
+      predict_moving_beam_from_input(model, traj, t(0), u, mo);
+
+  // Inputs of the cross test: the excitations and the beam position.
+  Eigen::MatrixXd in(v.rows(), 4);
+  in << v, xb;
+  const std::vector<std::string> in_names = {"v1", "v2", "v3", "x_b"};
+  const TimeFitResult r = time_fit(q, pr.q, in, t(0), log.sample_period_s, fo, open_loop);
+
+  nlohmann::json ceiling = nlohmann::json::object(), floor = nlohmann::json::object();
+  for (Index i = 0; i < 3; ++i) {
+    ceiling[kOutputNames[static_cast<std::size_t>(i)]] = r.fit_ceiling_percent(i);
+    floor[kOutputNames[static_cast<std::size_t>(i)]] = r.noise_floor(i);
+  }
+  nlohmann::json fit = nlohmann::json::object(), white = nlohmann::json::array(), cross = nlohmann::json::array(),
+                 failures = nlohmann::json::array();
+  for (Index i = 0; i < 3; ++i)
+    fit[kOutputNames[static_cast<std::size_t>(i)]] =
+        std::isfinite(r.fit_percent(i)) ? nlohmann::json(r.fit_percent(i)) : nlohmann::json(nullptr);
+  for (const auto& w : r.whiteness) white.push_back(test_json(w, in_names));
+  for (const auto& c : r.cross) cross.push_back(test_json(c, in_names));
+  for (const auto& f : r.failures)
+    failures.push_back({{"channel", kOutputNames[static_cast<std::size_t>(f.channel)]},
+                        {"t_start_s", f.t_start_s},
+                        {"t_end_s", f.t_end_s},
+                        {"size_percent", f.size_percent}});
+  const nlohmann::json summary = {{"log", o.log},
+                                  {"samples", log.num_samples()},
+                                  {"fit_percent", fit},
+                                  {"noise_floor", floor},
+                                  {"fit_ceiling_percent", ceiling},
+                                  {"whiteness", white},
+                                  {"cross_correlation", cross},
+                                  {"failures", failures},
+                                  {"window_s", fo.window_s},
+                                  {"threshold_percent", fo.window_threshold_percent}};
+  std::string text = fmt::format("compare {} (time domain, {} samples): NRMSE fit\n", o.log, log.num_samples());
+  for (Index i = 0; i < 3; ++i)
+    text += fmt::format("  {:<6} {:8.2f} % (noise allows {:6.2f} %)   whiteness {}  (max |r|/bound {:.2f} at lag {})\n",
+                        kOutputNames[static_cast<std::size_t>(i)], r.fit_percent(i), r.fit_ceiling_percent(i),
+                        r.whiteness[static_cast<std::size_t>(i)].pass ? "pass" : "FAIL",
+                        r.whiteness[static_cast<std::size_t>(i)].worst_ratio,
+                        r.whiteness[static_cast<std::size_t>(i)].worst_lag);
+  for (const auto& c : r.cross)
+    if (!c.pass)
+      text += fmt::format("  residual {} correlates with {}: max |r|/bound {:.2f} at lag {}\n",
+                          kOutputNames[static_cast<std::size_t>(c.channel)], in_names[static_cast<std::size_t>(c.input)],
+                          c.worst_ratio, c.worst_lag);
+  if (r.failures.empty()) {
+    text += fmt::format("  no window of {} s with a residual above {} % of its output's rms\n", fo.window_s,
+                        fo.window_threshold_percent);
+  } else {
+    text += "  failing windows: channel  t_start [s]  t_end [s]  size [%]\n";
+    for (const auto& f : r.failures)
+      text += fmt::format("                   {:<7} {:11.3f} {:10.3f} {:9.1f}\n",
+                          kOutputNames[static_cast<std::size_t>(f.channel)], f.t_start_s, f.t_end_s, f.size_percent);
+  }
+  AtomicOutputSet out;
+  if (!o.out_png.empty()) {
+    const auto png = overlay_png(t, q, pr.q, r, fmt::format("{}: measured vs model", o.log));
+    out.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  }
+  if (!out_json.empty()) out.stage(out_json, summary.dump(2) + "\n");
+  out.commit();
+  print_summary(json, summary, text);
+}
+
+}  // namespace lpvid::cli

@@ -1,0 +1,243 @@
+#include "formats/io/platform_json.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "formats/io/csv_detail.h"
+#include "formats/io/csv_log.h"
+#include "idlib/core/error.h"
+
+namespace lpvid {
+namespace {
+
+using nlohmann::json;
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+detail::CellPosition position_of(const std::string& text, size_t offset) {
+  offset = std::min(offset, text.size());
+  detail::CellPosition at{1, 1};
+  for (size_t i = 0; i < offset; ++i) {
+    if (text[i] == '\n') {
+      ++at.line;
+      at.column = 1;
+    } else {
+      ++at.column;
+    }
+  }
+  return at;
+}
+
+// Offset of the top-level key "name" (0 if not found), for messages.
+size_t find_top_level_key(const std::string& text, const std::string& name) {
+  int depth = 0;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '{' || c == '[') {
+      ++depth;
+    } else if (c == '}' || c == ']') {
+      --depth;
+    } else if (c == '"') {
+      const size_t start = i;
+      for (++i; i < text.size() && text[i] != '"'; ++i)
+        if (text[i] == '\\') ++i;
+      if (depth != 1) continue;
+      size_t j = i + 1;
+      while (j < text.size() && std::strchr(" \t\r\n", text[j]) != nullptr) ++j;
+      if (j < text.size() && text[j] == ':' && text.compare(start + 1, i - start - 1, name) == 0) return start;
+    }
+  }
+  return 0;
+}
+
+std::string known_names(PlatformParameters& p) {
+  std::string known;
+  for (auto& [n, f] : platform_parameter_fields(p)) known += (known.empty() ? "" : ", ") + n;
+  return known + ", rod_axis_angles_rad";
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, double*>> platform_parameter_fields(PlatformParameters& p) {
+  return {{"J_psi_kgm2", &p.J_psi_kgm2},
+          {"J_theta_kgm2", &p.J_theta_kgm2},
+          {"J_psitheta_kgm2", &p.J_psitheta_kgm2},
+          {"platform_mass_kg", &p.platform_mass_kg},
+          {"beam_mass_kg", &p.beam_mass_kg},
+          {"beam_height_m", &p.beam_height_m},
+          {"beam_stroke_m", &p.beam_stroke_m},
+          {"coil_arm_m", &p.coil_arm_m},
+          {"coil_damping_Ns_per_m", &p.coil_damping_Ns_per_m},
+          {"k_linear_N_per_m", &p.k_linear_N_per_m},
+          {"k_torque_low_Nm_per_rad", &p.k_torque_low_Nm_per_rad},
+          {"k_torque_high_Nm_per_rad", &p.k_torque_high_Nm_per_rad},
+          {"com_x_m", &p.com_x_m},
+          {"com_y_m", &p.com_y_m},
+          {"gravity_m_per_s2", &p.gravity_m_per_s2}};
+}
+
+PlatformParameters read_platform_parameters(const std::string& path) {
+  const std::string text = read_text(path);
+  auto fail = [&](const std::string& key, const std::string& what) {
+    const detail::CellPosition at = position_of(text, key.empty() ? 0 : find_top_level_key(text, key));
+    detail::fail_at(path, at.line, at.column, what);
+  };
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    const detail::CellPosition at = position_of(text, e.byte == 0 ? 0 : e.byte - 1);
+    std::string what = e.what();
+    const size_t column = what.find("column ");
+    const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
+    if (colon != std::string::npos) what = what.substr(colon + 2);
+    detail::fail_at(path, at.line, at.column, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
+  }
+  if (!root.is_object())
+    fail("", fmt::format("the file holds {} where a JSON object of platform parameters is expected, e.g. "
+                         "{{\"beam_mass_kg\": 1.0}}",
+                         root.type_name()));
+  PlatformParameters p = PlatformParameters::defaults();
+  auto fields = platform_parameter_fields(p);
+  for (auto it = root.begin(); it != root.end(); ++it) {
+    const std::string& key = it.key();
+    if (key == "provenance") continue;
+    if (key == "type") {
+      if (!it->is_string() || it->get<std::string>() != "platform_parameters")
+        fail(key, fmt::format("key 'type' is {}; a parameter file has \"type\": \"platform_parameters\"", it->dump()));
+      continue;
+    }
+    if (key == "rod_axis_angles_rad") {
+      if (!it->is_array() || it->size() != 3)
+        fail(key, "key 'rod_axis_angles_rad' must be an array of 3 angles in rad");
+      for (size_t j = 0; j < 3; ++j) {
+        if (!(*it)[j].is_number()) fail(key, "key 'rod_axis_angles_rad' must hold 3 numbers (rad)");
+        p.rod_axis_angles_rad[j] = (*it)[j].get<double>();
+      }
+      continue;
+    }
+    double* field = nullptr;
+    for (auto& [n, f] : fields)
+      if (n == key) field = f;
+    if (!field) fail(key, fmt::format("unknown parameter '{}'; known: {}", key, known_names(p)));
+    if (!it->is_number())
+      fail(key, fmt::format("key '{}' must be a finite number in the units of its name, got {}", key, it->dump()));
+    *field = it->get<double>();
+  }
+  try {
+    p.validate();
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", detail::display_path(path), e.what()));
+  }
+  return p;
+}
+
+void apply_parameter_overrides(PlatformParameters& params, const std::vector<std::string>& overrides) {
+  auto table = platform_parameter_fields(params);
+  for (const std::string& item : overrides) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos)
+      throw InputError(fmt::format("--set '{}': expected NAME=VALUE, e.g. --set coil_damping_Ns_per_m=35", item));
+    const std::string name = item.substr(0, eq), value = item.substr(eq + 1);
+    double* field = nullptr;
+    for (auto& [n, f] : table)
+      if (n == name) field = f;
+    if (!field) throw InputError(fmt::format("--set: unknown parameter '{}'; known: {}", name, known_names(params)));
+    try {
+      std::size_t used = 0;
+      *field = std::stod(value, &used);
+      if (used != value.size() || !std::isfinite(*field)) throw std::invalid_argument("");
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("--set {}: '{}' is not a finite number", name, value));
+    }
+  }
+  params.validate();
+}
+
+std::string platform_parameters_to_json(const PlatformParameters& params, const nlohmann::json& extra) {
+  PlatformParameters p = params;
+  p.validate();
+  json out = json::object();
+  out["type"] = "platform_parameters";
+  for (auto& [n, f] : platform_parameter_fields(p)) out[n] = *f;
+  out["rod_axis_angles_rad"] = p.rod_axis_angles_rad;
+  if (extra.is_object())
+    for (auto it = extra.begin(); it != extra.end(); ++it) out[it.key()] = *it;
+  return out.dump(2) + "\n";
+}
+
+void check_beam_stroke(const std::string& path, const Eigen::VectorXd& x_b_m, double stroke_m,
+                       const std::string& column) {
+  Index bad = -1;
+  for (Index k = 0; k < x_b_m.size() && bad < 0; ++k)
+    if (!(std::abs(x_b_m(k)) <= stroke_m)) bad = k;
+  if (bad < 0) return;
+  // Locate the cell: data row `bad` is the (bad+1)-th non-blank, non-comment
+  // line after the header; the cell is the column's field of that line.
+  int64_t line_no = 0, col_no = 1;
+  Index field = -1;
+  if (path != "-") {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    Index data_row = -2;  // the header is row -1
+    while (std::getline(in, line)) {
+      ++line_no;
+      const size_t first = line.find_first_not_of(" \t\r");
+      if (first == std::string::npos || line[first] == '#') continue;
+      ++data_row;
+      if (data_row == -1) {  // header: find the column's index
+        Index idx = 0;
+        size_t start = 0;
+        for (;;) {
+          const size_t comma = line.find(',', start);
+          std::string cell = line.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+          const size_t a = cell.find_first_not_of(" \t\r\""), b = cell.find_last_not_of(" \t\r\"");
+          cell = a == std::string::npos ? "" : cell.substr(a, b - a + 1);
+          if (cell == column) field = idx;
+          if (comma == std::string::npos) break;
+          start = comma + 1;
+          ++idx;
+        }
+        continue;
+      }
+      if (data_row == bad) {
+        size_t start = 0;
+        for (Index i = 0; i < field && start != std::string::npos; ++i) {
+          const size_t comma = line.find(',', start);
+          start = comma == std::string::npos ? comma : comma + 1;
+        }
+        if (start != std::string::npos) {
+          const size_t cell = line.find_first_not_of(" \t", start);
+          col_no = static_cast<int64_t>((cell == std::string::npos ? start : cell) + 1);
+        }
+        break;
+      }
+    }
+  }
+  const std::string what = fmt::format(
+      "{} = {} m is outside the stroke |x_b| <= {} m (beam_stroke_m); give x_b in metres or raise beam_stroke_m",
+      column, x_b_m(bad), stroke_m);
+  if (line_no > 0 && field >= 0) detail::fail_at(path, line_no, col_no, what);
+  throw InputError(fmt::format("{}: sample {}: {}", detail::display_path(path), bad, what));
+}
+
+BeamSamples read_beam_samples(const std::string& path, double stroke_m, const std::string& column) {
+  const Log log = read_log(path);
+  BeamSamples s;
+  s.t_s = log.data.col(0);
+  s.x_b_m = log.data.col(log.column(column));
+  check_beam_stroke(path, s.x_b_m, stroke_m, column);
+  return s;
+}
+
+}  // namespace lpvid
