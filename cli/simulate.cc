@@ -10,6 +10,7 @@
 
 #include "cli/common.h"
 #include "cli/registry.h"
+#include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
 #include "idlib/core/error.h"
@@ -184,6 +185,7 @@ Command make_simulate_command() {
                                  "(repeatable; see docs/assumptions.md); the PI gains follow the parameters");
             platform->add_flag("--json", opts->json, "print the summary as JSON");
             platform->callback([opts] { run(*opts); });
+            install_simulate_stage6(*sim);
           }};
 }
 
