@@ -11,6 +11,7 @@
 #include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/registry.h"
+#include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
 #include "idlib/core/error.h"
@@ -196,6 +197,7 @@ Command make_simulate_command() {
                                       {opts->out_dir, opts->rates_hz, opts->duration_s, opts->seed, opts->noise_scale,
                                        opts->json});
             });
+            install_simulate_stage6(*sim);
           }};
 }
 
