@@ -316,7 +316,7 @@ Command make_compare_command() {
                 ->take_all()
                 ->expected(1);
             app->add_option("--data", o->data, "measured FRD (.csv, .mat), repeatable")->take_all()->expected(1);
-            app->add_option("--out-png", o->out_png, "figure: measurement and model overlaid with error panels");
+            app->add_option("--out-png", o->out_png, "figure: measurement and model overlaid with error panels (with --log: the time-domain overlay)");
             app->add_option("--labels", o->labels, "one label per --data for the table and figure (comma separated)");
             app->add_option("--averages", o->mem.averages, "independent averages of the H1 estimate (default 16)");
             app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)");
@@ -336,7 +336,11 @@ Command make_compare_command() {
             app->add_flag("--json", o->json, "print the summary as JSON");
             auto t = std::make_shared<TimeCompareCliOptions>();
             add_time_compare_options(app, *t);
-            app->callback([o, t] { t->active() ? run_time_compare(*t, o->out, o->json) : run(*o); });
+            app->callback([o, t] {
+              if (!t->active()) return run(*o);
+              t->out_png = o->out_png;  // one --out-png for both forms
+              run_time_compare(*t, o->out, o->json);
+            });
           }};
 }
 

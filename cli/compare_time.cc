@@ -81,7 +81,6 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--params", o.params, "with --log: platform parameter file (JSON; default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller, "with --log: the discrete controller of the run (JSON model)");
-  app->add_option("--out-png", o.out_png, "with --log: overlay PNG (measured vs model, residuals, failing windows)");
   app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)");
   app->add_option("--threshold-percent", o.threshold_percent,
                   "with --log: a window fails when its residual rms exceeds this % of the output's rms (default 10)");
