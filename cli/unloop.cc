@@ -60,6 +60,13 @@ void run_frd(const UnloopCliOptions& o) {
   std::string route;
   if (!o.sensitivity.empty()) {
     const FrequencyResponse s = load_frd_merged(o.sensitivity);
+    // Analyzer exports hold one excited input per file: a missing file leaves S
+    // with fewer columns than the controller has outputs.
+    if (s.num_inputs() != c.num_outputs() && s.num_outputs() == c.num_outputs())
+      throw InputError(fmt::format(
+          "--sensitivity: the file(s) hold S for {} excited input(s) but the controller has {} outputs; give the "
+          "file of every excited input (e.g. S_v1.csv S_v2.csv S_v3.csv) or one file with every pair",
+          s.num_inputs(), c.num_outputs()));
     const SensitivityUnloopResult r = plant_from_sensitivity(s, c, options);
     plant = r.plant;
     flagged = r.flagged_count;
