@@ -117,6 +117,20 @@ TEST_F(FrdCli, PlantFromAnalyzerDataAgreesWithTheTruthThroughCompare) {
 
 // ---- unloop --sensitivity ----
 
+TEST_F(FrdCli, UnloopFlagsLowLoopGainOnRequestAndRejectsANegativeThreshold) {
+  TempDir out("loopgain");
+  // 1e6 exceeds σ_min(C P) at every frequency of the sweep (the loop gain of a
+  // stabilising PI loop at 1 rad/s is ~1e3): every frequency is flagged.
+  RunResult r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
+                          " --min-loop-gain 1e6 --json --out " + (out / "P.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["flagged"], 40);
+  EXPECT_THAT(r.out, HasSubstr("low loop gain: 40 of 40 frequencies"));
+  r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
+                " --min-loop-gain -1 --out " + (out / "Q.csv"));
+  expect_rejected(r, out / "Q.csv", "min_loop_gain = -1; it must be finite and >= 0");
+}
+
 TEST_F(FrdCli, UnloopRejectsAPairMissingFromEveryFile) {
   TempDir out("miss");
   // S_v3.csv left out: the pairs (u_i, v3) are in no file.
