@@ -119,7 +119,7 @@ void run(const SimulateOptions& o) {
   if (!(o.noise_scale >= 0)) throw InputError(fmt::format("--noise-scale {}: must be >= 0", o.noise_scale));
   for (double r : o.rates_hz)
     if (!(r > 0)) throw InputError(fmt::format("--rate-hz {}: must be positive", r));
-  check_analyzer_options(o.analyzer);
+  check_analyzer_options(o.analyzer, o.rates_hz);
   std::vector<double> positions_m;
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
 

@@ -29,11 +29,16 @@ void add_analyzer_options(CLI::App& platform, AnalyzerCliOptions& o) {
   platform.add_flag("--analyzer-mat", o.mat, "analyzer: also write the whole S as S.mat (MATLAB v5)");
 }
 
-void check_analyzer_options(const AnalyzerCliOptions& o) {
+void check_analyzer_options(const AnalyzerCliOptions& o, const std::vector<double>& rates_hz) {
   if (!o.enabled) return;
   if (o.band_hz.size() != 2 || !(o.band_hz[0] > 0) || !(o.band_hz[1] > o.band_hz[0]) || !std::isfinite(o.band_hz[1]))
     throw InputError(fmt::format("--analyzer-band-hz {}: give two frequencies in Hz, 0 < lowest < highest",
                                  fmt::join(o.band_hz, ",")));
+  for (double r : rates_hz)
+    if (!(o.band_hz[1] < r / 2))
+      throw InputError(fmt::format("--analyzer-band-hz {}: the highest frequency must be below the Nyquist frequency "
+                                   "{} Hz of --rate-hz {}",
+                                   fmt::join(o.band_hz, ","), r / 2, r));
   if (o.points < 1) throw InputError(fmt::format("--analyzer-points {}: must be >= 1", o.points));
   if (!(o.integration_s > 0) || !std::isfinite(o.integration_s))
     throw InputError(fmt::format("--analyzer-integration-s {}: must be positive", o.integration_s));

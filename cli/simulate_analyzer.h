@@ -27,8 +27,9 @@ struct AnalyzerCliOptions {
 // --analyzer-averages, --analyzer-mat to the `simulate platform` command.
 void add_analyzer_options(CLI::App& platform, AnalyzerCliOptions& options);
 
-// Checks the options (InputError naming the flag) before anything is simulated.
-void check_analyzer_options(const AnalyzerCliOptions& options);
+// Checks the options (InputError naming the flag) before anything is simulated,
+// including that the sweep stays below the Nyquist frequency of every rate.
+void check_analyzer_options(const AnalyzerCliOptions& options, const std::vector<double>& rates_hz);
 
 // Measures S of the loop (plant_d, controller) and writes dir/S_v1.csv,
 // S_v2.csv, S_v3.csv (column j of S each; coherence), dir/truth_S.csv (the exact

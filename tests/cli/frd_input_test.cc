@@ -86,6 +86,16 @@ TEST_F(FrdCli, AnalyzerWritesOneFilePerExcitedInputWithCoherence) {
   EXPECT_EQ(truth.num_frequencies(), 40);
 }
 
+TEST_F(FrdCli, AnalyzerSweepAboveNyquistIsRejectedBeforeAnythingIsWritten) {
+  TempDir out("nyq");
+  const RunResult r =
+      run_lpvid("simulate platform --out " + (out / "d") + " --positions middle --analyzer --analyzer-band-hz 1,600");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("below the Nyquist frequency 500 Hz of --rate-hz 1000"));
+  EXPECT_EQ(count_files(out.path()), 0);
+}
+
 TEST_F(FrdCli, CsvPartsAndMatGiveTheIdenticalPlant) {
   TempDir out("csvmat");
   RunResult r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
