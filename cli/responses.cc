@@ -51,6 +51,15 @@ FrequencyResponse load_frd_merged(const std::vector<std::string>& paths) {
       parts.push_back(read_frd_part(p));
     }
   }
+  // read_frd_mat does not report which response variable it took; a .mat part
+  // counts as holding the quantity of the CSV parts, so that mixing the two is
+  // judged by the pairs each holds (not refused as "quantity '' vs 'S'").
+  for (const FrdPart& q : parts)
+    if (!q.quantity.empty()) {
+      for (FrdPart& part : parts)
+        if (part.quantity.empty()) part.quantity = q.quantity;
+      break;
+    }
   return merge_frd_parts(parts);
 }
 

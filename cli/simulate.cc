@@ -11,6 +11,7 @@
 #include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/registry.h"
+#include "cli/simulate_analyzer.h"
 #include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
@@ -35,7 +36,11 @@ simulates a platform with other physical values (the PI gains are redesigned for
   lpvid simulate platform --out data --profile sweep --duration-s 12
 moves the beam (min-jerk sweeps left -> right -> left) and writes data/sweep_1000hz/{run.csv
 (columns t, v1..v3, u1..u3, q1..q3, x_b), controller.json, truth_parameters.json};
---trajectory FILE (columns t, x_b) moves it along your reference instead.)";
+--trajectory FILE (columns t, x_b) moves it along your reference instead.
+  lpvid simulate platform --out data --analyzer --analyzer-band-hz 0.15,65 --analyzer-integration-s 1
+also measures S (v -> u) as a stepped-sine analyzer: S_v1.csv, S_v2.csv, S_v3.csv (column j
+of S with coherence, input j excited) and truth_S.csv; then
+  lpvid unloop --sensitivity data/middle_1000hz/S_v*.csv --controller data/middle_1000hz/controller.json --out P.csv)";
 
 struct SimulateOptions {
   std::string out_dir;
@@ -47,6 +52,7 @@ struct SimulateOptions {
   bool simultaneous = false;
   bool json = false;
   std::vector<std::string> overrides;  // NAME=VALUE
+  AnalyzerCliOptions analyzer;         // --analyzer* (cli/simulate_analyzer.h)
 };
 
 // The physical parameters a user may override, by their names in code (units in
@@ -119,6 +125,7 @@ void run(const SimulateOptions& o) {
   if (!(o.noise_scale >= 0)) throw InputError(fmt::format("--noise-scale {}: must be >= 0", o.noise_scale));
   for (double r : o.rates_hz)
     if (!(r > 0)) throw InputError(fmt::format("--rate-hz {}: must be positive", r));
+  check_analyzer_options(o.analyzer, o.rates_hz);
   std::vector<double> positions_m;
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
 
@@ -161,6 +168,10 @@ void run(const SimulateOptions& o) {
       }
       summary.push_back({{"dir", dir}, {"beam_position_m", positions_m[ip]}, {"rate_hz", o.rates_hz[ir]}});
       text += fmt::format("wrote {} (x_b = {} m, {} Hz, {} s)\n", dir, positions_m[ip], o.rates_hz[ir], o.duration_s);
+      if (o.analyzer.enabled)
+        summary.back()["analyzer"] =
+            write_analyzer_files(o.analyzer, dir, plant_d, controller, ex.sensor_noise_std,
+                                 o.seed * 1000003ULL + ip * 1009ULL + ir * 101ULL + 7ULL, positions_m[ip], text);
     }
   }
   print_summary(o.json, summary, text);
@@ -189,6 +200,7 @@ Command make_simulate_command() {
                                  "override a physical parameter, NAME=VALUE in the units of its name "
                                  "(repeatable; see docs/assumptions.md); the PI gains follow the parameters");
             platform->add_flag("--json", opts->json, "print the summary as JSON");
+            add_analyzer_options(*platform, opts->analyzer);
             auto beam = std::make_shared<TrajectoryCliOptions>();
             add_trajectory_options(platform, *beam);
             platform->callback([opts, beam] {

@@ -32,13 +32,14 @@ Frequency-domain data (per frequency, no model order involved):
 P = C^-1 (S^-1 - I) from the input sensitivity S (v -> u; the paper's printed eq 15,
 C^-1 (S - I)^-1, is wrong: see docs/math.md), or P = G (I - C G)^-1 from closed-loop data,
 with C evaluated at z = exp(j w Ts).  Files that each hold one excited input are merged.
-Frequencies where C or S^-1 - I is ill-conditioned, or the coherence is low, are flagged
+Frequencies where C or S^-1 - I is ill-conditioned, the loop gain (sigma_min of S^-1 - I) is
+below --min-loop-gain, or the coherence is low, are flagged
 in the output (column flag) and counted in the summary.)";
 
 struct UnloopCliOptions {
   std::string closed_loop, controller, out;
   std::vector<std::string> sensitivity;
-  double max_condition = 1e6, min_coherence = 0.5;
+  double max_condition = 1e6, min_coherence = 0.5, min_loop_gain = SensitivityUnloopOptions{}.min_loop_gain;
   Index order = 0;
   bool json = false;
 };
@@ -53,6 +54,7 @@ void run_frd(const UnloopCliOptions& o) {
   SensitivityUnloopOptions options;
   options.max_condition = o.max_condition;
   options.min_coherence = o.min_coherence;
+  options.min_loop_gain = o.min_loop_gain;
   options.validate();
   FrequencyResponse plant;
   Index flagged = 0;
@@ -60,6 +62,13 @@ void run_frd(const UnloopCliOptions& o) {
   std::string route;
   if (!o.sensitivity.empty()) {
     const FrequencyResponse s = load_frd_merged(o.sensitivity);
+    // Analyzer exports hold one excited input per file: a missing file leaves S
+    // with fewer columns than the controller has outputs.
+    if (s.num_inputs() != c.num_outputs() && s.num_outputs() == c.num_outputs())
+      throw InputError(fmt::format(
+          "--sensitivity: the file(s) hold S for {} excited input(s) but the controller has {} outputs; give the "
+          "file of every excited input (e.g. S_v1.csv S_v2.csv S_v3.csv) or one file with every pair",
+          s.num_inputs(), c.num_outputs()));
     const SensitivityUnloopResult r = plant_from_sensitivity(s, c, options);
     plant = r.plant;
     flagged = r.flagged_count;
@@ -127,6 +136,8 @@ Command make_unloop_command() {
             app->add_option("--max-condition", o->max_condition,
                             "flag frequencies where C or S^-1 - I has a larger condition number");
             app->add_option("--min-coherence", o->min_coherence, "flag frequencies with lower coherence");
+            app->add_option("--min-loop-gain", o->min_loop_gain,
+                            "flag frequencies where sigma_min(S^-1 - I) = sigma_min(C P) is below this (0 = off)");
             app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON")->required();
             app->add_option("--out", o->out, "plant to write: model JSON, or FRD CSV for data ('-' = stdout)")
                 ->required();

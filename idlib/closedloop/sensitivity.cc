@@ -121,6 +121,10 @@ void SensitivityUnloopOptions::validate() const {
     throw InputError(fmt::format(
         "sensitivity unloop options: min_coherence = {}; it must be in [0, 1] (0 disables the check)",
         min_coherence));
+  if (!(min_loop_gain >= 0.0) || !std::isfinite(min_loop_gain))
+    throw InputError(fmt::format(
+        "sensitivity unloop options: min_loop_gain = {}; it must be finite and >= 0 (0 disables the check)",
+        min_loop_gain));
 }
 
 SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const StateSpace& controller,
@@ -186,6 +190,9 @@ SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const
       const double cond_m = condition(svd_m.singularValues());
       if (!(cond_m <= options.max_condition))
         flag(k, "S^-1 - I ill-conditioned", fmt::format("(cond {:.3g})", cond_m));
+      const double loop_gain = svd_m.singularValues()(svd_m.singularValues().size() - 1);
+      if (loop_gain < options.min_loop_gain)
+        flag(k, "low loop gain", fmt::format("(sigma_min(C P) {:.3g} < {})", loop_gain, options.min_loop_gain));
       out.plant.response[kk] = Cinv * M;
     }
     if (!out.flag_reasons[kk].empty()) {

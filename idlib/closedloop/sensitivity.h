@@ -50,6 +50,15 @@ struct SensitivityUnloopOptions {
   // — see idlib/signal/frf.h — does not flag the frequency, but an output or an
   // input that no entry explains does.)  In [0, 1]; 0 disables the check.
   double min_coherence = 0.5;
+  // Flag a frequency when the loop gain is this small in some direction:
+  // σ_min(S⁻¹ − I) = σ_min(C P) < min_loop_gain.  There S ≈ I and P rests on
+  // S − I ≈ −C P, a difference of order min_loop_gain against entries of order 1;
+  // the default 1e-4 (80 dB) is about the dynamic range an analyzer resolves next
+  // to a full-scale signal (16-bit front ends: ~90 dB).  Not a judgement of the
+  // noise: with noise from the sensors, P's relative error there is the output
+  // noise-to-signal ratio (docs/math.md §4), which coherence tells.  >= 0; 0
+  // disables the check.
+  double min_loop_gain = 1e-4;
   // @throws InputError naming the option and the rule.
   void validate() const;
 };
@@ -70,7 +79,8 @@ struct SensitivityUnloopResult {
   //   "S^-1 - I ill-conditioned"  cond(S⁻¹ − I) > max_condition (loop gain C P
   //                            nearly singular: its small directions are lost in
   //                            the noise of S);
-  //   "low coherence"          the coherence rule of the options.
+  //   "low coherence"          the coherence rule of the options;
+  //   "low loop gain"          σ_min(S⁻¹ − I) < min_loop_gain (see the options).
   std::vector<std::string> flag_reasons;
   Index flagged_count = 0;
   // usable == false when every frequency is flagged; warnings count each reason.

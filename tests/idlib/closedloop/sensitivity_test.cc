@@ -54,7 +54,9 @@ TEST(PlantFromSensitivity, ExactSensitivityRecoversPlant) {
   const Stage st;
   const Eigen::VectorXd w = log_frequency_grid(kBandLo_rad_s, 0.99 * std::numbers::pi / kSamplePeriod_s, 300);
   const FrequencyResponse S = frequency_response(st.sensitivity, w);
-  const SensitivityUnloopResult r = plant_from_sensitivity(S, st.controller, {});
+  SensitivityUnloopOptions no_loop_gain_check;  // the grid reaches ‖C P‖ ~ 1e-5, below the default 1e-4
+  no_loop_gain_check.min_loop_gain = 0.0;
+  const SensitivityUnloopResult r = plant_from_sensitivity(S, st.controller, no_loop_gain_check);
   const std::vector<Eigen::MatrixXcd> P = evaluate_response(st.plant, w);
   double max_err = 0;
   for (Index k = 0; k < w.size(); ++k) {
@@ -166,10 +168,38 @@ TEST(PlantFromSensitivity, NearlyIdentitySensitivityDirectionIsFlagged) {
   const SensitivityUnloopResult r = plant_from_sensitivity(S, st.controller, {});
   EXPECT_TRUE(r.flag_reasons[0].empty()) << r.flag_reasons[0];
   EXPECT_THAT(r.flag_reasons[1], StartsWith("S^-1 - I ill-conditioned (cond 1e+09)"));
+  EXPECT_THAT(r.flag_reasons[1], HasSubstr("low loop gain (sigma_min(C P) 1e-09 < 0.0001)"));
   EXPECT_EQ(r.flagged_count, 1);
   EXPECT_TRUE(r.report.usable);
-  ASSERT_EQ(r.report.warnings.size(), 1u);
+  ASSERT_EQ(r.report.warnings.size(), 2u);
   EXPECT_EQ(r.report.warnings[0], "S^-1 - I ill-conditioned: 1 of 2 frequencies");
+  EXPECT_EQ(r.report.warnings[1], "low loop gain: 1 of 2 frequencies");
+}
+
+// Exact S of the stage up to 0.99 · Nyquist: the loop gain falls below 1e-4 near
+// the top of the grid.  Exactly the frequencies where σ_min(C P) < min_loop_gain
+// are flagged, "low loop gain" and nothing else (S itself is well conditioned).
+TEST(PlantFromSensitivity, LowLoopGainIsFlaggedWhereSigmaMinOfCPIsBelowTheThreshold) {
+  const Stage st;
+  const Eigen::VectorXd w = log_frequency_grid(kBandLo_rad_s, 0.99 * std::numbers::pi / kSamplePeriod_s, 300);
+  const FrequencyResponse S = frequency_response(st.sensitivity, w);
+  const SensitivityUnloopOptions options;
+  const SensitivityUnloopResult r = plant_from_sensitivity(S, st.controller, options);
+  const std::vector<Eigen::MatrixXcd> P = evaluate_response(st.plant, w);
+  const std::vector<Eigen::MatrixXcd> C = evaluate_response(st.controller, w);
+  Index expected = 0;
+  for (Index k = 0; k < w.size(); ++k) {
+    const size_t kk = static_cast<size_t>(k);
+    const double sigma_min = Eigen::JacobiSVD<Eigen::MatrixXcd>(C[kk] * P[kk]).singularValues()(2);
+    const bool low = sigma_min < options.min_loop_gain;
+    expected += low ? 1 : 0;
+    ASSERT_EQ(r.plant.flagged[kk], low) << "omega " << w(k) << " sigma_min " << sigma_min;
+    if (low) {
+      ASSERT_THAT(r.flag_reasons[kk], StartsWith("low loop gain (sigma_min(C P) ")) << r.flag_reasons[kk];
+    }
+  }
+  EXPECT_GT(expected, 0);
+  EXPECT_EQ(r.flagged_count, expected);
 }
 
 TEST(PlantFromSensitivity, LowCoherenceAndFlaggedInputAreFlagged) {
@@ -210,6 +240,10 @@ TEST(PlantFromSensitivity, RejectsBadInputWithMessages) {
   bad_opt.min_coherence = 1.5;
   EXPECT_THAT(message([&] { plant_from_sensitivity(S, st.controller, bad_opt); }),
               HasSubstr("min_coherence = 1.5; it must be in [0, 1]"));
+  bad_opt = {};
+  bad_opt.min_loop_gain = -1.0;
+  EXPECT_THAT(message([&] { plant_from_sensitivity(S, st.controller, bad_opt); }),
+              HasSubstr("min_loop_gain = -1; it must be finite and >= 0"));
   FrequencyResponse wrong = S;
   for (auto& s : wrong.response) s = s.leftCols(2).eval();
   EXPECT_THAT(message([&] { plant_from_sensitivity(wrong, st.controller, {}); }),
