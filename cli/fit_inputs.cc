@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "cli/common.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/model_json.h"
@@ -16,7 +17,7 @@ namespace lpvid::cli {
 
 void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
   app.add_option("--model", o.model, "start model file (lpvid model init)")->required();
-  app.add_option("--data", o.data, "FILE@X_B: FRD (.csv/.mat) or state-space .json, x_b in m (repeat)")->required();
+  app.add_option("--data", o.data, "FILE@X_B: FRD (.csv/.mat; A.csv,B.csv,C.csv@X_B merges one file per excited input) or state-space .json, x_b in m (repeat)")->required();
   app.add_option("--target", o.target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
   app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space JSON; for G and S");
   app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the ZOH response");
@@ -69,7 +70,8 @@ FitInputs load_fit_inputs(const FitInputOptions& o, const std::vector<std::strin
     throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c)",
                                  o.target));
   std::vector<std::string> inputs = {o.model};
-  for (const auto& s : in.specs) inputs.push_back(s.path);
+  for (const auto& s : in.specs)
+    for (const auto& part : split_names(s.path, "--data")) inputs.push_back(part);
   if (!o.controller.empty()) inputs.push_back(o.controller);
   for (const auto& out : outputs)
     if (!out.empty()) check_not_overwriting(inputs, out);
@@ -77,7 +79,17 @@ FitInputs load_fit_inputs(const FitInputOptions& o, const std::vector<std::strin
   in.start = read_physical_model(o.model);
   if (!o.controller.empty()) options.controller = read_state_space(o.controller);
   std::vector<LoadedResponse> loaded;
-  for (const auto& s : in.specs) loaded.push_back(load_response(s.path));
+  for (const auto& s : in.specs) {
+    // "S_v1.csv,S_v2.csv,S_v3.csv@0": one file per excited input, merged.
+    if (s.path.find(',') != std::string::npos) {
+      LoadedResponse merged;
+      merged.path = s.path;
+      merged.frd = load_frd_merged(split_names(s.path, "--data"));
+      loaded.push_back(std::move(merged));
+    } else {
+      loaded.push_back(load_response(s.path));
+    }
+  }
   // Sample period: flag, else a discrete data model's, else the controller's.
   double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
   in.sample_period_source = o.rate_hz > 0 ? "--rate-hz" : "";

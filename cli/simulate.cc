@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,10 +16,12 @@
 #include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
+#include "formats/io/physical_model_json.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/interconnect.h"
 #include "idlib/models/platform.h"
+#include "idlib/physical/evaluate.h"
 #include "idlib/sim/platform_sim.h"
 
 namespace lpvid::cli {
@@ -52,6 +55,7 @@ struct SimulateOptions {
   bool simultaneous = false;
   bool json = false;
   std::vector<std::string> overrides;  // NAME=VALUE
+  std::string truth_model;             // physical model file (lpvid model): the truth, effects included
   AnalyzerCliOptions analyzer;         // --analyzer* (cli/simulate_analyzer.h)
 };
 
@@ -129,7 +133,16 @@ void run(const SimulateOptions& o) {
   std::vector<double> positions_m;
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
 
-  const PlatformParameters params = parameters_with(o.overrides);
+  // The truth: the documented platform with --set overrides, or a physical model
+  // file with its effects (a hidden effect for the model-error loop; the PI gains
+  // are designed on its rigid-body terms, as for --set).
+  std::optional<PhysicalModel> truth;
+  if (!o.truth_model.empty()) {
+    if (!o.overrides.empty())
+      throw InputError("--set and --truth-model both given: put the values in the model file (lpvid model) or use --set alone");
+    truth = read_physical_model(o.truth_model);
+  }
+  const PlatformParameters params = truth ? to_platform_parameters(*truth) : parameters_with(o.overrides);
   const auto gains = default_pi_gains(params);
   nlohmann::json summary = nlohmann::json::array();
   std::string text;
@@ -140,12 +153,17 @@ void run(const SimulateOptions& o) {
       const std::string dir =
           join_path(o.out_dir, fmt::format("{}_{}hz", position_label(o.positions[ip]), std::llround(o.rates_hz[ir])));
       ensure_directory(dir);
-      const StateSpace plant_c = platform_model(params, positions_m[ip]);
-      const StateSpace plant_d = discretize_zoh(plant_c, ts);
+      // With a truth model the discrete plant carries its effects (an input delay as
+      // whole-sample shift states); the continuous file holds the delay-free part.
+      const StateSpace plant_c =
+          truth ? physical_state_space(*truth, positions_m[ip]).system : platform_model(params, positions_m[ip]);
+      const StateSpace plant_d =
+          truth ? physical_state_space(*truth, positions_m[ip], ts).system : discretize_zoh(plant_c, ts);
       const StateSpace controller = discrete_pi_controller(gains, ts);
       const StateSpace closed_loop = closed_loop_output(plant_d, controller);
       const nlohmann::json provenance = {
-          {"command", "lpvid simulate platform"}, {"beam_position_m", positions_m[ip]}, {"seed", o.seed}};
+          {"command", "lpvid simulate platform"}, {"beam_position_m", positions_m[ip]}, {"seed", o.seed},
+          {"truth_model", o.truth_model}};
       write_state_space(join_path(dir, "controller.json"), controller, {{"provenance", provenance}});
       write_state_space(join_path(dir, "truth_plant.json"), plant_d, {{"provenance", provenance}});
       write_state_space(join_path(dir, "truth_plant_continuous.json"), plant_c, {{"provenance", provenance}});
@@ -196,6 +214,9 @@ Command make_simulate_command() {
             platform->add_option("--noise-scale", opts->noise_scale, "multiplies the default sensor noise (0 = none)");
             platform->add_flag("--simultaneous", opts->simultaneous,
                                "excite all three inputs at once in one experiment (default: one input per experiment)");
+            platform->add_option("--truth-model", opts->truth_model,
+                                 "simulate this physical model file (lpvid model; effects included) instead of the "
+                                 "documented platform");
             platform->add_option("--set", opts->overrides,
                                  "override a physical parameter, NAME=VALUE in the units of its name "
                                  "(repeatable; see docs/assumptions.md); the PI gains follow the parameters");
