@@ -94,6 +94,7 @@ void run(const DiagnoseCliOptions& o) {
                       {"delta_aic", c.fitted ? number_or_null(c.delta_aic) : nlohmann::json(nullptr)},
                       {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
                       {"significant", c.significant},
+                      {"seconds", c.fitted ? c.fit.seconds : 0.0},
                       {"parameters", params}});
     if (c.fitted)
       table += fmt::format("{:<4} {:<16} {:>10.1f} {:>10.4g} {:>10.3g}  {}\n", rank, c.effect, c.delta_bic,
