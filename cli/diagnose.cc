@@ -12,6 +12,7 @@
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/physical_model_json.h"
+#include "formats/plot/compare_plot.h"
 #include "idlib/core/error.h"
 #include "idlib/diagnose/diagnose.h"
 
@@ -33,11 +34,12 @@ by BIC = N ln(cost/N) + p ln N; one is significant when it lowers BIC by more th
 missing, the residual signature that points to it, the error before and after and the
 effect's estimated parameters with standard errors; or "nothing significant" / "not
 explained" with the remaining residual described.  The data, target and controller
-options are those of lpvid fit.  --out writes the winning candidate's fitted model.)";
+options are those of lpvid fit.  --out writes the winning candidate's fitted model; --png
+draws where the model fails (data and model, the error over the noise band, failing bands red).)";
 
 struct DiagnoseCliOptions {
   FitInputOptions in;
-  std::string candidates, out;
+  std::string candidates, out, png;
   double delta_bic = 10.0, averages = 16;
   bool json = false;
 };
@@ -67,7 +69,9 @@ void run(const DiagnoseCliOptions& o) {
   options.significance_delta_bic = o.delta_bic;
   options.model_error.averages = o.averages;
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
-  const FitInputs in = load_fit_inputs(o.in, {o.out});
+  if (!o.out.empty() && o.out == o.png)
+    throw InputError(fmt::format("diagnose: --out and --png are both '{}'; give two files", o.out));
+  const FitInputs in = load_fit_inputs(o.in, {o.out, o.png});
   options.fit = in.options;
   for (const std::string& c : options.candidates)
     if (find_effect(c) == nullptr) {
@@ -105,19 +109,44 @@ void run(const DiagnoseCliOptions& o) {
                            c.failure);
   }
 
-  if (!o.out.empty()) {
-    if (!d.explained)
-      throw NumericalError(
-          "diagnose: no candidate is significant, so there is no model to write to --out; nothing was written");
-    AtomicOutputSet outputs;
-    outputs.stage(o.out, physical_model_to_json(d.ranked.front().fit.model, nlohmann::json()));
-    outputs.commit();
+  if (!o.out.empty() && !d.explained)
+    throw NumericalError(
+        "diagnose: no candidate is significant, so there is no model to write to --out; nothing was written");
+  AtomicOutputSet outputs;
+  if (!o.out.empty()) outputs.stage(o.out, physical_model_to_json(d.ranked.front().fit.model, nlohmann::json()));
+  if (!o.png.empty()) {
+    // Where the baseline fails: data and refitted model per x_b, the error over the
+    // noise band, the failing bands shaded (formats/plot/compare_plot.h).
+    std::vector<CompareSeries> series;
+    std::vector<CompareBandMark> marks;
+    for (std::size_t k = 0; k < in.data.size(); ++k) {
+      const FitDataset& ds = in.data[k];
+      const FrequencyResponse model =
+          target_response(d.baseline.model, ds.beam_position_m, ds.response.omega_rad_s, options.fit);
+      const ModelErrorModel mem = model_error(ds.response, model.response, options.model_error);
+      series.push_back({fmt::format("x_b = {:g} m", ds.beam_position_m), mem.omega_rad_s, mem.data, mem.model,
+                        mem.radius, mem.skipped});
+    }
+    for (const auto& set : d.baseline_failures)
+      for (const FailingBand& b : set) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
+    ComparePlotOptions po;
+    po.title = fmt::format("lpvid diagnose: where the model fails ({} target; red: failing bands){}",
+                           target_name(options.fit.target),
+                           d.explained ? "; missing: " + d.ranked.front().effect : "");
+    po.same_model = false;
+    const FrequencyResponse& first = in.data.front().response;
+    if (static_cast<Index>(first.input_names.size()) == first.num_inputs()) po.input_labels = first.input_names;
+    if (static_cast<Index>(first.output_names.size()) == first.num_outputs()) po.output_labels = first.output_names;
+    const auto bytes = compare_png(series, marks, po);
+    outputs.stage(o.png, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
   }
+  outputs.commit();
 
   std::string text;
   for (const std::string& line : d.summary) text += line + "\n";
   text += "\ncandidates (refitted with all free parameters; BIC = N ln(cost/N) + p ln N):\n" + table;
   if (!o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.ranked.front().effect);
+  if (!o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
   const nlohmann::json summary = {
       {"explained", d.explained},
       {"missing", d.explained ? nlohmann::json(d.ranked.front().effect) : nlohmann::json(nullptr)},
@@ -144,6 +173,7 @@ Command make_diagnose_command() {
             app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs to be significant (default 10)");
             app->add_option("--averages", o->averages, "independent averages of the H1 data, for the noise (default 16)");
             app->add_option("--out", o->out, "write the winning candidate's fitted model here");
+            app->add_option("--png", o->png, "figure: data and model per x_b, the error over the noise band, failing bands in red");
             app->add_flag("--json", o->json, "print the report as JSON");
             app->callback([o] { run(*o); });
           }};

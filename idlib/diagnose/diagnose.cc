@@ -75,14 +75,15 @@ void describe_failures(const std::vector<std::vector<FailingBand>>& failures, co
   for (const auto& set : failures)
     for (const FailingBand& b : set) all.push_back(&b);
   std::sort(all.begin(), all.end(), [](const FailingBand* a, const FailingBand* b) {
-    return a->relative_percent_max > b->relative_percent_max;
+    return a->max_sigma_ratio > b->max_sigma_ratio;  // the furthest beyond the noise first
   });
   for (std::size_t k = 0; k < std::min(limit, all.size()); ++k) {
     const FailingBand& b = *all[k];
     const FitDataset& d = data[static_cast<std::size_t>(b.data_index)];
-    lines.push_back(fmt::format("  {} at x_b = {:g} m, {:.3g}–{:.3g} rad/s: up to {:.3g} % ({:+.2f} dB, {:+.1f} deg); {}",
+    lines.push_back(fmt::format("  {} at x_b = {:g} m, {:.3g}–{:.3g} rad/s: up to {:.3g} % ({:+.2f} dB, {:+.1f} deg), "
+                                "{:.0f}x the noise; {}",
                                 channel_name(d, b.output, b.input), d.beam_position_m, b.lo_rad_s, b.hi_rad_s,
-                                b.relative_percent_max, b.gain_db_max, b.phase_deg_max, b.hint));
+                                b.relative_percent_max, b.gain_db_max, b.phase_deg_max, b.max_sigma_ratio, b.hint));
   }
   if (all.size() > limit) lines.push_back(fmt::format("  ... and {} more failing bands", all.size() - limit));
 }
@@ -178,7 +179,7 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   if (nb == 0) {
     s.push_back("where it fails: nowhere beyond the measurement noise (no significant failing band)");
   } else {
-    s.push_back(fmt::format("where it fails ({} significant failing bands, largest first):", nb));
+    s.push_back(fmt::format("where it fails ({} significant failing bands, furthest beyond the noise first):", nb));
     describe_failures(out.baseline_failures, data, s, 5);
   }
   out.explained = !out.ranked.empty() && out.ranked.front().fitted && out.ranked.front().significant;
