@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <opencv2/imgproc.hpp>
 
 #include "cli/beam_commands.h"
@@ -12,6 +14,7 @@
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
+#include "formats/io/physical_model_json.h"
 #include "formats/io/platform_json.h"
 #include "formats/plot/canvas.h"
 #include "formats/plot/time_plot.h"
@@ -78,7 +81,7 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--log", o.log,
                   "time domain: a measured run (columns t, v1..v3, u1..u3, q1..q3, x_b) to predict with the platform "
                   "model");
-  app->add_option("--params", o.params, "with --log: platform parameter file (JSON; default: documented defaults)");
+  app->add_option("--params", o.params, "with --log: the model: a fitted physical model file (lpvid fit) or a platform parameter file (default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller, "with --log: the discrete controller of the run (JSON model)");
   app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)");
@@ -89,7 +92,27 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
 }
 
 void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
-  PlatformParameters model = o.params.empty() ? PlatformParameters::defaults() : read_platform_parameters(o.params);
+  PlatformParameters model = PlatformParameters::defaults();
+  if (!o.params.empty()) {
+    // A physical model file (lpvid model / fit) or a platform parameter file.
+    std::ifstream probe(o.params, std::ios::binary);
+    std::string head(512, '\0');
+    probe.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(probe.gcount()));
+    if (head.find("lpvid-physical-model") != std::string::npos) {
+      const PhysicalModel physical = read_physical_model(o.params);
+      model = to_platform_parameters(physical);
+      std::string ignored;
+      for (const std::string& e : physical.effects)
+        if (e == "structural_mode" || e == "input_delay" || e == "actuator_lag" || e == "gain_error")
+          ignored += (ignored.empty() ? "" : ", ") + e;
+      if (!ignored.empty())
+        std::fprintf(stderr, "lpvid compare --log: warning: %s of %s not simulated in the time domain (rigid-body "
+                             "platform terms only)\n", ignored.c_str(), o.params.c_str());
+    } else {
+      model = read_platform_parameters(o.params);
+    }
+  }
   apply_parameter_overrides(model, o.overrides);
   run_time_compare_with(o, model, out_json, json);
 }

@@ -17,6 +17,9 @@ namespace lpvid {
 void DiagnoseOptions::validate() const {
   fit.validate();
   model_error.validate();
+  if (!(refit_function_tolerance > 0.0 && refit_function_tolerance < 1.0))
+    throw InputError(fmt::format("diagnose: refit_function_tolerance must be in (0, 1), got {}",
+                                 refit_function_tolerance));
   if (!(std::isfinite(significance_delta_bic) && significance_delta_bic > 0.0))
     throw InputError(fmt::format("diagnose: significance_delta_bic must be finite and > 0, got {}",
                                  significance_delta_bic));
@@ -115,8 +118,11 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     }
   }
 
+  FitOptions refit = options.fit;
+  refit.function_tolerance = std::max(refit.function_tolerance, options.refit_function_tolerance);
+
   Diagnosis out;
-  out.baseline = fit_physical_model(model, data, options.fit);
+  out.baseline = fit_physical_model(model, data, refit);
   out.baseline_error = fit_error(out.baseline);
   out.baseline_failures = failures_of(out.baseline.model, data, options);
 
@@ -133,7 +139,7 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
       try {
         PhysicalModel start = out.baseline.model;  // the refitted baseline values as the start
         start.add_effect(c.effect);
-        c.fit = fit_physical_model(start, data, options.fit);
+        c.fit = fit_physical_model(start, data, refit);
         c.fitted = true;
       } catch (const NumericalError& e) {
         c.failure = e.what();
