@@ -17,6 +17,7 @@
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
+#include "formats/io/platform_json.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/interconnect.h"
@@ -59,48 +60,10 @@ struct SimulateOptions {
   AnalyzerCliOptions analyzer;         // --analyzer* (cli/simulate_analyzer.h)
 };
 
-// The physical parameters a user may override, by their names in code (units in
-// the names; see docs/assumptions.md).
-std::vector<std::pair<std::string, double*>> parameter_table(PlatformParameters& p) {
-  return {{"J_psi_kgm2", &p.J_psi_kgm2},
-          {"J_theta_kgm2", &p.J_theta_kgm2},
-          {"J_psitheta_kgm2", &p.J_psitheta_kgm2},
-          {"platform_mass_kg", &p.platform_mass_kg},
-          {"beam_mass_kg", &p.beam_mass_kg},
-          {"beam_height_m", &p.beam_height_m},
-          {"coil_arm_m", &p.coil_arm_m},
-          {"coil_damping_Ns_per_m", &p.coil_damping_Ns_per_m},
-          {"k_linear_N_per_m", &p.k_linear_N_per_m},
-          {"k_torque_low_Nm_per_rad", &p.k_torque_low_Nm_per_rad},
-          {"k_torque_high_Nm_per_rad", &p.k_torque_high_Nm_per_rad},
-          {"com_x_m", &p.com_x_m},
-          {"com_y_m", &p.com_y_m}};
-}
-
+// The documented platform with `--set NAME=VALUE` overrides (formats/io/platform_json.h).
 PlatformParameters parameters_with(const std::vector<std::string>& overrides) {
   PlatformParameters params = PlatformParameters::defaults();
-  auto table = parameter_table(params);
-  for (const std::string& item : overrides) {
-    const auto eq = item.find('=');
-    if (eq == std::string::npos)
-      throw InputError(fmt::format("--set '{}': expected NAME=VALUE, e.g. --set coil_damping_Ns_per_m=35", item));
-    const std::string name = item.substr(0, eq), value = item.substr(eq + 1);
-    double* field = nullptr;
-    std::string known;
-    for (auto& [n, f] : table) {
-      if (n == name) field = f;
-      known += (known.empty() ? "" : ", ") + n;
-    }
-    if (!field) throw InputError(fmt::format("--set: unknown parameter '{}'; known: {}", name, known));
-    try {
-      std::size_t used = 0;
-      *field = std::stod(value, &used);
-      if (used != value.size() || !std::isfinite(*field)) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("--set {}: '{}' is not a finite number", name, value));
-    }
-  }
-  params.validate();
+  apply_parameter_overrides(params, overrides);
   return params;
 }
 

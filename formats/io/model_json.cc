@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/json_detail.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -37,50 +38,13 @@ std::string read_all(const std::string& path) {
   return text;
 }
 
-// 1-based line and byte column of text[offset].
-detail::CellPosition position_of(const std::string& text, size_t offset) {
-  offset = std::min(offset, text.size());
-  detail::CellPosition at{1, 1};
-  for (size_t i = 0; i < offset; ++i) {
-    if (text[i] == '\n') {
-      ++at.line;
-      at.column = 1;
-    } else {
-      ++at.column;
-    }
-  }
-  return at;
-}
-
-// Offset of the top-level key "name" in a syntactically valid JSON object text
-// (for messages); 0 if not found.
-size_t find_top_level_key(const std::string& text, const std::string& name) {
-  int depth = 0;
-  for (size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (c == '{' || c == '[') {
-      ++depth;
-    } else if (c == '}' || c == ']') {
-      --depth;
-    } else if (c == '"') {
-      const size_t start = i;
-      for (++i; i < text.size() && text[i] != '"'; ++i)
-        if (text[i] == '\\') ++i;
-      if (depth != 1) continue;
-      size_t j = i + 1;
-      while (j < text.size() && std::strchr(" \t\r\n", text[j]) != nullptr) ++j;
-      if (j < text.size() && text[j] == ':' && text.compare(start + 1, i - start - 1, name) == 0) return start;
-    }
-  }
-  return 0;
-}
 
 class ModelReader {
  public:
   ModelReader(const std::string& path, const std::string& text) : path_(path), text_(text) {}
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-    const detail::CellPosition at = position_of(text_, key.empty() ? 0 : find_top_level_key(text_, key));
+    const detail::CellPosition at = detail::text_position(text_, key.empty() ? 0 : detail::find_top_level_key(text_, key));
     detail::fail_at(path_, at.line, at.column, what);
   }
 
@@ -168,7 +132,7 @@ class ModelReader {
       const size_t column = what.find("column ");
       const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
       if (colon != std::string::npos) what = what.substr(colon + 2);
-      const detail::CellPosition at = position_of(text_, offset);
+      const detail::CellPosition at = detail::text_position(text_, offset);
       detail::fail_at(path_, at.line, at.column, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
     }
     if (!root.is_object())

@@ -10,6 +10,7 @@
 
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_detail.h"
+#include "formats/io/json_detail.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -31,16 +32,8 @@ std::string read_text(const std::string& path) {
 
 // 1-based line and byte column of text[offset].
 std::pair<int64_t, int64_t> position_of(const std::string& text, size_t offset) {
-  int64_t line = 1, column = 1;
-  for (size_t i = 0; i < std::min(offset, text.size()); ++i) {
-    if (text[i] == '\n') {
-      ++line;
-      column = 1;
-    } else {
-      ++column;
-    }
-  }
-  return {line, column};
+  const detail::CellPosition at = detail::text_position(text, offset);
+  return {at.line, at.column};
 }
 
 // Offset of the key "name" (a quoted string followed by ':') at or after from; npos if none.

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/json_detail.h"
 #include "formats/io/csv_log.h"
 #include "idlib/core/error.h"
 
@@ -24,41 +25,6 @@ std::string read_text(const std::string& path) {
   return s.str();
 }
 
-detail::CellPosition position_of(const std::string& text, size_t offset) {
-  offset = std::min(offset, text.size());
-  detail::CellPosition at{1, 1};
-  for (size_t i = 0; i < offset; ++i) {
-    if (text[i] == '\n') {
-      ++at.line;
-      at.column = 1;
-    } else {
-      ++at.column;
-    }
-  }
-  return at;
-}
-
-// Offset of the top-level key "name" (0 if not found), for messages.
-size_t find_top_level_key(const std::string& text, const std::string& name) {
-  int depth = 0;
-  for (size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (c == '{' || c == '[') {
-      ++depth;
-    } else if (c == '}' || c == ']') {
-      --depth;
-    } else if (c == '"') {
-      const size_t start = i;
-      for (++i; i < text.size() && text[i] != '"'; ++i)
-        if (text[i] == '\\') ++i;
-      if (depth != 1) continue;
-      size_t j = i + 1;
-      while (j < text.size() && std::strchr(" \t\r\n", text[j]) != nullptr) ++j;
-      if (j < text.size() && text[j] == ':' && text.compare(start + 1, i - start - 1, name) == 0) return start;
-    }
-  }
-  return 0;
-}
 
 std::string known_names(PlatformParameters& p) {
   std::string known;
@@ -89,14 +55,14 @@ std::vector<std::pair<std::string, double*>> platform_parameter_fields(PlatformP
 PlatformParameters read_platform_parameters(const std::string& path) {
   const std::string text = read_text(path);
   auto fail = [&](const std::string& key, const std::string& what) {
-    const detail::CellPosition at = position_of(text, key.empty() ? 0 : find_top_level_key(text, key));
+    const detail::CellPosition at = detail::text_position(text, key.empty() ? 0 : detail::find_top_level_key(text, key));
     detail::fail_at(path, at.line, at.column, what);
   };
   json root;
   try {
     root = json::parse(text);
   } catch (const json::parse_error& e) {
-    const detail::CellPosition at = position_of(text, e.byte == 0 ? 0 : e.byte - 1);
+    const detail::CellPosition at = detail::text_position(text, e.byte == 0 ? 0 : e.byte - 1);
     std::string what = e.what();
     const size_t column = what.find("column ");
     const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
