@@ -210,22 +210,28 @@ StageFitResult fit_stage(const StageParameters& nominal, const Eigen::MatrixXd& 
   return rc.rms_residual < rd.rms_residual ? rc : rd;
 }
 
-StageDiagnosis diagnose_stage(const StageParameters& nominal, const Eigen::MatrixXd& u, const Eigen::MatrixXd& q,
-                              double sample_period_s, const StageFitOptions& options) {
+StageDiagnosis diagnose_stage_from(const StageFitModel& current, const StageParameters& nominal,
+                                   const Eigen::MatrixXd& u, const Eigen::MatrixXd& q, double sample_period_s,
+                                   const StageFitOptions& options) {
   StageDiagnosis d;
-  StageFitModel base;
-  base.com_offset = false;
-  d.base = fit_stage(nominal, u, q, sample_period_s, base, options);
+  d.base = fit_stage(nominal, u, q, sample_period_s, current, options);
   for (int c = 0; c < 3; ++c) {
-    StageFitModel m = base;
-    if (c == 0) m.com_offset = true;
-    if (c == 1) m.gap_dependence = true;
-    if (c == 2) m.electrical_lag = true;
+    StageFitModel m = current;
+    bool& flag = c == 0 ? m.com_offset : (c == 1 ? m.gap_dependence : m.electrical_lag);
+    if (flag) continue;  // already in the model
+    flag = true;
     d.candidates.push_back(fit_stage(nominal, u, q, sample_period_s, m, options));
   }
   std::sort(d.candidates.begin(), d.candidates.end(),
             [](const StageFitResult& x, const StageFitResult& y) { return x.bic < y.bic; });
   return d;
+}
+
+StageDiagnosis diagnose_stage(const StageParameters& nominal, const Eigen::MatrixXd& u, const Eigen::MatrixXd& q,
+                              double sample_period_s, const StageFitOptions& options) {
+  StageFitModel base;
+  base.com_offset = false;
+  return diagnose_stage_from(base, nominal, u, q, sample_period_s, options);
 }
 
 }  // namespace lpvid::stage6

@@ -85,5 +85,10 @@ struct StageDiagnosis {
 };
 StageDiagnosis diagnose_stage(const StageParameters& nominal, const Eigen::MatrixXd& u, const Eigen::MatrixXd& q,
                               double sample_period_s, const StageFitOptions& options = {});
+// The same from a model that already has some effects: `current` is refitted as
+// the base, and each effect it lacks is added alone (none: no candidates).
+StageDiagnosis diagnose_stage_from(const StageFitModel& current, const StageParameters& nominal,
+                                   const Eigen::MatrixXd& u, const Eigen::MatrixXd& q, double sample_period_s,
+                                   const StageFitOptions& options = {});
 
 }  // namespace lpvid::stage6
