@@ -94,6 +94,8 @@ nlohmann::json result_json(const stage6::StageFitResult& r) {
           {"parameters", r.num_parameters},
           {"residuals", r.num_residuals},
           {"rms_residual", r.rms_residual},
+          {"rms_per_row", {{"F_x", r.rms_per_row(0)}, {"F_y", r.rms_per_row(1)}, {"F_z", r.rms_per_row(2)},
+                           {"tau_x", r.rms_per_row(3)}, {"tau_y", r.rms_per_row(4)}, {"tau_z", r.rms_per_row(5)}}},
           {"bic", r.bic}};
 }
 
@@ -110,6 +112,9 @@ std::string result_text(const stage6::StageFitResult& r) {
                      1e3 * r.electrical_time_constant_s, r.back_emf_damping_Ns_per_m);
   t += fmt::format("  rms residual {:.4g} (scaled), BIC {:.1f}, {} parameters, {} residuals\n", r.rms_residual, r.bic,
                    r.num_parameters, r.num_residuals);
+  t += fmt::format("  per row (where it fails): F_x {:.3g}  F_y {:.3g}  F_z {:.3g}  tau_x {:.3g}  tau_y {:.3g}  tau_z {:.3g}\n",
+                   r.rms_per_row(0), r.rms_per_row(1), r.rms_per_row(2), r.rms_per_row(3), r.rms_per_row(4),
+                   r.rms_per_row(5));
   return t;
 }
 

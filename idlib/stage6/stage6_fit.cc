@@ -141,6 +141,15 @@ StageFitResult solve(Problem& P, const StageFitModel& model, double tau, const S
   if (model.electrical_lag) r.electrical_time_constant_s = tau, r.back_emf_damping_Ns_per_m = emf[0];
   r.num_parameters = 4 + (model.com_offset ? 3 : 0) + (model.gap_dependence ? 1 : 0) + (model.electrical_lag ? 2 : 0);
   r.num_residuals = static_cast<Eigen::Index>(P.samples.size()) * 6;
+  r.residual.resize(static_cast<Eigen::Index>(P.samples.size()), 6);
+  for (std::size_t k = 0; k < P.samples.size(); ++k) {
+    const Residual res{&P.samples[k], &P.nominal.lever_arms_m, force_scale, force_scale / kTorqueScale_m};
+    double row[6];
+    res(base, com, gap, emf, row);
+    for (int c = 0; c < 6; ++c) r.residual(static_cast<Eigen::Index>(k), c) = row[c];
+  }
+  if (r.residual.rows() > 0)
+    r.rms_per_row = (r.residual.colwise().squaredNorm() / static_cast<double>(r.residual.rows())).cwiseSqrt().transpose();
   const double n = static_cast<double>(r.num_residuals);
   const double rss = 2.0 * summary.final_cost;
   r.rms_residual = std::sqrt(rss / n);

@@ -64,6 +64,10 @@ struct StageFitResult {
   int num_parameters = 0;
   Eigen::Index num_residuals = 0;
   double rms_residual = 0;  // of the scaled residuals (dimensionless)
+  // Where the model fails: the scaled residual per row (force rows x, y, z, then
+  // torque rows about x, y, z; log rows 1..N−2) and its rms per row.
+  Eigen::MatrixXd residual;
+  Eigen::Matrix<double, 6, 1> rms_per_row = Eigen::Matrix<double, 6, 1>::Zero();
   double bic = 0;           // n ln(RSS/n) + p ln n
   Report report;
 };
