@@ -18,7 +18,7 @@ namespace lpvid {
 namespace frd_detail {
 
 bool quantity_allowed(std::string_view q) {
-  if (q.empty() || q == "coh") return false;
+  if (q.empty() || q == "coh" || q == "var") return false;
   return std::all_of(q.begin(), q.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
   });
@@ -96,7 +96,11 @@ constexpr std::array<const char*, kParts> kSuffix = {"re", "im", "db", "deg"};
 struct Slot {
   std::array<Index, kParts> col{-1, -1, -1, -1};  // csv column of each part
   Index coh = -1;
+  Index var = -1;
 };
+
+// Which column kind an extra per-pair column is.
+enum class Extra { kNone, kCoherence, kVariance };
 
 struct Axis {
   bool indexed = true;
@@ -129,7 +133,7 @@ class FrdCsvReader {
   struct ResponseColumn {
     Index column;
     Part part;
-    bool coherence;
+    Extra extra;  // kNone: a response part
     std::string out, in;
   };
 
@@ -142,6 +146,10 @@ class FrdCsvReader {
       const size_t colon = comment.text.find(':');
       if (colon == std::string::npos) continue;
       const std::string_view key = trim(std::string_view(comment.text).substr(0, colon));
+      if (key == "averages") {
+        parse_averages(comment, colon);
+        continue;
+      }
       AxisMeta* meta = key == "outputs" ? &outs_meta_ : key == "inputs" ? &ins_meta_ : nullptr;
       if (meta == nullptr) continue;
       const int64_t key_column = comment.column + static_cast<int64_t>(comment.text.find_first_not_of(" \t"));
@@ -175,6 +183,25 @@ class FrdCsvReader {
     }
   }
 
+  // "# averages: K": the independent averages behind the coherence, a number >= 1.
+  template <class Comment>
+  void parse_averages(const Comment& comment, size_t colon) {
+    const int64_t key_column = comment.column + static_cast<int64_t>(comment.text.find_first_not_of(" \t"));
+    if (averages_line_ > 0)
+      detail::fail_at(path_, comment.line, key_column,
+                      fmt::format("'averages' is given twice (also on line {}); give it once", averages_line_));
+    averages_line_ = comment.line;
+    const std::string value(trim(std::string_view(comment.text).substr(colon + 1)));
+    char* end = nullptr;
+    const double v = value.empty() ? NAN : std::strtod(value.c_str(), &end);
+    if (value.empty() || end != value.c_str() + value.size() || !std::isfinite(v) || v < 1 || v > 1e9)
+      detail::fail_at(path_, comment.line, key_column,
+                      fmt::format("'averages: {}' is not a number of averages; give the independent averages behind "
+                                  "the coherence as a number >= 1, e.g. '# averages: 16'",
+                                  value));
+    averages_ = v;
+  }
+
   std::string metadata_hint() const {
     auto list = [](const AxisMeta& m) {
       return m.given ? fmt::format("{}", fmt::join(m.names, ",")) : std::string("<names without '_' or indices>");
@@ -195,9 +222,12 @@ class FrdCsvReader {
       }
       std::string_view rest;
       Part part = kRe;
-      bool coherence = false;
+      Extra extra = Extra::kNone;
       if (name.rfind("coh_", 0) == 0) {
-        coherence = true;
+        extra = Extra::kCoherence;
+        rest = std::string_view(name).substr(4);
+      } else if (name.rfind("var_", 0) == 0) {
+        extra = Extra::kVariance;
         rest = std::string_view(name).substr(4);
       } else {
         const size_t last = name.rfind('_');
@@ -206,8 +236,8 @@ class FrdCsvReader {
         const auto it = std::find(kSuffix.begin(), kSuffix.end(), suffix);
         if (it == kSuffix.end() || first == last || !frd_detail::quantity_allowed(std::string_view(name).substr(0, first)))
           fail_header(column, fmt::format("column '{}' is not an FRD column; the columns are freq_hz, "
-                                          "<Q>_<output>_<input>_re and _im (or _db and _deg), coh_<output>_<input> and "
-                                          "flag, with <Q> letters and digits (S, P, G, ...)",
+                                          "<Q>_<output>_<input>_re and _im (or _db and _deg), coh_<output>_<input>, "
+                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...)",
                                           name));
         part = static_cast<Part>(it - kSuffix.begin());
         const std::string quantity = name.substr(0, first);
@@ -245,10 +275,11 @@ class FrdCsvReader {
         fail_header(column, fmt::format("column '{}' splits two ways (output '{}', input '{}' or output '{}', input "
                                         "'{}'); rename the channels so that <output>_<input> splits one way",
                                         name, split.first, split.second, other.first, other.second));
-      columns_.push_back({column, part, coherence, std::move(split.first), std::move(split.second)});
+      columns_.push_back({column, part, extra, std::move(split.first), std::move(split.second)});
     }
     if (!options_.quantity.empty()) quantity_ = options_.quantity;
-    const bool any_response = std::any_of(columns_.begin(), columns_.end(), [](const auto& c) { return !c.coherence; });
+    const bool any_response =
+        std::any_of(columns_.begin(), columns_.end(), [](const auto& c) { return c.extra == Extra::kNone; });
     if (!any_response) {
       if (!other_quantities_.empty())
         detail::fail_at(path_, csv_.header_line, 1,
@@ -282,7 +313,7 @@ class FrdCsvReader {
     }
     const ResponseColumn* first = nullptr;
     for (const ResponseColumn& c : columns_) {
-      if (c.coherence) continue;
+      if (c.extra != Extra::kNone) continue;
       const std::string& token = outputs ? c.out : c.in;
       if (first == nullptr) {
         first = &c;
@@ -337,23 +368,25 @@ class FrdCsvReader {
     slots_.assign(static_cast<size_t>(outs_.size * ins_.size), Slot{});
     for (const ResponseColumn& c : columns_) {
       Index i = -1, j = -1;
-      if (c.coherence) {
+      if (c.extra != Extra::kNone) {
         const bool out_ok = outs_.indexed == all_digits(c.out) && (i = find(outs_, c.out)) >= 0;
         const bool in_ok = ins_.indexed == all_digits(c.in) && (j = find(ins_, c.in)) >= 0;
         if (!out_ok || !in_ok)
-          fail_header(c.column, fmt::format("column '{}' is the coherence of output {}, input {}, which have no "
-                                            "response columns; give coherence only for pairs with a response",
-                                            name_of(c.column), shown_token(c.out), shown_token(c.in)));
+          fail_header(c.column, fmt::format("column '{}' is the {} of output {}, input {}, which have no "
+                                            "response columns; give {} only for pairs with a response",
+                                            name_of(c.column), extra_words(c.extra), shown_token(c.out),
+                                            shown_token(c.in), extra_words(c.extra)));
       } else {
         i = find(outs_, c.out);
         j = find(ins_, c.in);
       }
       Slot& slot = slots_[static_cast<size_t>(i * ins_.size + j)];
-      Index& at = c.coherence ? slot.coh : slot.col[c.part];
+      Index& at = c.extra == Extra::kCoherence ? slot.coh : c.extra == Extra::kVariance ? slot.var : slot.col[c.part];
       if (at >= 0)
         fail_header(c.column, fmt::format("column '{}' repeats column {} '{}' ({} of {}); give each column once",
                                           name_of(c.column), at + 1, name_of(at),
-                                          c.coherence ? "coherence" : part_words(c.part), label(i, j)));
+                                          c.extra != Extra::kNone ? extra_words(c.extra) : part_words(c.part),
+                                          label(i, j)));
       at = c.column;
     }
   }
@@ -361,6 +394,8 @@ class FrdCsvReader {
   static std::string shown_token(const std::string& token) {
     return all_digits(token) ? token : "'" + token + "'";
   }
+
+  static const char* extra_words(Extra extra) { return extra == Extra::kCoherence ? "coherence" : "variance"; }
 
   static const char* part_words(Part part) {
     switch (part) {
@@ -374,9 +409,12 @@ class FrdCsvReader {
 
   void check_slots(bool allow_missing_pairs, std::vector<std::pair<Index, Index>>& pairs) {
     const bool any_coherence = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.coh >= 0; });
-    Index first_coh = -1;
-    for (const Slot& s : slots_)
+    const bool any_variance = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.var >= 0; });
+    Index first_coh = -1, first_var = -1;
+    for (const Slot& s : slots_) {
       if (s.coh >= 0 && (first_coh < 0 || s.coh < first_coh)) first_coh = s.coh;
+      if (s.var >= 0 && (first_var < 0 || s.var < first_var)) first_var = s.var;
+    }
     for (Index i = 0; i < outs_.size; ++i)
       for (Index j = 0; j < ins_.size; ++j) {
         const Slot& s = slots_[static_cast<size_t>(i * ins_.size + j)];
@@ -389,6 +427,10 @@ class FrdCsvReader {
             fail_header(s.coh, fmt::format("column '{}' is the coherence of {}, which has no response columns; "
                                            "give coherence only for pairs with a response",
                                            name_of(s.coh), label(i, j)));
+          if (s.var >= 0)
+            fail_header(s.var, fmt::format("column '{}' is the variance of {}, which has no response columns; "
+                                           "give variance only for pairs with a response",
+                                           name_of(s.var), label(i, j)));
           if (allow_missing_pairs) continue;
           detail::fail_at(path_, csv_.header_line, 1,
                           fmt::format("no columns for {}; every output/input pair needs a response: {}", label(i, j),
@@ -408,6 +450,10 @@ class FrdCsvReader {
                                                part_words(have), name_of(s.col[have]), both));
         if (any_coherence && s.coh < 0)
           fail_header(first_coh, fmt::format("no column 'coh_{}_{}' for the coherence of {}; give coherence for "
+                                             "every pair or for none",
+                                             token(outs_, i), token(ins_, j), label(i, j)));
+        if (any_variance && s.var < 0)
+          fail_header(first_var, fmt::format("no column 'var_{}_{}' for the variance of {}; give variance for "
                                              "every pair or for none",
                                              token(outs_, i), token(ins_, j), label(i, j)));
         pairs.emplace_back(i, j);
@@ -462,6 +508,9 @@ class FrdCsvReader {
     frd.response.assign(static_cast<size_t>(nf), Eigen::MatrixXcd::Zero(outs_.size, ins_.size));
     const bool any_coherence = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.coh >= 0; });
     if (any_coherence) frd.coherence.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
+    const bool any_variance = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.var >= 0; });
+    if (any_variance) frd.variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
+    frd.averages = averages_;
     for (const auto& [i, j] : pairs) {
       const Slot& s = slots_[static_cast<size_t>(i * ins_.size + j)];
       for (Index k = 0; k < nf; ++k) {
@@ -480,6 +529,13 @@ class FrdCsvReader {
                                             "between 0 and 1",
                                             c, name_of(s.coh)));
           frd.coherence[static_cast<size_t>(k)](i, j) = c;
+        }
+        if (s.var >= 0) {
+          const double v = csv_.data(k, s.var);
+          if (!(v >= 0))
+            fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; a variance is >= 0", v,
+                                            name_of(s.var)));
+          frd.variance[static_cast<size_t>(k)](i, j) = v;
         }
       }
     }
@@ -505,6 +561,8 @@ class FrdCsvReader {
   std::vector<std::string> other_quantities_;
   std::string quantity_;
   Index flag_ = -1;
+  double averages_ = 0;
+  int64_t averages_line_ = 0;
   Axis outs_, ins_;
   std::vector<Slot> slots_;
 };
@@ -591,6 +649,26 @@ void check_frd_for_writing(const std::string& path, const FrequencyResponse& frd
                                          path, k + 1, i + 1, j + 1, c(i, j)));
     }
   }
+  if (!frd.variance.empty()) {
+    if (static_cast<Index>(frd.variance.size()) != nf)
+      throw InputError(fmt::format("cannot write '{}': {} variance matrices for {} frequencies; give one per "
+                                   "frequency or none",
+                                   path, frd.variance.size(), nf));
+    for (Index k = 0; k < nf; ++k) {
+      const Eigen::MatrixXd& v = frd.variance[static_cast<size_t>(k)];
+      if (v.rows() != ny || v.cols() != nu)
+        throw InputError(fmt::format("cannot write '{}': variance {} is {}×{}, expected {}×{} (outputs × inputs)",
+                                     path, k + 1, v.rows(), v.cols(), ny, nu));
+      for (Index i = 0; i < ny; ++i)
+        for (Index j = 0; j < nu; ++j)
+          if (!(v(i, j) >= 0) || !std::isfinite(v(i, j)))
+            throw InputError(fmt::format("cannot write '{}': variance {} ({}, {}) is {}; a variance is finite and >= 0",
+                                         path, k + 1, i + 1, j + 1, v(i, j)));
+    }
+  }
+  if (!(frd.averages == 0 || (frd.averages >= 1 && std::isfinite(frd.averages))))
+    throw InputError(fmt::format("cannot write '{}': averages {} is not 0 (unknown) or a number >= 1", path,
+                                 frd.averages));
   if (!frd.flagged.empty() && static_cast<Index>(frd.flagged.size()) != nf)
     throw InputError(fmt::format("cannot write '{}': {} flags for {} frequencies; give one per frequency or none", path,
                                  frd.flagged.size(), nf));
@@ -615,7 +693,7 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
       const std::string_view piece(comment.data() + start, (nl == std::string::npos ? comment.size() : nl) - start);
       const size_t colon = piece.find(':');
       const std::string_view key = colon == std::string_view::npos ? std::string_view() : trim(piece.substr(0, colon));
-      if (key == "outputs" || key == "inputs")
+      if (key == "outputs" || key == "inputs" || key == "averages")
         throw InputError(fmt::format("cannot write '{}': comment {} would be read as '# {}:' metadata; reword it", path,
                                      detail::quote_cell(piece), key));
       if (nl == std::string::npos) break;
@@ -648,6 +726,10 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
     for (Index i = 0; i < ny; ++i)
       for (Index j = 0; j < nu; ++j)
         names.push_back(fmt::format("coh_{}_{}", outs[static_cast<size_t>(i)], ins[static_cast<size_t>(j)]));
+  if (!frd.variance.empty())
+    for (Index i = 0; i < ny; ++i)
+      for (Index j = 0; j < nu; ++j)
+        names.push_back(fmt::format("var_{}_{}", outs[static_cast<size_t>(i)], ins[static_cast<size_t>(j)]));
   if (!frd.flagged.empty()) names.push_back("flag");
   detail::check_header_names(out.path(), names);
 
@@ -664,10 +746,14 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
     if (!frd.coherence.empty())
       for (Index i = 0; i < ny; ++i)
         for (Index j = 0; j < nu; ++j) rows(k, c++) = frd.coherence[kk](i, j);
+    if (!frd.variance.empty())
+      for (Index i = 0; i < ny; ++i)
+        for (Index j = 0; j < nu; ++j) rows(k, c++) = frd.variance[kk](i, j);
     if (!frd.flagged.empty()) rows(k, c++) = frd.flagged[kk] ? 1.0 : 0.0;
   }
   std::string head;
   detail::append_comments(head, comments);
+  if (frd.averages > 0) head += fmt::format("# averages: {}\n", frd.averages);
   if (!frd.output_names.empty()) head += fmt::format("# outputs: {}\n", fmt::join(frd.output_names, ","));
   if (!frd.input_names.empty()) head += fmt::format("# inputs: {}\n", fmt::join(frd.input_names, ","));
   head += fmt::format("{}\n", fmt::join(names, ","));
@@ -723,6 +809,17 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
                                    "in none",
                                    kFail, shown(with), shown(without)));
     }
+    if (p.frd.variance.empty() != first.frd.variance.empty()) {
+      const FrdPart& with = first.frd.variance.empty() ? p : first;
+      const FrdPart& without = first.frd.variance.empty() ? first : p;
+      throw InputError(fmt::format("{}: '{}' has variance columns but '{}' has none; give variance in every file or "
+                                   "in none",
+                                   kFail, shown(with), shown(without)));
+    }
+    if (p.frd.averages != first.frd.averages)
+      throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; merge files measured with the "
+                                   "same number of averages (0 = not stated)",
+                                   kFail, shown(first), first.frd.averages, shown(p), p.frd.averages));
   }
   // Axes: named in all parts (match by name) or indexed in all parts (by index).
   struct MergedAxis {
@@ -776,6 +873,9 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
   merged.response.assign(static_cast<size_t>(nf), Eigen::MatrixXcd::Zero(outs.size, ins.size));
   if (!first.frd.coherence.empty())
     merged.coherence.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
+  if (!first.frd.variance.empty())
+    merged.variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
+  merged.averages = first.frd.averages;
   std::vector<Index> owner(static_cast<size_t>(outs.size * ins.size), -1);
   for (size_t p = 0; p < parts.size(); ++p) {
     const FrdPart& part = parts[p];
@@ -791,6 +891,7 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
         const auto kk = static_cast<size_t>(k);
         merged.response[kk](i, j) = part.frd.response[kk](pi, pj);
         if (!merged.coherence.empty()) merged.coherence[kk](i, j) = part.frd.coherence[kk](pi, pj);
+        if (!merged.variance.empty()) merged.variance[kk](i, j) = part.frd.variance[kk](pi, pj);
       }
     }
     if (!part.frd.flagged.empty()) {

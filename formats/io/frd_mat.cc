@@ -124,6 +124,33 @@ class MatReader {
             frd.coherence[k](static_cast<Index>(i), static_cast<Index>(j)) = v;
           }
     }
+    if (has("var")) {
+      const Array c = load("var", false);
+      const auto [cy, cu] = shape(c, "var", nf, "variance");
+      if (cy != ny || cu != nu)
+        fail(fmt::format("variance 'var' is {}×{} per frequency but response '{}' is {}×{}; give variance of the "
+                         "response's shape",
+                         cy, cu, response_name, ny, nu));
+      frd.variance.assign(nf, Eigen::MatrixXd(static_cast<Index>(ny), static_cast<Index>(nu)));
+      for (size_t k = 0; k < nf; ++k)
+        for (size_t j = 0; j < nu; ++j)
+          for (size_t i = 0; i < ny; ++i) {
+            const double v = c.re[i + ny * (j + nu * k)];
+            if (!(v >= 0) || !std::isfinite(v))
+              fail(fmt::format("variance 'var' is {} at output {}, input {}, frequency {}; a variance is finite and "
+                               ">= 0",
+                               v, i + 1, j + 1, k + 1));
+            frd.variance[k](static_cast<Index>(i), static_cast<Index>(j)) = v;
+          }
+    }
+    if (has("averages")) {
+      const Array a = load("averages", false);
+      if (a.re.size() != 1 || !std::isfinite(a.re[0]) || a.re[0] < 1 || a.re[0] > 1e9)
+        fail(fmt::format("'averages' must be one number >= 1 (the independent averages behind the coherence); got {} "
+                         "value(s){}",
+                         a.re.size(), a.re.size() == 1 ? fmt::format(" = {}", a.re[0]) : std::string()));
+      frd.averages = a.re[0];
+    }
     if (has("flag")) {
       const Array g = load("flag", false);
       if (g.re.size() != nf || std::count_if(g.dims.begin(), g.dims.end(), [](size_t d) { return d != 1; }) > 1)
@@ -387,7 +414,7 @@ void write_frd_mat(const std::string& path, const FrequencyResponse& frd, const 
                                  "(not 'coh'), e.g. S",
                                  path, quantity));
   if (quantity == "freq_hz" || quantity == "f" || quantity == "freq" || quantity == "w" || quantity == "omega" ||
-      quantity == "flag" || quantity == "outputs" || quantity == "inputs")
+      quantity == "flag" || quantity == "outputs" || quantity == "inputs" || quantity == "averages")
     throw InputError(fmt::format("cannot write '{}': quantity '{}' is the name of another variable of the file; use "
                                  "S, P, G, ...",
                                  path, quantity));
@@ -416,6 +443,18 @@ void write_frd_mat(const std::string& path, const FrequencyResponse& frd, const 
         for (size_t i = 0; i < ny; ++i)
           coh[i + ny * (j + nu * k)] = frd.coherence[k](static_cast<Index>(i), static_cast<Index>(j));
     out.add(real_array("coh", {ny, nu, nf}, coh));
+  }
+  if (!frd.variance.empty()) {
+    std::vector<double> var(ny * nu * nf);
+    for (size_t k = 0; k < nf; ++k)
+      for (size_t j = 0; j < nu; ++j)
+        for (size_t i = 0; i < ny; ++i)
+          var[i + ny * (j + nu * k)] = frd.variance[k](static_cast<Index>(i), static_cast<Index>(j));
+    out.add(real_array("var", {ny, nu, nf}, var));
+  }
+  if (frd.averages > 0) {
+    std::vector<double> averages{frd.averages};
+    out.add(real_array("averages", {1, 1}, averages));
   }
   if (!frd.flagged.empty()) {
     std::vector<double> flag(nf);

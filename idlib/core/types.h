@@ -49,12 +49,20 @@ struct StateSpace {
 
 // Frequency-response data (FRD): response[k] is the (outputs x inputs) complex
 // matrix at omega_rad_s[k].  coherence, when not empty, has the same layout with
-// values in [0, 1].  flagged, when not empty, marks frequencies whose values the
-// producer could not trust (one entry per frequency).
+// values in [0, 1].  variance, when not empty, has the same layout: the
+// estimator's own noise level E|Ĥ_ij − H_ij|² per entry (the sum of the variances
+// of the real and imaginary parts, in the response's units squared), e.g. from
+// lpvid frf, the bands of identify/unloop, or per-period averaging.  averages is
+// the number of independent averages behind the coherence (n_d of an H1
+// estimate, which turns coherence into a variance); 0 = not stated by the data.
+// flagged, when not empty, marks frequencies whose values the producer could not
+// trust (one entry per frequency).
 struct FrequencyResponse {
   Eigen::VectorXd omega_rad_s;
   std::vector<Eigen::MatrixXcd> response;
   std::vector<Eigen::MatrixXd> coherence;
+  std::vector<Eigen::MatrixXd> variance;
+  double averages = 0;
   std::vector<bool> flagged;
   std::vector<std::string> input_names;
   std::vector<std::string> output_names;

@@ -56,6 +56,9 @@ void expect_identical(const FrequencyResponse& a, const FrequencyResponse& b) {
   }
   ASSERT_EQ(a.coherence.size(), b.coherence.size());
   for (size_t k = 0; k < a.coherence.size(); ++k) EXPECT_TRUE((a.coherence[k].array() == b.coherence[k].array()).all());
+  ASSERT_EQ(a.variance.size(), b.variance.size());
+  for (size_t k = 0; k < a.variance.size(); ++k) EXPECT_TRUE((a.variance[k].array() == b.variance[k].array()).all());
+  EXPECT_EQ(a.averages, b.averages);
   EXPECT_EQ(a.flagged, b.flagged);
   EXPECT_EQ(a.output_names, b.output_names);
   EXPECT_EQ(a.input_names, b.input_names);
@@ -83,6 +86,55 @@ TEST_F(FrdCsv, WriteThenRead_GivesIdenticalDoubles) {
                          "freq_hz,S_psi_u1_re,S_psi_u1_im,S_psi_u2_re,",
                          0),
             0u);
+}
+
+// The estimator's variance per entry and the averages behind the coherence travel
+// with the response (issues 10, 11, 14: noise bands from the data, not a default).
+TEST_F(FrdCsv, VarianceAndAverages_RoundTripExactly) {
+  FrequencyResponse frd = random_frd(30, 3, 2, kSeed + 7, true, false);
+  for (const auto& h : frd.response) frd.variance.push_back(h.cwiseAbs2() * 1e-4);
+  frd.averages = 16;
+  const std::string p = path("v.csv");
+  write_frd_csv(p, frd, "S");
+  expect_identical(read_frd_csv(p), frd);
+  const std::string text = read(p);
+  EXPECT_EQ(text.rfind("# averages: 16\nfreq_hz,", 0), 0u) << text.substr(0, 80);
+  EXPECT_NE(text.find(",var_1_1,var_1_2,var_2_1,"), std::string::npos);
+}
+
+TEST_F(FrdCsv, MergedParts_KeepVarianceAndAverages) {
+  FrequencyResponse full = random_frd(12, 2, 2, kSeed + 8, true, false);
+  for (const auto& h : full.response) full.variance.push_back(h.cwiseAbs2() * 1e-3);
+  full.averages = 8;
+  std::vector<FrdPart> parts;
+  for (Index j = 0; j < 2; ++j) {
+    FrequencyResponse one = full;
+    one.input_names = {"v" + std::to_string(j + 1)};
+    for (size_t k = 0; k < one.response.size(); ++k) {
+      one.response[k] = full.response[k].col(j);
+      one.coherence[k] = full.coherence[k].col(j);
+      one.variance[k] = full.variance[k].col(j);
+    }
+    const std::string p = path("part" + std::to_string(j) + ".csv");
+    write_frd_csv(p, one, "S");
+    parts.push_back(read_frd_part(p));
+  }
+  const FrequencyResponse merged = merge_frd_parts(parts);
+  EXPECT_EQ(merged.averages, 8);
+  ASSERT_EQ(merged.variance.size(), full.variance.size());
+  for (size_t k = 0; k < full.variance.size(); ++k) EXPECT_TRUE((merged.variance[k].array() == full.variance[k].array()).all());
+  // averages that differ between parts are refused
+  FrequencyResponse other = full;
+  other.averages = 4;
+  for (size_t k = 0; k < other.response.size(); ++k) {
+    other.response[k] = full.response[k].col(0);
+    other.coherence[k] = full.coherence[k].col(0);
+    other.variance[k] = full.variance[k].col(0);
+  }
+  other.input_names = {"v2"};
+  write_frd_csv(path("odd.csv"), other, "S");
+  const std::vector<FrdPart> mixed{parts[0], read_frd_part(path("odd.csv"))};
+  EXPECT_NE(input_error([&] { merge_frd_parts(mixed); }).find("states 8 averages but"), std::string::npos);
 }
 
 TEST_F(FrdCsv, UnnamedChannels_AreWrittenAsIndicesAndReadBackUnnamed) {
@@ -255,6 +307,19 @@ INSTANTIATE_TEST_SUITE_P(
         BadFile{"MixedReImAndDbDeg", "freq_hz,S_1_1_re,S_1_1_deg\n1,2,3\n",
                 "1:18: columns 'S_1_1_re' and 'S_1_1_deg' mix re/im with db/deg for output 1, input 1; give both "
                 "'S_1_1_re' and 'S_1_1_im', or 'S_1_1_db' and 'S_1_1_deg'"},
+        BadFile{"NegativeVariance", "freq_hz,S_1_1_re,S_1_1_im,var_1_1\n1,2,3,-4\n",
+                "2:7: variance -4 in column 'var_1_1' is negative; a variance is >= 0"},
+        BadFile{"VarianceOfAMissingPair", "freq_hz,S_1_1_re,S_1_1_im,var_1_2\n1,2,3,4\n",
+                "1:27: column 'var_1_2' is the variance of output 1, input 2, which have no response columns; give "
+                "variance only for pairs with a response"},
+        BadFile{"VarianceForSomePairsOnly", "freq_hz,S_1_1_re,S_1_1_im,S_2_1_re,S_2_1_im,var_1_1\n1,2,3,4,5,6\n",
+                "1:45: no column 'var_2_1' for the variance of output 2, input 1; give variance for every pair or for "
+                "none"},
+        BadFile{"AveragesNotANumber", "# averages: many\nfreq_hz,S_1_1_re,S_1_1_im\n1,2,3\n",
+                "1:3: 'averages: many' is not a number of averages; give the independent averages behind the "
+                "coherence as a number >= 1, e.g. '# averages: 16'"},
+        BadFile{"AveragesTwice", "# averages: 4\n# averages: 4\nfreq_hz,S_1_1_re,S_1_1_im\n1,2,3\n",
+                "2:3: 'averages' is given twice (also on line 1); give it once"},
         BadFile{"DuplicateColumn", "freq_hz,S_1_1_re,S_1_1_im,S_1_1_re\n1,2,3,4\n",
                 "1:27: duplicate column name 'S_1_1_re' (also column 2); give every column its own name"},
         BadFile{"DuplicateColumnByIndex", "freq_hz,S_1_1_re,S_1_1_im,S_01_1_im\n1,2,3,4\n",
@@ -283,7 +348,8 @@ INSTANTIATE_TEST_SUITE_P(
                 "2:7: flag 2 is not 0 or 1; write 1 for an untrusted frequency, else 0"},
         BadFile{"UnknownColumn", "freq_hz,S_1_1_re,S_1_1_im,temp\n1,2,3,4\n",
                 "1:27: column 'temp' is not an FRD column; the columns are freq_hz, <Q>_<output>_<input>_re and _im "
-                "(or _db and _deg), coh_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...)"},
+                "(or _db and _deg), coh_<output>_<input>, var_<output>_<input> and flag, with <Q> letters and digits (S, P, "
+                "G, ...)"},
         BadFile{"UnderscoreNameWithoutMetadata", "freq_hz,S_q_1_v_re,S_q_1_v_im\n1,2,3\n",
                 "1:9: cannot split 'q_1_v' of column 'S_q_1_v_re' into an output and an input; without '# outputs:' "
                 "and '# inputs:' metadata a channel is an index or a name without '_', so write <output>_<input> "

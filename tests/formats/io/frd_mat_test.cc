@@ -57,6 +57,9 @@ void expect_identical(const FrequencyResponse& a, const FrequencyResponse& b) {
   }
   ASSERT_EQ(a.coherence.size(), b.coherence.size());
   for (size_t k = 0; k < a.coherence.size(); ++k) EXPECT_TRUE((a.coherence[k].array() == b.coherence[k].array()).all());
+  ASSERT_EQ(a.variance.size(), b.variance.size());
+  for (size_t k = 0; k < a.variance.size(); ++k) EXPECT_TRUE((a.variance[k].array() == b.variance[k].array()).all());
+  EXPECT_EQ(a.averages, b.averages);
   EXPECT_EQ(a.flagged, b.flagged);
   EXPECT_EQ(a.output_names, b.output_names);
   EXPECT_EQ(a.input_names, b.input_names);
@@ -108,6 +111,8 @@ TEST_F(FrdMat, WriteThenRead_GivesIdenticalDoublesInV5AndV73) {
 
 TEST_F(FrdMat, SameDataAsCsvAndMat_ReadsBackBitIdentical) {
   FrequencyResponse frd = random_frd(60, 3, 2, kSeed + 1);
+  for (const auto& h : frd.response) frd.variance.push_back(h.cwiseAbs2() * 1e-4);
+  frd.averages = 12;
   frd.input_names = {"v1", "v2"};  // outputs unnamed
   write_frd_csv(path("s.csv"), frd, "S");
   write_frd_mat(path("s.mat"), frd, "S");

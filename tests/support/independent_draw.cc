@@ -1,0 +1,164 @@
+#include "tests/support/independent_draw.h"
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace indep {
+namespace {
+
+struct Rng {
+  explicit Rng(std::uint64_t seed) : g(seed) {}
+  double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(g); }
+  double log_uniform(double lo, double hi) { return std::exp(uniform(std::log(lo), std::log(hi))); }
+  double sign() { return uniform(0, 1) < 0.5 ? -1.0 : 1.0; }
+  std::mt19937_64 g;
+};
+
+std::string fmt_line(const char* name, double v) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "%s = %.6g\n", name, v);
+  return buf;
+}
+
+}  // namespace
+
+const char* hidden_name(HiddenEffect e) {
+  switch (e) {
+    case HiddenEffect::kNone: return "none";
+    case HiddenEffect::kMode: return "mode";
+    case HiddenEffect::kDelay: return "delay";
+    case HiddenEffect::kCoilLag: return "coil_lag";
+    case HiddenEffect::kComOffset: return "com_offset";
+    case HiddenEffect::kRodTwist: return "rod_twist";
+    case HiddenEffect::kSensorResonance: return "sensor_resonance";
+  }
+  return "?";
+}
+
+Draw draw_plant(std::uint64_t seed, const DrawOptions& o) {
+  Rng r(seed * 7919 + 17);
+  Draw d;
+  Plant& p = d.plant;
+  p = Plant::nominal();
+  auto spread = [&](double v) { return v * r.uniform(1 - o.mass_spread, 1 + o.mass_spread); };
+  p.m_p_kg = spread(p.m_p_kg);
+  p.J_psi_kgm2 = spread(p.J_psi_kgm2);
+  p.J_theta_kgm2 = spread(p.J_theta_kgm2);
+  p.m_b_kg = spread(p.m_b_kg);
+  p.z_b_m = r.uniform(0.03, 0.10);
+  p.pitch_m = p.design_pitch_m = r.uniform(0.08, 0.13);
+  const double dc = r.uniform(12, 40);
+  for (int i = 0; i < 9; ++i) p.coil_damping_Ns_per_m(i) = dc * r.uniform(0.9, 1.1);
+  p.rods = Plant::symmetric_rods(r.uniform(300, 900), r.uniform(20, 60), 0.0);
+  p.extra_k_psi_Nm_per_rad = p.extra_k_theta_Nm_per_rad = 0;
+  const double ratio = r.log_uniform(o.min_ratio, o.max_ratio);
+  const Eigen::Matrix3d K = stiffness_matrix(p);
+  if (K(0, 0) < ratio * K(1, 1))
+    p.extra_k_psi_Nm_per_rad = ratio * K(1, 1) - K(0, 0);
+  else
+    p.extra_k_theta_Nm_per_rad = K(0, 0) / ratio - K(1, 1);
+  for (int i = 0; i < 3; ++i) {
+    d.pid.damping[i] = r.log_uniform(o.min_cl_damping, o.max_cl_damping);
+    d.pid.integral_time_s[i] = r.log_uniform(o.min_integral_s, o.max_integral_s);
+    d.pid.bandwidth_rad_s[i] = i < 2 ? r.uniform(25, 70) : r.uniform(12, 40);
+  }
+  d.noise_scale = r.log_uniform(o.min_noise_scale, o.max_noise_scale);
+  if (o.allow_zero_noise && r.uniform(0, 1) < 0.25) d.noise_scale = 0;
+  d.description = fmt_line("m_p_kg", p.m_p_kg) + fmt_line("J_psi_kgm2", p.J_psi_kgm2) +
+                  fmt_line("J_theta_kgm2", p.J_theta_kgm2) + fmt_line("m_b_kg", p.m_b_kg) +
+                  fmt_line("z_b_m", p.z_b_m) + fmt_line("pitch_m", p.pitch_m) + fmt_line("coil_damping", dc) +
+                  fmt_line("k_vert_per_rod", p.rods[0].k_vert_N_per_m) +
+                  fmt_line("k_bend_per_rod", p.rods[0].k_bend_Nm_per_rad) + fmt_line("psi_theta_ratio", ratio) +
+                  fmt_line("cl_damping_psi", d.pid.damping[0]) + fmt_line("cl_damping_theta", d.pid.damping[1]) +
+                  fmt_line("cl_damping_z", d.pid.damping[2]) + fmt_line("integral_s_psi", d.pid.integral_time_s[0]) +
+                  fmt_line("integral_s_theta", d.pid.integral_time_s[1]) +
+                  fmt_line("integral_s_z", d.pid.integral_time_s[2]) + fmt_line("noise_scale", d.noise_scale);
+  return d;
+}
+
+void add_hidden_effect(Draw& d, HiddenEffect e, std::uint64_t seed, double Ts) {
+  Rng r(seed * 104729 + 3);
+  Plant& p = d.plant;
+  switch (e) {
+    case HiddenEffect::kNone: break;
+    case HiddenEffect::kMode: {
+      Mode m;
+      m.omega_rad_s = r.uniform(400, 900);
+      m.zeta = r.log_uniform(0.005, 0.05);
+      m.shape = Eigen::VectorXd(9);
+      const double size = r.uniform(1.0, 4.0);
+      for (int i = 0; i < 9; ++i) m.shape(i) = r.uniform(-1, 1);
+      m.shape *= size / m.shape.cwiseAbs().maxCoeff();
+      p.modes.push_back(m);
+      d.description += fmt_line("mode_omega", m.omega_rad_s) + fmt_line("mode_zeta", m.zeta);
+      break;
+    }
+    case HiddenEffect::kDelay:
+      p.input_delay_s = r.uniform(0.5, 3.0) * Ts;
+      d.description += fmt_line("input_delay_s", p.input_delay_s);
+      break;
+    case HiddenEffect::kCoilLag: {
+      const double corner_hz = r.uniform(50, 200);
+      p.coil_lag_s = 1.0 / (2 * M_PI * corner_hz);
+      d.description += fmt_line("coil_lag_s", p.coil_lag_s);
+      break;
+    }
+    case HiddenEffect::kComOffset: {
+      p.c_x_m = r.sign() * r.uniform(0.003, 0.012);
+      p.c_y_m = r.sign() * r.uniform(0.003, 0.012);
+      p.J_pt_kgm2 = r.sign() * r.uniform(0.005, 0.02) * p.J_psi_kgm2;
+      const double ex = r.sign() * r.uniform(0.003, 0.012), ey = r.sign() * r.uniform(0.003, 0.012);
+      for (Rod& rod : p.rods) {
+        rod.x_m += ex;
+        rod.y_m += ey;
+      }
+      d.description += fmt_line("com_x_m", p.c_x_m) + fmt_line("com_y_m", p.c_y_m) +
+                       fmt_line("J_pt_kgm2", p.J_pt_kgm2) + fmt_line("stiffness_centre_x_m", ex) +
+                       fmt_line("stiffness_centre_y_m", ey);
+      break;
+    }
+    case HiddenEffect::kRodTwist: {
+      // rods along the tangents 120 deg apart: twist adds the same to both axes per
+      // unit k_twist; make it anisotropic with an extra per-axis share.
+      const Eigen::Matrix3d K0 = stiffness_matrix(p);
+      const double fpsi = r.uniform(2, 5), fth = r.uniform(2, 5);
+      // bending part of the tilt stiffness (without the vertical springs' lever)
+      double bend = 0;
+      for (const Rod& rod : p.rods) bend += rod.k_bend_Nm_per_rad;
+      bend *= 0.5;  // per axis: sum of k_bend sin^2 or cos^2 over three rods 120 deg apart = 1.5 k / 3 per ... = k_sum / 2
+      const double common = std::min(fpsi, fth) * bend;
+      for (Rod& rod : p.rods) rod.k_twist_Nm_per_rad = 2.0 * common / 3.0;  // sum_j twist per axis = 1.5 k_twist
+      p.extra_k_psi_Nm_per_rad += (fpsi * bend - common);
+      p.extra_k_theta_Nm_per_rad += (fth * bend - common);
+      const Eigen::Matrix3d K1 = stiffness_matrix(p);
+      d.description += fmt_line("twist_factor_psi", fpsi) + fmt_line("twist_factor_theta", fth) +
+                       fmt_line("K_psipsi_before", K0(0, 0)) + fmt_line("K_psipsi_after", K1(0, 0)) +
+                       fmt_line("K_thth_before", K0(1, 1)) + fmt_line("K_thth_after", K1(1, 1));
+      break;
+    }
+    case HiddenEffect::kSensorResonance: {
+      // theta output: H(s) = (s^2 + 2 zn wn s + wn^2)/(s^2 + 2 zp wp s + wp^2) * (wp/wn)^2,
+      // a resonance at wp with a zero pair slightly above (unit DC gain)
+      const double wp = r.uniform(400, 900), zp = r.uniform(0.02, 0.08);
+      const double peak_db = r.uniform(6, 12);
+      // peak ≈ (zn / zp) for wn ≈ wp: choose the zero damping for the peak
+      const double zn = std::min(0.7, zp * std::pow(10.0, peak_db / 20.0));
+      const double wn = wp * 1.15;
+      ChannelFilter f;
+      f.kind = ChannelFilter::kOutput;
+      f.channel = 1;
+      const double g = (wp * wp) / (wn * wn);
+      f.b2 = g;
+      f.b1 = g * 2 * zn * wn;
+      f.b0 = g * wn * wn;
+      f.a1 = 2 * zp * wp;
+      f.a0 = wp * wp;
+      p.filters.push_back(f);
+      d.description += fmt_line("sensor_resonance_rad_s", wp) + fmt_line("sensor_resonance_zeta", zp);
+      break;
+    }
+  }
+}
+
+}  // namespace indep

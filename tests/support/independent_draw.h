@@ -1,0 +1,58 @@
+// Test support: random plants for the independent simulator (independent_platform.h),
+// drawn over documented ranges that are NOT lpvid's defaults, and the hidden effects
+// of the model-error loop.  Every draw is a pure function of its seed.
+//
+// Ranges (uniform unless said; "±50 %" = nominal × U(0.5, 1.5)):
+// | quantity                               | range                                   |
+// |----------------------------------------|-----------------------------------------|
+// | m_p, J_psi, J_theta, m_b               | Plant::nominal() ±50 % (`mass_spread`)  |
+// | z_b                                    | 0.03 – 0.10 m                           |
+// | coil pitch r (true = designed)         | 0.08 – 0.13 m                           |
+// | coil damping (all coils)               | 12 – 40 N·s/m, each coil ±10 %          |
+// | rod vertical / bending stiffness       | 300 – 900 N/m, 20 – 60 N·m/rad per rod  |
+// | psi/theta tilt stiffness ratio         | 0.3 – 3 (log-uniform), by an extra tilt spring |
+// | closed-loop damping (PID design)       | 0.02 – 0.5 (log-uniform)                |
+// | closed-loop bandwidth                  | tilts 25 – 70 rad/s, z 12 – 40 rad/s    |
+// | integral time constant                 | 0.1 – 3 s (log-uniform)                 |
+// | sensor noise                           | 0 or 0.1 – 10 × 0.3 µm per sensor       |
+// Hidden effects (HiddenEffect):
+// | kMode        | one flexible mode 400 – 900 rad/s, ζ 0.005 – 0.05, random shape at the 9 coils, |φ| ~ 1–4 |
+// | kDelay       | input delay 0.5 – 3 samples (fractional)                                    |
+// | kCoilLag     | first-order coil current lag, corner 50 – 200 Hz                           |
+// | kComOffset   | centre of mass c_x, c_y 3 – 12 mm (random signs), J_pt ±0.5–2 % of J, and the rods' vertical springs moved so the stiffness centre is 3 – 12 mm off |
+// | kRodTwist    | twist stiffness per rod so that the tilt stiffness rises 2 – 5 × the bending, differently on psi and theta |
+// | kSensorResonance | OUT OF LIBRARY: a second-order resonance (400 – 900 rad/s, ζ 0.02 – 0.08, +6..+12 dB peak) in the theta OUTPUT only, with a matching zero pair (a sensor mount) |
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "tests/support/independent_platform.h"
+
+namespace indep {
+
+enum class HiddenEffect { kNone, kMode, kDelay, kCoilLag, kComOffset, kRodTwist, kSensorResonance };
+const char* hidden_name(HiddenEffect e);
+
+struct Draw {
+  Plant plant;
+  PidDesign pid;
+  double noise_scale = 1.0;  // × 0.3 µm per sensor
+  std::string description;   // one line per drawn value
+};
+
+struct DrawOptions {
+  double mass_spread = 0.5;          // ± fraction on masses and inertias
+  bool allow_zero_noise = true;      // noise_scale 0 in one draw of four
+  double min_noise_scale = 0.1, max_noise_scale = 10.0;
+  double min_cl_damping = 0.02, max_cl_damping = 0.5;
+  double min_integral_s = 0.1, max_integral_s = 3.0;
+  double min_ratio = 0.3, max_ratio = 3.0;
+};
+
+Draw draw_plant(std::uint64_t seed, const DrawOptions& options = {});
+
+// Adds the hidden effect to the plant (its parameters drawn from seed), describing it.
+void add_hidden_effect(Draw& draw, HiddenEffect effect, std::uint64_t seed, double Ts);
+
+}  // namespace indep
