@@ -90,9 +90,12 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
 // FFT size M >= 2L + 2 keeps every product free of wrap-around.
 class NormalOperator {
  public:
+  // lag_means[e] (empty, or m (L+1) in the unknowns' layout) and lag_count[e]: the
+  // intercept correction -sum_e N_e mu_e mu_e^T (see estimate_markov).
   NormalOperator(const std::vector<Eigen::MatrixXd>& rvv, const std::vector<Eigen::MatrixXd>& tails,
-                 Index m, Index L, Index p)
-      : m_(m), L_(L), p_(p), fft_(signal_detail::next_pow2(2 * L + 2)), nb_(fft_.bins()),
+                 Index m, Index L, Index p, std::vector<Eigen::VectorXd> lag_means = {},
+                 std::vector<double> lag_count = {})
+      : lag_means_(std::move(lag_means)), lag_count_(std::move(lag_count)), m_(m), L_(L), p_(p), fft_(signal_detail::next_pow2(2 * L + 2)), nb_(fft_.bins()),
         num_exp_(static_cast<Index>(tails.size())),
         kernel_(signal_detail::alloc_complex(m * m * nb_)),
         tail_(signal_detail::alloc_complex(num_exp_ * m * nb_)),
@@ -155,6 +158,9 @@ class NormalOperator {
         for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
       }
     }
+    for (std::size_t e = 0; e < lag_means_.size(); ++e)
+      for (Index c = 0; c < p_; ++c)
+        y.col(c) -= (lag_count_[e] * lag_means_[e].dot(h.col(c))) * lag_means_[e];
   }
 
  private:
@@ -171,6 +177,8 @@ class NormalOperator {
     for (Index i = 0; i < nb_; ++i) acc[i] += x[i] * std::conj(z[i]);
   }
 
+  std::vector<Eigen::VectorXd> lag_means_;
+  std::vector<double> lag_count_;
   Index m_, L_, p_;
   RealFft fft_;
   Index nb_;
@@ -304,6 +312,10 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
         "fewer lags",
         total, m, L, 2 * m * (L + 1)));
 
+  // Least squares with remove_mean: a constant output offset per experiment is
+  // estimated jointly with g (an intercept), so the excitation stays as logged (zero
+  // before the record) and only the outputs are centred; see the header.
+  const bool intercept = options.remove_mean && options.method == MarkovOptions::Method::kLeastSquares;
   // Per-experiment column statistics (also the finiteness check).
   std::vector<std::vector<ChannelView>> vs(E), qs(E);
   Eigen::MatrixXd v_energy(E, m), q_energy(E, p);  // sum_t (centred)^2
@@ -311,7 +323,7 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
     const ExperimentView& x = experiments[e];
     for (Index a = 0; a < m; ++a) {
       const ColumnStats s = column_stats(x.excitation, a, options.remove_mean, e, "excitation");
-      vs[e].push_back({x.excitation.data() + a * x.excitation.outerStride(), s.offset, s.active});
+      vs[e].push_back({x.excitation.data() + a * x.excitation.outerStride(), intercept ? 0.0 : s.offset, s.active});
       v_energy(e, a) = s.sum_sq;
     }
     for (Index i = 0; i < p; ++i) {
@@ -415,8 +427,31 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
           "independently (different signals or separate experiments)",
           names));
     }
+    // Intercept: with the per-experiment offsets c_e eliminated, the normal matrix is
+    // Phi - sum_e N_e mu_e mu_e^T, mu_e(k m + a) = mean_t v_a(t - k) over the record
+    // (v = 0 before it), and the right-hand side is that of the centred outputs.
+    std::vector<Eigen::VectorXd> lag_means;
+    std::vector<double> lag_count;
+    if (intercept) {
+      for (Index e = 0; e < E; ++e) {
+        const Index n = experiments[e].excitation.rows();
+        Eigen::VectorXd mu = Eigen::VectorXd::Zero(m * (L + 1));
+        for (Index a = 0; a < m; ++a) {
+          if (!vs[e][a].active) continue;
+          const double* v = vs[e][a].data;
+          double sum = 0.0;
+          for (Index t = 0; t < n; ++t) sum += v[t];
+          for (Index k = 0; k <= L; ++k) {
+            mu(k * m + a) = sum / static_cast<double>(n);
+            if (k < n) sum -= v[n - 1 - k];
+          }
+        }
+        lag_means.push_back(std::move(mu));
+        lag_count.push_back(static_cast<double>(n));
+      }
+    }
     const Eigen::LLT<Eigen::MatrixXd> r0(rvv[0]);
-    NormalOperator op(rvv, tails, m, L, p);
+    NormalOperator op(rvv, tails, m, L, p, lag_means, lag_count);
     const PcgOutcome sol = solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations);
     for (Index k = 0; k <= L; ++k)
       for (Index a = 0; a < m; ++a)
@@ -446,11 +481,31 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
 
   if (!residual_known) {  // residual energy of the estimated model by FFT convolution
     sum_sq.setZero();
-    for (Index e = 0; e < E; ++e)
-      signal_detail::accumulate_fir_residual_energy(vs[e], qs[e], experiments[e].excitation.rows(),
-                                                    res.g, sum_sq);
+    for (Index e = 0; e < E; ++e) {
+      const Index n = experiments[e].excitation.rows();
+      Eigen::VectorXd part = Eigen::VectorXd::Zero(p);
+      signal_detail::accumulate_fir_residual_energy(vs[e], qs[e], n, res.g, part);
+      if (intercept) {
+        // e'(t) = (q - mean q) - sum_k g[k] v(t - k) has mean -delta_e with
+        // delta_e = sum_k g[k] mu_e(k); the residual e' + delta_e has energy
+        // sum e'^2 - n |delta_e|^2 per output.
+        Eigen::VectorXd delta = Eigen::VectorXd::Zero(p);
+        for (Index a = 0; a < m; ++a) {
+          if (!vs[e][a].active) continue;
+          const double* v = vs[e][a].data;
+          double sum = 0.0;
+          for (Index t = 0; t < n; ++t) sum += v[t];
+          for (Index k = 0; k <= L; ++k) {
+            delta += res.g[k].col(a) * (sum / static_cast<double>(n));
+            if (k < n) sum -= v[n - 1 - k];
+          }
+        }
+        part -= static_cast<double>(n) * delta.cwiseAbs2();
+      }
+      sum_sq += part.cwiseMax(0.0);
+    }
   }
-  const double dof = static_cast<double>(total - m * (L + 1));
+  const double dof = static_cast<double>(total - m * (L + 1) - (intercept ? E : 0));
   const Eigen::VectorXd sigma = (sum_sq / dof).cwiseSqrt();
   res.noise_std = sigma * v_energy_total.cwiseSqrt().cwiseInverse().transpose();
   return res;
