@@ -1,14 +1,25 @@
-// The time-domain closed-loop identification chain of Gajdušek et al.
-// (seed 000, eqs 10–14) as one call:
+// The time-domain closed-loop identification chain of Gajdušek et al. (seed 000,
+// section 4) as one call, by one of two methods:
 //
-//   logs (v, q) --markov (FFT correlation, least squares)--> g[0..L] of G: v -> q
-//               --ERA (scaled, strided block Hankel, automatic order)--> G_n
-//               --unloop P = G (I - C G)^-1, controller modes removed--> P
+// kStructured (default; docs/math.md §2a): the plant is fitted directly with the KNOWN
+//   controller, every setting chosen from the logs:
+//     logs (v, q) --markov, horizon from the data--> ĝ[0..L] of G: v → q
+//       --noise spectrum of the residual--> weights per frequency bin
+//       --P̂ = Ĝ (I − C Ĝ)⁻¹ as an impulse response, ERA at candidate orders--> P₀
+//       --frequency-domain output-error fit of G(P) = P (I + C P)⁻¹ to ĝ (plant_fit.h),
+//         staged horizons, plant order by BIC--> P
+//       --tail rounds: subtract the fitted response beyond the horizon, re-estimate ĝ,
+//         refit, until P stops moving--> P with its covariance (bands).
+//   It does not need the impulse response to die out within the horizon, never
+//   realises the closed loop without the controller's structure, and returns a stable
+//   closed loop by construction (steps that destabilise it are rejected).
+// kEra (the paper's recipe, as before issue 11):
+//     logs --markov (2 s horizon unless given)--> ĝ --ERA (scaled, strided block Hankel,
+//     noise-floor order)--> G_n --unloop P = G (I − C G)⁻¹, controller modes removed--> P
 //
-// Each step is also available alone (idlib/signal/markov.h,
-// idlib/realization/era.h, idlib/closedloop/unloop.h); this function fixes the
-// policy that joins them: the number of lags, the scaling, and the checks that
-// the logs and the controller agree.
+// Each step is also available alone (idlib/signal/markov.h, idlib/realization/era.h,
+// idlib/closedloop/unloop.h, idlib/closedloop/plant_markov.h, plant_fit.h); this file
+// fixes the policy that joins them and says in IdentifyChoices what it chose and why.
 #pragma once
 
 #include <string>
@@ -16,23 +27,30 @@
 
 #include "idlib/closedloop/unloop.h"
 #include "idlib/core/types.h"
+#include "idlib/identify/plant_fit.h"
 #include "idlib/realization/era.h"
 #include "idlib/signal/markov.h"
 
 namespace lpvid {
 
+enum class IdentifyMethod { kStructured, kEra };
+
 struct IdentifyOptions {
-  // Length of the estimated impulse response, in seconds.  The number of lags is
-  // L = round(markov_horizon_s / Ts), at most a quarter of the shortest record
-  // (so that at least 4 L samples inform every lag).  The closed loop's impulse
-  // response must have died out within the horizon; 2 s covers a slowest
-  // closed-loop pole at -3 rad/s to 2.5e-3 of its peak.
-  double markov_horizon_s = 2.0;
-  Index num_lags = 0;  // > 0 overrides markov_horizon_s
+  IdentifyMethod method = IdentifyMethod::kStructured;
+  // Length of the estimated impulse response.  num_lags > 0 gives L directly;
+  // markov_horizon_s > 0 gives L = round(markov_horizon_s / Ts); both 0: from the
+  // data (kStructured: see IdentifyChoices::horizon_reason; kEra: 2 s, the paper
+  // recipe's default).  Either way at most a quarter of the shortest record.
+  double markov_horizon_s = 0.0;
+  Index num_lags = 0;
   MarkovOptions::Method markov_method = MarkovOptions::Method::kLeastSquares;
-  Index closed_loop_order = 0;  // 0: automatic (EraOptions::order)
-  Index max_order = 40;
-  Index plant_order = 0;        // 0: closed-loop order minus controller order
+  Index closed_loop_order = 0;  // kEra: 0 = automatic (EraOptions::order)
+  Index max_order = 40;         // kEra: largest closed-loop order; kStructured: largest plant order tried
+  Index plant_order = 0;        // 0: kEra n_G − n_C; kStructured from the data
+  // kStructured: upper edge of the fitted band in rad/s; 0 = from the data.
+  double fit_band_max_rad_s = 0.0;
+  // kStructured: most tail rounds after the first fit.
+  int max_tail_rounds = 6;
   // Relative tolerance on |Ts_log - Ts_controller| / Ts_controller.
   double sample_period_tolerance = 1e-6;
 
@@ -40,11 +58,49 @@ struct IdentifyOptions {
   void validate() const;
 };
 
-struct IdentifyResult {
+// What kStructured chose from the data, and why (one sentence each, for the report).
+struct IdentifyChoices {
   Index num_lags = 0;
-  MarkovResult markov;
-  EraResult closed_loop;
-  UnloopResult plant;
+  std::string horizon_reason;
+  Index fit_bins = 0;
+  double fit_band_max_rad_s = 0;
+  std::string band_reason;
+  Index plant_horizon = 0;  // lags of p̂ realised for the starting models
+  std::string start_reason;
+  Index plant_order = 0;
+  std::string order_reason;
+  struct Candidate {
+    Index order = 0;
+    double cost = 0, dof = 0;  // whitened cost at the first stage and its degrees of freedom
+    bool stable = false;
+  };
+  std::vector<Candidate> order_candidates;
+  struct Stage {
+    Index lags = 0, bins = 0;
+    int iterations = 0;
+    double cost = 0;
+  };
+  std::vector<Stage> stages;
+  struct TailRound {
+    double cost = 0;
+    double change = 0;  // max over the fit band of |ΔP| / |P| (2-norms) against the round before
+  };
+  std::vector<TailRound> tail_rounds;
+  std::string tail_reason;
+};
+
+struct IdentifyResult {
+  IdentifyMethod method = IdentifyMethod::kStructured;
+  Index num_lags = 0;
+  MarkovResult markov;       // of the logs as given (kStructured: before the tail rounds)
+  StateSpace closed_loop;    // v → q: kEra the ERA model; kStructured G(P) with the controller
+  StateSpace plant;          // u → q
+  // kEra only:
+  EraResult era;
+  UnloopResult unloop;
+  // kStructured only:
+  PlantFitResult fit;        // the final fit (covariance for bands: plant_response_variance)
+  IdentifyChoices choices;
   std::vector<std::string> warnings;  // from every step, in order
 };
 
@@ -57,13 +113,14 @@ struct IdentifyResult {
 // @throws InputError  controller/log sample periods differ; controller shape does
 //                     not match the channel counts; a record too short for the
 //                     lags (and every InputError of the steps).
-// @throws NumericalError  no model order stands above the noise floor; the
-//                         realised closed loop is unstable (the loop that ran was
-//                         stable, so such a model is wrong).
+// @throws NumericalError  kEra: no model order stands above the noise floor, or the
+//                     realised closed loop is unstable.  kStructured: no candidate
+//                     plant closes a stable loop (the logs do not fit any).
 IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
                                     const StateSpace& controller, const IdentifyOptions& options);
 
-// The number of lags the chain uses for records of `shortest_record` samples.
+// The number of lags for records of `shortest_record` samples when the horizon is
+// given (num_lags or markov_horizon_s > 0; kEra also with both 0: 2 s).
 Index choose_num_lags(const IdentifyOptions& options, double sample_period_s, Index shortest_record);
 
 // Checks that a discrete controller fits logs with p outputs and m excitations

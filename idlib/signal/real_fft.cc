@@ -1,6 +1,7 @@
 #include "idlib/signal/real_fft.h"
 
 #include <algorithm>
+#include <functional>
 #include <mutex>
 
 #include "idlib/core/error.h"
@@ -165,13 +166,13 @@ void accumulate_cross_correlation(const std::vector<ChannelView>& xs,
   }
 }
 
-void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
-                                    const std::vector<ChannelView>& qs, Index n,
-                                    const MarkovSequence& g, Eigen::VectorXd& sum_sq) {
+void for_each_fir_residual_block(const std::vector<ChannelView>& vs, const std::vector<ChannelView>& qs, Index n,
+                                 const MarkovSequence& g,
+                                 const std::function<void(Index, Index, Index, const double*)>& visit) {
   const Index m = static_cast<Index>(vs.size());
   const Index p = static_cast<Index>(qs.size());
   const Index L = static_cast<Index>(g.size()) - 1;
-  LPVID_ASSERT(L >= 0 && sum_sq.size() == p);
+  LPVID_ASSERT(L >= 0);
   if (n == 0 || p == 0) return;
   const Index M = block_fft_size(n, L);
   // Overlap-save: an M-point segment starting L samples before the block yields
@@ -181,6 +182,7 @@ void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
   const Index nb = fft.bins();
 
   RealArray buf = alloc_real(M);
+  std::vector<double> res(static_cast<std::size_t>(B));
   ComplexArray gspec = alloc_complex(p * m * nb);  // gspec[(i*m + a)*nb + b]
   for (Index i = 0; i < p; ++i) {
     for (Index a = 0; a < m; ++a) {
@@ -208,15 +210,24 @@ void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
       }
       fft.inverse(yspec.get(), buf.get());
       const ChannelView& q = qs[i];
-      double s = 0.0;
       for (Index t = t0; t < t1; ++t) {
         const double qv = q.active ? q.data[t] - q.offset : 0.0;
-        const double e = qv - buf[L + (t - t0)] * scale;
-        s += e * e;
+        res[static_cast<std::size_t>(t - t0)] = qv - buf[L + (t - t0)] * scale;
       }
-      sum_sq[i] += s;
+      visit(i, t0, t1, res.data());
     }
   }
+}
+
+void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
+                                    const std::vector<ChannelView>& qs, Index n,
+                                    const MarkovSequence& g, Eigen::VectorXd& sum_sq) {
+  LPVID_ASSERT(sum_sq.size() == static_cast<Index>(qs.size()));
+  for_each_fir_residual_block(vs, qs, n, g, [&](Index i, Index t0, Index t1, const double* e) {
+    double s = 0.0;
+    for (Index t = 0; t < t1 - t0; ++t) s += e[t] * e[t];
+    sum_sq[i] += s;
+  });
 }
 
 }  // namespace lpvid::signal_detail

@@ -6,6 +6,7 @@
 #include <fftw3.h>
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -64,6 +65,13 @@ Index block_fft_size(Index n, Index max_lag);
 void accumulate_cross_correlation(const std::vector<ChannelView>& xs,
                                   const std::vector<ChannelView>& ys, Index n, Index max_lag,
                                   std::vector<Eigen::MatrixXd>& out);
+
+// The residual of an FIR model, e_i(t) = q_i(t) - sum_{k=0}^{L} sum_a g[k](i, a) v_a(t - k)
+// (v_a(t) = 0 for t < 0), delivered block by block: visit(i, t0, t1, e) with e[0..t1-t0)
+// = e_i(t0..t1-1); blocks of one output arrive in time order.  Overlap-save FFT blocks.
+void for_each_fir_residual_block(const std::vector<ChannelView>& vs, const std::vector<ChannelView>& qs, Index n,
+                                 const MarkovSequence& g,
+                                 const std::function<void(Index, Index, Index, const double*)>& visit);
 
 // Residual energy of an FIR model: for each output i,
 //   sum_sq[i] += sum_{t=0}^{n-1} (q_i(t) - sum_{k=0}^{L} sum_a g[k](i, a) v_a(t - k))^2,

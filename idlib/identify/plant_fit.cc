@@ -1,0 +1,613 @@
+#include "idlib/identify/plant_fit.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "idlib/signal/real_fft.h"
+
+namespace lpvid {
+namespace {
+
+using Eigen::MatrixXcd;
+using Eigen::MatrixXd;
+using Eigen::VectorXcd;
+using Eigen::VectorXd;
+
+// Divided differences of λ^L are taken from the closed form (λ_a^L − λ_b^L)/(λ_a − λ_b)
+// unless the two eigenvalues are this close (relative), where the confluent limit
+// L λ^(L−1) is accurate to O(L |λ_a − λ_b|) · round-off instead of cancelling.
+constexpr double kConfluentRelative = 1e-9;
+// Above this condition number of the eigenvector matrix of A_cl the eigen route for
+// d(A_cl^L) loses more than ~6 of 16 digits; the exact block-triangular powers are
+// used instead ([[A, E], [0, A]]^L has L(A, E) in its corner).
+constexpr double kMaxEigenvectorCondition = 1e10;
+// Levenberg–Marquardt damping: initial value, bounds and factors (Marquardt's scaling
+// by the diagonal of the normal matrix makes μ dimensionless).
+constexpr double kInitialDamping = 1e-4;
+constexpr double kMinDamping = 1e-20;
+constexpr double kMaxDamping = 1e10;
+constexpr double kDampingDown = 10.0;
+constexpr double kDampingUp = 10.0;
+// Gauge directions: singular values of the tangent matrix below this fraction of the
+// largest are treated as zero (a plant with repeated structure has fewer of them).
+constexpr double kGaugeRankTolerance = 1e-10;
+// Eigenvalues of the reduced normal matrix below this fraction of the largest are
+// dropped in the covariance (unidentifiable combinations get no finite variance).
+constexpr double kCovarianceRankTolerance = 1e-14;
+
+struct Loop {  // closed loop in scaled coordinates
+  MatrixXd A, B, C;
+};
+
+struct Scaled {
+  MatrixXd A, B, C;       // plant (scaled)
+  MatrixXd Ak, Bk, Ck, Dk;  // controller (scaled)
+};
+
+Loop close(const MatrixXd& A, const MatrixXd& B, const MatrixXd& C, const Scaled& k) {
+  const Index n = A.rows(), nk = k.Ak.rows(), N = n + nk, m = B.cols(), p = C.rows();
+  Loop l;
+  l.A.setZero(N, N);
+  l.A.topLeftCorner(n, n) = A - B * k.Dk * C;
+  l.A.topRightCorner(n, nk) = B * k.Ck;
+  l.A.bottomLeftCorner(nk, n) = -k.Bk * C;
+  l.A.bottomRightCorner(nk, nk) = k.Ak;
+  l.B.setZero(N, m);
+  l.B.topRows(n) = B;
+  l.C.setZero(p, N);
+  l.C.leftCols(n) = C;
+  return l;
+}
+
+MatrixXd matrix_power(MatrixXd base, Index e) {
+  MatrixXd r = MatrixXd::Identity(base.rows(), base.cols());
+  while (e > 0) {
+    if (e & 1) r = r * base;
+    e >>= 1;
+    if (e > 0) base = base * base;
+  }
+  return r;
+}
+
+// Everything an evaluation needs from θ.
+class Model {
+ public:
+  Model(const MarkovBins& data, const Scaled& k, Index n) : data_(data), k_(k), n_(n) {
+    p_ = data.response.front().rows();
+    m_ = data.response.front().cols();
+    N_ = n + k.Ak.rows();
+    np_ = n * n + n * m_ + p_ * n;
+  }
+  Index num_params() const { return np_; }
+
+  void unpack(const VectorXd& t, MatrixXd& A, MatrixXd& B, MatrixXd& C) const {
+    A = Eigen::Map<const MatrixXd>(t.data(), n_, n_);
+    B = Eigen::Map<const MatrixXd>(t.data() + n_ * n_, n_, m_);
+    C = Eigen::Map<const MatrixXd>(t.data() + n_ * n_ + n_ * m_, p_, n_);
+  }
+  VectorXd pack(const MatrixXd& A, const MatrixXd& B, const MatrixXd& C) const {
+    VectorXd t(np_);
+    t << Eigen::Map<const VectorXd>(A.data(), A.size()), Eigen::Map<const VectorXd>(B.data(), B.size()),
+        Eigen::Map<const VectorXd>(C.data(), C.size());
+    return t;
+  }
+
+  // Cost V(θ); with jac, also JᵀJ and Jᵀr (J = ∂r/∂θ, r = Ĝ − H).  spectral_radius
+  // of the closed loop is returned through rho.
+  double evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho) const;
+
+ private:
+  MatrixXd truncation_derivatives(const Loop& l, const MatrixXd& AL, const MatrixXd& B, const MatrixXd& C) const;
+
+  const MarkovBins& data_;
+  const Scaled& k_;
+  Index n_, p_ = 0, m_ = 0, N_ = 0, np_ = 0;
+};
+
+// Column (θ index) of dQ_θ = d(A_cl^L B_cl)/dθ, stacked as vec (N × m), N m × np.
+MatrixXd Model::truncation_derivatives(const Loop& l, const MatrixXd& AL, const MatrixXd& B, const MatrixXd& C) const {
+  const Index n = n_, m = m_, p = p_, N = N_;
+  const Index L = data_.num_lags;
+  MatrixXd DQ(N * m, np_);
+  const MatrixXd DkC = k_.Dk * C, BDk = B * k_.Dk;
+  // rank-one dA_cl = u wᵀ for each parameter; dB_cl = e_i e_jᵀ (top block) for B(i, j).
+  auto direction = [&](Index col, VectorXd& u, VectorXd& w) {
+    u.setZero(N);
+    w.setZero(N);
+    if (col < n * n) {
+      u(col % n) = 1.0;
+      w(col / n) = 1.0;
+    } else if (col < n * n + n * m) {
+      const Index c = col - n * n, i = c % n, j = c / n;
+      u(i) = 1.0;
+      w.head(n) = -DkC.row(j).transpose();
+      w.tail(N - n) = k_.Ck.row(j).transpose();
+    } else {
+      const Index c = col - n * n - n * m, i = c % p, j = c / p;
+      u.head(n) = -BDk.col(i);
+      u.tail(N - n) = -k_.Bk.col(i);
+      w(j) = 1.0;
+    }
+  };
+  const Eigen::EigenSolver<MatrixXd> es(l.A);
+  const MatrixXcd V = es.eigenvectors();
+  const Eigen::PartialPivLU<MatrixXcd> vlu(V);
+  const MatrixXcd Vi = vlu.inverse();
+  const double cond = V.norm() * Vi.norm();
+  VectorXd u, w;
+  if (es.info() == Eigen::Success && std::isfinite(cond) && cond < kMaxEigenvectorCondition) {
+    const VectorXcd lam = es.eigenvalues();
+    VectorXcd lamL(N);
+    for (Index a = 0; a < N; ++a) lamL(a) = std::pow(lam(a), static_cast<double>(L));
+    MatrixXcd Dd(N, N);
+    for (Index a = 0; a < N; ++a)
+      for (Index b = 0; b < N; ++b) {
+        const Complex la = lam(a), lb = lam(b);
+        if (std::abs(la - lb) > kConfluentRelative * std::max(1.0, std::abs(la)))
+          Dd(a, b) = (lamL(a) - lamL(b)) / (la - lb);
+        else
+          Dd(a, b) = static_cast<double>(L) * std::pow(0.5 * (la + lb), static_cast<double>(L - 1));
+      }
+    const MatrixXcd Bt = Vi * l.B.cast<Complex>();
+    for (Index col = 0; col < np_; ++col) {
+      direction(col, u, w);
+      const VectorXcd ut = Vi * u.cast<Complex>();
+      const Eigen::RowVectorXcd wt = w.transpose().cast<Complex>() * V;
+      const MatrixXcd inner = Dd * (wt.transpose().asDiagonal() * Bt);
+      MatrixXd d = (V * (ut.asDiagonal() * inner)).real();
+      if (col >= n * n && col < n * n + n * m) {
+        const Index c = col - n * n;
+        d.col(c / n) += AL.col(c % n);
+      }
+      DQ.col(col) = Eigen::Map<const VectorXd>(d.data(), N * m);
+    }
+  } else {
+    MatrixXd Z = MatrixXd::Zero(2 * N, 2 * N);
+    Z.topLeftCorner(N, N) = l.A;
+    Z.bottomRightCorner(N, N) = l.A;
+    for (Index col = 0; col < np_; ++col) {
+      direction(col, u, w);
+      Z.topRightCorner(N, N) = u * w.transpose();
+      MatrixXd d = matrix_power(Z, L).topRightCorner(N, N) * l.B;
+      if (col >= n * n && col < n * n + n * m) {
+        const Index c = col - n * n;
+        d.col(c / n) += AL.col(c % n);
+      }
+      DQ.col(col) = Eigen::Map<const VectorXd>(d.data(), N * m);
+    }
+  }
+  return DQ;
+}
+
+double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho) const {
+  const Index n = n_, m = m_, p = p_, N = N_, nk = N - n, L = data_.num_lags;
+  MatrixXd A, B, C;
+  unpack(theta, A, B, C);
+  const Loop l = close(A, B, C, k_);
+  rho = Eigen::EigenSolver<MatrixXd>(l.A, false).eigenvalues().cwiseAbs().maxCoeff();
+  const MatrixXd AL = matrix_power(l.A, L);
+  const MatrixXcd Bq = (l.B - AL * l.B).cast<Complex>();
+  const MatrixXcd Cc = l.C.cast<Complex>();
+  const MatrixXcd D2 = data_.excitation_gram.cast<Complex>() / static_cast<double>(L);
+
+  MatrixXd DQ;
+  const Index NU = N + p, NV = n + 2 * m;
+  const Index ncol = n * NV + nk * m + p * n;  // columns of the outer-product basis
+  const Index F = data_.num_bins();
+  // Per bin, the Gram matrices s_f Gu = s_f Uᴴ Φ⁻¹ U (NU²) and Gv = Vᴴ (R₀/L) V (NV²) are
+  // stored as columns; Σ_f Re(Gu_f(α, α') Gv_f(β, β')) for every pair is then one pair of
+  // real matrix products (Re Au Re Avᵀ − Im Au Im Avᵀ).
+  MatrixXd AuRe, AuIm, AvRe, AvIm;
+  MatrixXcd GJsum, U, V;
+  const MatrixXcd DkC = (k_.Dk * C).cast<Complex>(), BDk = (B * k_.Dk).cast<Complex>();
+  const MatrixXcd Ckc = k_.Ck.cast<Complex>(), Bkc = k_.Bk.cast<Complex>();
+  if (jac) {
+    DQ = truncation_derivatives(l, AL, B, C);
+    AuRe.resize(NU * NU, F);
+    AuIm.resize(NU * NU, F);
+    AvRe.resize(NV * NV, F);
+    AvIm.resize(NV * NV, F);
+    GJsum.setZero(NU, NV);
+    U.resize(p, NU);
+    V.resize(m, NV);
+    V.rightCols(m).setIdentity();
+  }
+  const MatrixXcd Ac = l.A.cast<Complex>();
+  MatrixXcd Z(N, N);
+  Eigen::PartialPivLU<MatrixXcd> lu(N);
+  double cost = 0.0;
+  for (Index f = 0; f < F; ++f) {
+    const double w = data_.omega_rad_s(f) * data_.sample_period_s;
+    const Complex z = std::polar(1.0, w);
+    Z = -Ac;
+    Z.diagonal().array() += z;
+    lu.compute(Z);
+    const MatrixXcd X = lu.solve(Bq);
+    const MatrixXcd Rf = data_.response[static_cast<std::size_t>(f)] - Cc * X;
+    const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
+    const bool real_bin = f == 0 || 2 * f == L;
+    const double s = real_bin ? 1.0 : 2.0;
+    const MatrixXcd RD = Rf * D2;
+    cost += s * (Rf.adjoint() * Phi * RD).trace().real();
+    if (!jac) continue;
+    // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
+    MatrixXcd Y = Cc;
+    lu.matrixLU().triangularView<Eigen::Upper>().solveInPlace<Eigen::OnTheRight>(Y);
+    lu.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace<Eigen::OnTheRight>(Y);
+    Y = Y * lu.permutationP();
+    U.leftCols(N) = Y;
+    MatrixXcd Wt = -(Y.leftCols(n) * BDk + Y.rightCols(nk) * Bkc);
+    Wt.diagonal().array() += 1.0;
+    U.rightCols(p) = Wt;
+    V.leftCols(n) = X.topRows(n).transpose();
+    MatrixXcd Zt = -DkC * X.topRows(n) + Ckc * X.bottomRows(nk);  // m × m
+    Zt.diagonal().array() += 1.0;
+    V.middleCols(n, m) = Zt.transpose();
+    const MatrixXcd T1 = Phi * U;
+    const MatrixXcd Gu = s * (U.adjoint() * T1);
+    const MatrixXcd Gv = V.adjoint() * (D2 * V);
+    AuRe.col(f) = Eigen::Map<const VectorXd>(Gu.real().eval().data(), NU * NU);
+    AuIm.col(f) = Eigen::Map<const VectorXd>(Gu.imag().eval().data(), NU * NU);
+    AvRe.col(f) = Eigen::Map<const VectorXd>(Gv.real().eval().data(), NV * NV);
+    AvIm.col(f) = Eigen::Map<const VectorXd>(Gv.imag().eval().data(), NV * NV);
+    GJsum.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
+  }
+  MatrixXd K2;  // K2(α + NU α', β + NV β') = Σ_f s_f Re(Gu_f(α, α') Gv_f(β, β'))
+  if (jac) {
+    K2.noalias() = AuRe * AvRe.transpose();
+    K2.noalias() -= AuIm * AvIm.transpose();
+  }
+  // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
+  std::vector<Index> col_alpha, col_beta;
+  if (jac) {
+    for (Index ga = 0; ga < NU; ++ga) {
+      const Index v0 = ga < n ? 0 : (ga < N ? n + m : 0);
+      const Index len = ga < n ? NV : (ga < N ? m : n);
+      for (Index c = 0; c < len; ++c) {
+        col_alpha.push_back(ga);
+        col_beta.push_back(v0 + c);
+      }
+    }
+  }
+  MatrixXd M;
+  VectorXd g;
+  if (jac) {
+    M.resize(ncol, ncol);
+    g.resize(ncol);
+    for (Index c2 = 0; c2 < ncol; ++c2) {
+      g(c2) = GJsum(col_alpha[c2], col_beta[c2]).real();
+      for (Index c1 = 0; c1 < ncol; ++c1)
+        M(c1, c2) = K2(col_alpha[c1] + NU * col_alpha[c2], col_beta[c1] + NV * col_beta[c2]);
+    }
+  }
+  if (!jac) return cost;
+  // Signs (r = Ĝ − H: −1 for the direct columns, +1 for the truncation basis) and the
+  // map T from θ to basis columns.
+  VectorXd sgn(ncol);
+  MatrixXd T = MatrixXd::Zero(ncol, np_);
+  Index off = 0;
+  for (Index ga = 0; ga < NU; ++ga) {
+    if (ga < n) {
+      const Index i = ga;
+      for (Index j = 0; j < n; ++j) sgn(off) = -1, T(off++, i + j * n) = 1.0;                // A(i, j)
+      for (Index j = 0; j < m; ++j) sgn(off) = -1, T(off++, n * n + i + j * n) = 1.0;        // B(i, j)
+      for (Index b = 0; b < m; ++b) sgn(off) = 1, T.row(off++) = DQ.row(i + b * N);          // Q(i, b)
+    } else if (ga < N) {
+      for (Index b = 0; b < m; ++b) sgn(off) = 1, T.row(off++) = DQ.row(ga + b * N);         // Q(a, b)
+    } else {
+      const Index i = ga - N;
+      for (Index j = 0; j < n; ++j) sgn(off) = -1, T(off++, n * n + n * m + i + j * p) = 1.0;  // C(i, j)
+    }
+  }
+  const MatrixXd St = sgn.asDiagonal() * T;
+  *JtJ = St.transpose() * M * St;
+  *Jtr = St.transpose() * g;
+  return cost;
+}
+
+// Orthonormal basis of the complement of the similarity directions at θ.
+MatrixXd gauge_complement(const Model& model, const VectorXd& theta, Index n) {
+  MatrixXd A, B, C;
+  model.unpack(theta, A, B, C);
+  MatrixXd G(theta.size(), n * n);
+  for (Index l = 0; l < n; ++l)
+    for (Index k = 0; k < n; ++k) {
+      MatrixXd T = MatrixXd::Zero(n, n);
+      T(k, l) = 1.0;
+      G.col(k + l * n) = model.pack(T * A - A * T, T * B, -C * T);
+    }
+  const Eigen::ColPivHouseholderQR<MatrixXd> qr(G);
+  const VectorXd diag = qr.matrixR().diagonal().cwiseAbs();
+  Index rank = 0;
+  while (rank < diag.size() && diag(rank) > kGaugeRankTolerance * diag(0)) ++rank;
+  const MatrixXd Q = qr.householderQ();
+  return Q.rightCols(theta.size() - rank);
+}
+
+}  // namespace
+
+Index MarkovBins::real_residuals() const {
+  if (response.empty()) return 0;
+  const Index pm = response.front().size();
+  Index r = 0;
+  for (Index f = 0; f < num_bins(); ++f) r += (f == 0 || 2 * f == num_lags) ? pm : 2 * pm;
+  return r;
+}
+
+MarkovBins make_markov_bins(const MarkovSequence& g, Index num_lags, Index num_bins,
+                            const std::vector<Eigen::MatrixXcd>& noise_spectrum, const Eigen::MatrixXd& excitation_gram,
+                            double sample_period_s, double relative_accuracy) {
+  if (num_lags < 2) throw InputError(fmt::format("Markov bins: num_lags = {}; at least 2 are needed", num_lags));
+  if (static_cast<Index>(g.size()) < num_lags + 1)
+    throw InputError(fmt::format("Markov bins: g has {} lags but the transform needs {} (0..{})", g.size(), num_lags + 1,
+                                 num_lags));
+  if (num_bins < 1 || num_bins > num_lags / 2 + 1)
+    throw InputError(fmt::format("Markov bins: {} bins asked of a {}-point transform; 1..{} are available", num_bins,
+                                 num_lags, num_lags / 2 + 1));
+  if (!(sample_period_s > 0.0)) throw InputError("Markov bins: the sample period must be > 0");
+  const Index p = g.front().rows(), m = g.front().cols();
+  if (static_cast<Index>(noise_spectrum.size()) != num_bins)
+    throw InputError(fmt::format("Markov bins: {} noise spectra for {} bins", noise_spectrum.size(), num_bins));
+  for (const auto& s : noise_spectrum)
+    if (s.rows() != p || s.cols() != p || !s.allFinite())
+      throw InputError(fmt::format("Markov bins: every noise spectrum must be a finite {}x{} matrix", p, p));
+  if (excitation_gram.rows() != m || excitation_gram.cols() != m)
+    throw InputError(fmt::format("Markov bins: excitation_gram is {}x{} for {} inputs", excitation_gram.rows(),
+                                 excitation_gram.cols(), m));
+  MarkovBins bins;
+  bins.num_lags = num_lags;
+  bins.sample_period_s = sample_period_s;
+  bins.excitation_gram = excitation_gram;
+  bins.omega_rad_s.resize(num_bins);
+  for (Index f = 0; f < num_bins; ++f)
+    bins.omega_rad_s(f) = 2.0 * M_PI * static_cast<double>(f) / (static_cast<double>(num_lags) * sample_period_s);
+  bins.response.assign(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, m));
+  signal_detail::RealFft fft(num_lags);
+  auto in = signal_detail::alloc_real(num_lags);
+  auto out = signal_detail::alloc_complex(fft.bins());
+  for (Index i = 0; i < p; ++i)
+    for (Index j = 0; j < m; ++j) {
+      for (Index k = 0; k < num_lags; ++k) in[k] = g[static_cast<std::size_t>(k + 1)](i, j);
+      fft.forward(in.get(), out.get());
+      for (Index f = 0; f < num_bins; ++f)  // Σ_{k≥1} g[k] z^-k = z^-1 Σ_{k'≥0} g[k'+1] z^-k'
+        bins.response[static_cast<std::size_t>(f)](i, j) =
+            out[f] * std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(num_lags));
+    }
+  if (!(relative_accuracy > 0.0 && relative_accuracy < 1.0))
+    throw InputError(fmt::format("Markov bins: relative accuracy {} must be in (0, 1)", relative_accuracy));
+  Eigen::VectorXd floor = Eigen::VectorXd::Zero(p);
+  for (Index f = 0; f < num_bins; ++f)
+    for (Index i = 0; i < p; ++i)
+      for (Index j = 0; j < m; ++j)
+        floor(i) = std::max(floor(i), std::norm(bins.response[static_cast<std::size_t>(f)](i, j)) *
+                                          excitation_gram(j, j) / static_cast<double>(num_lags));
+  floor *= relative_accuracy * relative_accuracy;
+  floor = floor.cwiseMax(std::numeric_limits<double>::min());
+  for (const auto& s : noise_spectrum) {
+    Eigen::MatrixXcd h = 0.5 * (s + s.adjoint());
+    h.diagonal().real() += floor;
+    bins.noise_inverse.push_back(h.inverse());
+  }
+  return bins;
+}
+
+void PlantFitOptions::validate() const {
+  if (max_iterations < 0) throw InputError(fmt::format("plant fit: max_iterations = {}; must be >= 0", max_iterations));
+  if (!(cost_tolerance_absolute >= 0.0) || !(cost_tolerance_relative >= 0.0))
+    throw InputError("plant fit: the cost tolerances must be >= 0");
+  if (input_scale.size() > 0 && !(input_scale.allFinite() && input_scale.minCoeff() > 0.0))
+    throw InputError("plant fit: every input scale must be finite and > 0");
+  if (output_scale.size() > 0 && !(output_scale.allFinite() && output_scale.minCoeff() > 0.0))
+    throw InputError("plant fit: every output scale must be finite and > 0");
+}
+
+namespace {
+struct Setup {
+  MarkovBins scaled;
+  Scaled k;
+  Eigen::VectorXd su, sq;
+};
+
+Setup setup(const MarkovBins& data, const StateSpace& controller, const StateSpace& initial,
+            const PlantFitOptions& options) {
+  options.validate();
+  controller.validate();
+  initial.validate();
+  if (data.response.empty()) throw InputError("plant fit: no frequency bins");
+  const Index p = data.response.front().rows(), m = data.response.front().cols(), n = initial.order();
+  if (initial.num_inputs() != m || initial.num_outputs() != p)
+    throw InputError(fmt::format("plant fit: the initial plant is {}x{} but the data are {}x{}", initial.num_outputs(),
+                                 initial.num_inputs(), p, m));
+  if (controller.num_inputs() != p || controller.num_outputs() != m)
+    throw InputError(fmt::format("plant fit: the controller is {}x{} (outputs x inputs); it must map the {} outputs to "
+                                 "the {} inputs",
+                                 controller.num_outputs(), controller.num_inputs(), p, m));
+  if (!initial.is_discrete() || !controller.is_discrete() ||
+      std::abs(initial.sample_period_s - data.sample_period_s) > 1e-9 * data.sample_period_s ||
+      std::abs(controller.sample_period_s - data.sample_period_s) > 1e-9 * data.sample_period_s)
+    throw InputError("plant fit: the plant, the controller and the data must share one sample period");
+  if (initial.D.norm() != 0.0) throw InputError("plant fit: the initial plant must have D = 0 (ZOH-sampled plant)");
+  if (n < 1) throw InputError("plant fit: the initial plant has no states");
+
+  const Eigen::VectorXd su = options.input_scale.size() > 0 ? options.input_scale : Eigen::VectorXd::Ones(m);
+  const Eigen::VectorXd sq = options.output_scale.size() > 0 ? options.output_scale : Eigen::VectorXd::Ones(p);
+  if (su.size() != m || sq.size() != p) throw InputError("plant fit: one scale per input and per output");
+  // Scaled data: Ĝ_s = diag(1/sq) Ĝ diag(su); Φ⁻¹_s = diag(sq) Φ⁻¹ diag(sq);
+  // R₀_s = diag(1/su) R₀ diag(1/su).  V is unchanged.
+  MarkovBins scaled = data;
+  for (Index f = 0; f < data.num_bins(); ++f) {
+    scaled.response[static_cast<std::size_t>(f)] = sq.cwiseInverse().asDiagonal() * data.response[f] * su.asDiagonal();
+    scaled.noise_inverse[static_cast<std::size_t>(f)] = sq.asDiagonal() * data.noise_inverse[f] * sq.asDiagonal();
+  }
+  scaled.excitation_gram = su.cwiseInverse().asDiagonal() * data.excitation_gram * su.cwiseInverse().asDiagonal();
+  Scaled k;
+  k.Ak = controller.A;
+  k.Bk = controller.B * sq.asDiagonal();
+  k.Ck = su.cwiseInverse().asDiagonal() * controller.C;
+  k.Dk = su.cwiseInverse().asDiagonal() * controller.D * sq.asDiagonal();
+  return {std::move(scaled), std::move(k), su, sq};
+}
+}  // namespace
+
+double plant_fit_cost(const MarkovBins& data, const StateSpace& controller, const StateSpace& plant,
+                      const PlantFitOptions& options) {
+  const Setup st = setup(data, controller, plant, options);
+  const Model model(st.scaled, st.k, plant.order());
+  double rho = 0.0;
+  return model.evaluate(model.pack(plant.A, plant.B * st.su.asDiagonal(), st.sq.cwiseInverse().asDiagonal() * plant.C),
+                        false, nullptr, nullptr, rho);
+}
+
+PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& controller, const StateSpace& initial,
+                                     const PlantFitOptions& options) {
+  const Setup st = setup(data, controller, initial, options);
+  const Index p = data.response.front().rows(), m = data.response.front().cols(), n = initial.order();
+  const Eigen::VectorXd& su = st.su;
+  const Eigen::VectorXd& sq = st.sq;
+  const Model model(st.scaled, st.k, n);
+  Eigen::VectorXd theta =
+      model.pack(initial.A, initial.B * su.asDiagonal(), sq.cwiseInverse().asDiagonal() * initial.C);
+
+  PlantFitResult result;
+  result.residuals = data.real_residuals();
+  Eigen::MatrixXd JtJ;
+  Eigen::VectorXd Jtr;
+  double rho = 0.0;
+  double cost = model.evaluate(theta, true, &JtJ, &Jtr, rho);
+  result.initial_cost = cost;
+  double mu = kInitialDamping;
+  int it = 0;
+  bool converged = false;
+  while (it < options.max_iterations && std::isfinite(cost)) {
+    const Eigen::MatrixXd Qp = gauge_complement(model, theta, n);
+    const Eigen::MatrixXd Nm = Qp.transpose() * JtJ * Qp;
+    const Eigen::VectorXd gr = Qp.transpose() * Jtr;
+    bool accepted = false;
+    while (mu <= kMaxDamping) {
+      Eigen::MatrixXd Aug = Nm;
+      Aug.diagonal() += mu * Nm.diagonal();
+      const Eigen::VectorXd step = Aug.ldlt().solve(-gr);
+      const Eigen::VectorXd trial = theta + Qp * step;
+      double rho_trial = 0.0;
+      const double c = step.allFinite() ? model.evaluate(trial, false, nullptr, nullptr, rho_trial) : INFINITY;
+      const bool stability_ok = rho_trial < 1.0 || rho >= 1.0;
+      if (std::isfinite(c) && c < cost && stability_ok) {
+        const double decrease = cost - c;
+        theta = trial;
+        cost = model.evaluate(theta, true, &JtJ, &Jtr, rho);
+        mu = std::max(mu / kDampingDown, kMinDamping);
+        accepted = true;
+        if (getenv("FITDBG")) std::fprintf(stderr, "  it %d cost %.8g mu %.2g rho %.6f\n", it, cost, mu, rho);
+        if (decrease < std::max(options.cost_tolerance_absolute, options.cost_tolerance_relative * cost))
+          converged = true;
+        break;
+      }
+      mu *= kDampingUp;
+    }
+    ++it;
+    if (!accepted) {
+      converged = true;  // no descent direction left at any damping: a (local) minimum
+      break;
+    }
+    if (converged) break;
+  }
+  result.iterations = it;
+  result.cost = cost;
+
+  Eigen::MatrixXd A, Bs, Cs;
+  model.unpack(theta, A, Bs, Cs);
+  result.plant = initial;
+  result.plant.A = A;
+  result.plant.B = Bs * su.cwiseInverse().asDiagonal();
+  result.plant.C = sq.asDiagonal() * Cs;
+  result.plant.D.setZero();
+  result.closed_loop_stable = rho < 1.0;
+  result.parameters = n * (m + p);
+  const double dof = static_cast<double>(std::max<Index>(1, result.residuals - result.parameters));
+  result.noise_scale = cost / dof;
+
+  // Covariance in scaled coordinates, then mapped to the plant's own coordinates
+  // (B = B_s diag(1/su), C = diag(sq) C_s: a diagonal change of variables).
+  const Eigen::MatrixXd Qp = gauge_complement(model, theta, n);
+  const Eigen::MatrixXd Nm = Qp.transpose() * JtJ * Qp;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (Nm + Nm.transpose()));
+  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  Eigen::VectorXd inv = Eigen::VectorXd::Zero(Nm.rows());
+  for (Index i = 0; i < Nm.rows(); ++i)
+    if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
+  const Eigen::MatrixXd cov_s = result.noise_scale * Qp * es.eigenvectors() * inv.asDiagonal() *
+                                es.eigenvectors().transpose() * Qp.transpose();
+  Eigen::VectorXd map(model.num_params());
+  map.head(n * n).setOnes();
+  for (Index j = 0; j < m; ++j) map.segment(n * n + j * n, n).setConstant(1.0 / su(j));
+  for (Index j = 0; j < n; ++j)
+    for (Index i = 0; i < p; ++i) map(n * n + n * m + i + j * p) = sq(i);
+  result.covariance = map.asDiagonal() * cov_s * map.asDiagonal();
+
+  result.report.termination =
+      fmt::format("{} after {} iterations: whitened cost {:.6g} -> {:.6g} over {} real residuals ({} free parameters), "
+                  "noise scale {:.3g}",
+                  converged ? "converged" : "stopped at the iteration limit", it, result.initial_cost, cost,
+                  result.residuals, result.parameters, result.noise_scale);
+  if (!converged) result.report.warnings.push_back(result.report.termination);
+  if (!result.closed_loop_stable || !std::isfinite(cost)) {
+    result.report.usable = false;
+    result.report.warnings.push_back(fmt::format(
+        "the fitted plant closes an unstable loop with the controller (spectral radius {:.6f})", rho));
+  }
+  return result;
+}
+
+std::vector<Eigen::MatrixXd> plant_response_variance(const PlantFitResult& fit, const Eigen::VectorXd& omega_rad_s) {
+  const StateSpace& P = fit.plant;
+  const Index n = P.order(), m = P.num_inputs(), p = P.num_outputs();
+  const Index np = n * n + n * m + p * n;
+  if (fit.covariance.rows() != np || fit.covariance.cols() != np)
+    throw InputError(fmt::format("plant response variance: covariance is {}x{} for {} parameters",
+                                 fit.covariance.rows(), fit.covariance.cols(), np));
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(static_cast<std::size_t>(omega_rad_s.size()));
+  const Eigen::MatrixXcd A = P.A.cast<Complex>(), B = P.B.cast<Complex>(), C = P.C.cast<Complex>();
+  Eigen::MatrixXd Gre(np, p * m), Gim(np, p * m);
+  for (Index w = 0; w < omega_rad_s.size(); ++w) {
+    const Complex z = std::polar(1.0, omega_rad_s(w) * P.sample_period_s);
+    Eigen::MatrixXcd Zm = -A;
+    Zm.diagonal().array() += z;
+    const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Zm);
+    const Eigen::MatrixXcd X = lu.solve(B);                                    // n × m
+    const Eigen::MatrixXcd Y = Eigen::PartialPivLU<Eigen::MatrixXcd>(Zm.transpose()).solve(C.transpose()).transpose();  // p × n
+    Gre.setZero();
+    Gim.setZero();
+    for (Index l = 0; l < m; ++l)
+      for (Index k = 0; k < p; ++k) {
+        const Index e = k + l * p;
+        for (Index j = 0; j < n; ++j)
+          for (Index i = 0; i < n; ++i) {  // dP/dA(i,j) = Y(:,i) X(j,:)
+            const Complex d = Y(k, i) * X(j, l);
+            Gre(i + j * n, e) = d.real();
+            Gim(i + j * n, e) = d.imag();
+          }
+        for (Index i = 0; i < n; ++i) {  // dP/dB(i,l) = Y(:,i) e_l
+          Gre(n * n + i + l * n, e) = Y(k, i).real();
+          Gim(n * n + i + l * n, e) = Y(k, i).imag();
+        }
+        for (Index j = 0; j < n; ++j) {  // dP/dC(k,j) = e_k X(j,:)
+          Gre(n * n + n * m + k + j * p, e) = X(j, l).real();
+          Gim(n * n + n * m + k + j * p, e) = X(j, l).imag();
+        }
+      }
+    const Eigen::MatrixXd a = (Gre.transpose() * fit.covariance * Gre).diagonal();
+    const Eigen::MatrixXd b = (Gim.transpose() * fit.covariance * Gim).diagonal();
+    Eigen::MatrixXd v(p, m);
+    for (Index l = 0; l < m; ++l)
+      for (Index k = 0; k < p; ++k) v(k, l) = std::max(0.0, a(k + l * p) + b(k + l * p));
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace lpvid
