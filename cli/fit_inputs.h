@@ -1,8 +1,21 @@
-// The inputs shared by `fit` and `diagnose`: a start model file, data files
-// tagged with their beam position (FILE@X_B), the target (plant, G or S), the
-// controller and the fit options.  Parsing and loading only (STYLE.md item 8).
+// The inputs shared by `fit`, `diagnose` and `compare --model M.json` with a
+// physical model: a model file, the data (FILE@X_B flags, or a dataset manifest
+// given once), the target (plant, G or S), the controller, the noise of the data,
+// the frequency band and the fit options.  Parsing and loading only (STYLE.md
+// item 8).
+//
+// Dataset manifest (--datasets FILE, docs/formats.md "Dataset manifests"): every
+// key but "datasets" is optional and a flag on the command line wins over it;
+// relative paths are relative to the manifest's folder.
+//
+//   {"format": "lpvid-datasets",
+//    "target": "S", "controller": "middle/controller.json", "rate_hz": 1000,
+//    "averages": 16, "noise_level": 0.01, "band_rad_s": [1, 600],
+//    "datasets": [{"beam_position_m": -0.1, "files": ["left/S_v1.csv", "left/S_v2.csv", "left/S_v3.csv"]},
+//                 {"beam_position_m": 0, "files": ["middle/S.csv"]}]}
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -15,26 +28,32 @@ class App;
 
 namespace lpvid::cli {
 
+inline constexpr double kUnset = std::numeric_limits<double>::quiet_NaN();
+
 struct FitInputOptions {
-  std::string model, controller, target = "plant";
+  std::string model, controller, target, datasets;
   std::vector<std::string> data;  // FILE@X_B
-  double rate_hz = 0.0, grid_lo = 1.0, grid_hi = 600.0;
+  // NaN: not given on the command line (the manifest's value, or the default)
+  double rate_hz = kUnset, averages = kUnset, noise_level = kUnset, band_min = kUnset, band_max = kUnset;
+  double grid_lo = 1.0, grid_hi = 600.0;
   Index grid_count = 200;
   int starts = 8, max_iterations = 200;
   unsigned seed = 1;
   bool no_global = false;
 };
 
-// Declares --model, --data, --target, --controller, --rate-hz, --starts,
-// --no-global, --seed, --max-iterations, --grid-lo/-hi/-count on app.
+// Declares --model, --data, --datasets, --target, --controller, --rate-hz,
+// --averages, --noise-level, --band-min, --band-max, --starts, --no-global, --seed,
+// --max-iterations, --grid-lo/-hi/-count on app.
 void add_fit_input_options(CLI::App& app, FitInputOptions& o);
 
 struct FitDataSpec {
-  std::string path;
+  std::vector<std::string> files;  // one file, or one per excited input (merged)
   double beam_position_m = 0.0;
+  std::string label;               // as the user wrote it
 };
 
-// "P_left.csv@-0.1" -> {P_left.csv, -0.1}.
+// "P_left.csv@-0.1" -> {P_left.csv, -0.1}; "A.csv,B.csv,C.csv@0" -> three files.
 // @throws InputError  no @x_b tag, or the tag is not a finite number.
 FitDataSpec parse_data_spec(const std::string& spec);
 
@@ -44,12 +63,16 @@ struct FitInputs {
   std::vector<FitDataset> data;
   std::vector<FitDataSpec> specs;
   std::string sample_period_source;  // where options.sample_period_s came from ("" = continuous)
+  std::string controller_path;       // "" = none
+  std::vector<std::string> inputs;   // every file read (for output guards)
 };
 
 // Validates the options first (before reading anything), refuses any output
-// path that names an input, then reads the model, controller and data.  The
-// sample period: --rate-hz, else a discrete data model's, else the controller's.
-// @throws InputError  as the readers and FitOptions::validate.
+// path that names an input, then reads the manifest, model, controller and data.
+// The sample period: --rate-hz (or the manifest's), else a discrete data model's,
+// else the controller's.
+// @throws InputError  as the readers and FitOptions::validate; --data and
+//   --datasets both or neither given.
 FitInputs load_fit_inputs(const FitInputOptions& o, const std::vector<std::string>& outputs);
 
 }  // namespace lpvid::cli

@@ -23,6 +23,7 @@
 #include "idlib/lti/interconnect.h"
 #include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/physical/platform/platform_base.h"
 #include "idlib/sim/platform_sim.h"
 
 namespace lpvid::cli {
@@ -105,7 +106,7 @@ void run(const SimulateOptions& o) {
       throw InputError("--set and --truth-model both given: put the values in the model file (lpvid model) or use --set alone");
     truth = read_physical_model(o.truth_model);
   }
-  const PlatformParameters params = truth ? to_platform_parameters(*truth) : parameters_with(o.overrides);
+  const PlatformParameters params = truth ? platform_parameters(*truth) : parameters_with(o.overrides);
   const auto gains = default_pi_gains(params);
   nlohmann::json summary = nlohmann::json::array();
   std::string text;

@@ -55,11 +55,12 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
   auto fail = [&](const std::string& what) { detail::fail_at(path, line, 1, what); };
   if (!j.is_object()) fail(fmt::format("the line holds {} where a JSON object (one fit record) is expected", j.type_name()));
   static const std::set<std::string> known = {"timestamp", "model", "effects", "free_parameters", "cost", "error_mean",
-                                              "error_max", "channels", "aic", "bic", "note"};
+                                              "error_max", "error", "noise_floor", "channels", "aic", "bic",
+                                              "note"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key))
       fail(fmt::format("unknown key '{}'; a fit record has timestamp, model, effects, free_parameters, cost, "
-                       "error_mean, error_max, channels, aic, bic, note",
+                       "error_mean, error_max, error, noise_floor, channels, aic, bic, note",
                        key));
   auto need = [&](const char* key) -> const json& {
     if (!j.contains(key)) fail(fmt::format("no key '{}'; every fit record needs it (docs/formats.md, \"Fit history\")", key));
@@ -99,6 +100,9 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
   }
   for (const char* key : {"aic", "bic"})
     if (j.contains(key) && !j.at(key).is_null()) (key[0] == 'a' ? r.aic : r.bic) = number_at(j.at(key), key);
+  if (j.contains("error") && !j.at("error").is_null()) r.error = number_at(j.at("error"), "error");
+  if (j.contains("noise_floor") && !j.at("noise_floor").is_null())
+    r.noise_floor = number_at(j.at("noise_floor"), "noise_floor");
   if (j.contains("note")) r.note = string_at(j.at("note"), "note");
   try {
     r.validate();
@@ -125,6 +129,8 @@ void HistoryRecord::validate() const {
       throw InputError(fmt::format("channel '{}' <- '{}': names must not be empty and errors finite and >= 0",
                                    c.output, c.input));
   if (std::isinf(aic) || std::isinf(bic)) throw InputError("aic and bic are finite numbers or null (not computed)");
+  if (!(std::isnan(error) || nonneg(error)) || !(std::isnan(noise_floor) || nonneg(noise_floor)))
+    throw InputError(fmt::format("error {} and noise_floor {}: finite and >= 0, or null", error, noise_floor));
 }
 
 std::string history_path_for(const std::string& model_path) { return model_path + ".history.jsonl"; }
@@ -150,6 +156,8 @@ std::string history_line(const HistoryRecord& r) {
             {"cost", r.cost},
             {"error_mean", r.error_mean},
             {"error_max", r.error_max},
+            {"error", number_or_null(r.error)},
+            {"noise_floor", number_or_null(r.noise_floor)},
             {"channels", channels},
             {"aic", number_or_null(r.aic)},
             {"bic", number_or_null(r.bic)},

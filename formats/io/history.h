@@ -19,6 +19,8 @@
 // | cost            | number >= 0, the fit's final cost | required |
 // | error_mean      | number >= 0, mean weighted error (fraction, 0.01 = 1 %) | required |
 // | error_max       | number >= error_mean, largest weighted error (fraction) | required |
+// | error           | number >= 0 or null: the fit's error figure (idlib/fit/fit.h; fraction) | optional |
+// | noise_floor     | number >= 0 or null: the same figure for the data's noise | optional |
 // | channels        | array of {output, input: string; error_mean, error_max: number >= 0} | optional |
 // | aic, bic        | number or null (not computed) | optional |
 // | note            | string | optional |
@@ -49,6 +51,10 @@ struct HistoryRecord {
   Index free_parameters = 0;
   double cost = 0;
   double error_mean = 0, error_max = 0;         // fractions (0.01 = 1 %)
+  // The error figure of the fit (rms over channels; the number fit and diagnose print)
+  // and its noise floor; NaN = not recorded (records of an earlier lpvid).
+  double error = std::numeric_limits<double>::quiet_NaN();
+  double noise_floor = std::numeric_limits<double>::quiet_NaN();
   std::vector<HistoryChannelError> channels;    // may be empty
   double aic = std::numeric_limits<double>::quiet_NaN();  // NaN = not computed (null)
   double bic = std::numeric_limits<double>::quiet_NaN();
