@@ -8,6 +8,7 @@
 #include "cli/logs.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/frd_csv.h"
 #include "formats/io/markov_csv.h"
 #include "formats/io/model_json.h"
 #include "formats/io/table_csv.h"
@@ -35,8 +36,9 @@ Nothing is written unless every step succeeds.)";
 struct IdentifyCliOptions {
   std::vector<std::string> logs;
   std::string controller, excitation, output, out, truth, weights;
+  std::string method = "structured";
   Index lags = 0, order = 0, plant_order = 0;
-  double horizon_s = 2.0;
+  double horizon_s = 0.0, fit_band_max = 0.0;
   double band_min = 1.0, band_max = 400.0;
   bool json = false;
 };
@@ -57,12 +59,55 @@ nlohmann::json poles_json(const StateSpace& s) {
   return out;
 }
 
+// The band drawn in bode.png: a disc of radius r σ around Ĥ, σ² = E|Ĥ − H|² (the variance
+// in plant_frd.csv), drawn as the magnitude envelope |Ĥ| ± r σ.  For a circular complex
+// Gaussian error |ε|²/σ² is Exp(1), so P(|ε| ≤ r σ) = 1 − e^{−r²} = 0.95 at r = √(ln 20).
+constexpr double kBandRadiusPerSigma = 1.7308;
+constexpr const char* kBandLevel = "95 %";
+
+nlohmann::json structured_report(const IdentifyResult& r) {
+  const IdentifyChoices& ch = r.choices;
+  nlohmann::json candidates = nlohmann::json::array();
+  for (const auto& c : ch.order_candidates)
+    candidates.push_back({{"order", c.order}, {"cost", c.cost}, {"dof", c.dof}, {"stable_loop", c.stable}});
+  nlohmann::json stages = nlohmann::json::array();
+  for (const auto& s : ch.stages)
+    stages.push_back({{"lags", s.lags}, {"bins", s.bins}, {"iterations", s.iterations}, {"cost", s.cost}});
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const auto& t : ch.tail_rounds) rounds.push_back({{"cost", t.cost}, {"relative_change", t.change}});
+  return {{"band_rad_s", {0.0, ch.fit_band_max_rad_s}},
+          {"bins", ch.fit_bins},
+          {"band_reason", ch.band_reason},
+          {"start_lags", ch.plant_horizon},
+          {"start_reason", ch.start_reason},
+          {"order", ch.plant_order},
+          {"order_reason", ch.order_reason},
+          {"order_candidates", candidates},
+          {"stages", stages},
+          {"tail_rounds", rounds},
+          {"tail_reason", ch.tail_reason},
+          {"cost", r.fit.cost},
+          {"residuals", r.fit.residuals},
+          {"parameters", r.fit.parameters},
+          {"noise_scale", r.fit.noise_scale}};
+}
+
 void run(const IdentifyCliOptions& o) {
   IdentifyOptions options;
+  if (o.method == "structured")
+    options.method = IdentifyMethod::kStructured;
+  else if (o.method == "era")
+    options.method = IdentifyMethod::kEra;
+  else
+    throw InputError(fmt::format("--method {}: use 'structured' (default) or 'era' (the paper's recipe)", o.method));
+  const bool era = options.method == IdentifyMethod::kEra;
   options.num_lags = o.lags;
   options.markov_horizon_s = o.horizon_s;
   options.closed_loop_order = o.order;
   options.plant_order = o.plant_order;
+  options.fit_band_max_rad_s = o.fit_band_max;
+  if (!era && o.order > 0)
+    throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
   options.validate();
   if (!(o.band_min > 0 && o.band_max > o.band_min))
     throw InputError(fmt::format("--band {} .. {} rad/s: need 0 < min < max", o.band_min, o.band_max));
@@ -72,8 +117,8 @@ void run(const IdentifyCliOptions& o) {
   inputs.push_back(o.controller);
   if (!o.truth.empty()) inputs.push_back(o.truth);
   ensure_directory(o.out);
-  for (const char* name : {"closed_loop.json", "plant.json", "markov.csv", "hankel_sv.csv", "hankel_sv.png", "bode.png",
-                           "report.json"})
+  for (const char* name : {"closed_loop.json", "plant.json", "plant_frd.csv", "markov.csv", "hankel_sv.csv",
+                           "hankel_sv.png", "bode.png", "report.json"})
     check_not_overwriting(inputs, join_path(o.out, name));
 
   const StateSpace controller = read_state_space(o.controller);
@@ -97,50 +142,66 @@ void run(const IdentifyCliOptions& o) {
                            static_cast<Index>(excitation.size()), options.sample_period_tolerance);
 
   IdentifyResult r = identify_closed_loop(set.views(), set.sample_period_s, controller, options);
-  r.closed_loop.model.input_names = excitation;
-  r.closed_loop.model.output_names = output;
-  r.plant.plant.input_names = controller.output_names.empty() ? excitation : controller.output_names;
-  r.plant.plant.output_names = output;
+  r.closed_loop.input_names = excitation;
+  r.closed_loop.output_names = output;
+  r.plant.input_names = controller.output_names.empty() ? excitation : controller.output_names;
+  r.plant.output_names = output;
+  if (era) {
+    r.era.model.input_names = r.closed_loop.input_names;
+    r.era.model.output_names = r.closed_loop.output_names;
+  }
 
   // Report.
-  const auto& sel = r.closed_loop.selection;
-  const Index shown = std::min<Index>(sel.singular_values.size(), 30);
+  const double Ts = set.sample_period_s;
   nlohmann::json report = {
       {"logs", set.paths},
       {"controller", o.controller},
-      {"sample_period_s", set.sample_period_s},
+      {"sample_period_s", Ts},
       {"excitation", excitation},
       {"output", output},
-      {"markov", {{"lags", r.num_lags}, {"iterations", r.markov.iterations}, {"samples", r.markov.total_samples},
-                  {"termination", r.markov.report.termination}}},
+      {"method", era ? "era" : "structured"},
+      {"markov",
+       {{"lags", r.num_lags},
+        {"horizon_s", static_cast<double>(r.num_lags) * Ts},
+        {"horizon_reason", era ? std::string(o.lags > 0 || o.horizon_s > 0 ? "given" : "the paper's 2 s")
+                               : r.choices.horizon_reason},
+        {"iterations", r.markov.iterations},
+        {"samples", r.markov.total_samples},
+        {"termination", r.markov.report.termination}}},
       {"closed_loop",
-       {{"order", r.closed_loop.model.order()},
-        {"order_rule", sel.rule},
-        {"order_reason", sel.reason},
-        {"noise_floor", sel.noise_floor},
-        {"singular_values", std::vector<double>(sel.singular_values.data(), sel.singular_values.data() + shown)},
-        {"block_rows", r.closed_loop.block_rows},
-        {"block_cols", r.closed_loop.block_cols},
-        {"stride", r.closed_loop.stride},
-        {"stable", is_stable(r.closed_loop.model)},
-        {"poles", poles_json(r.closed_loop.model)},
-        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop.model, r.markov.g))}}},
+       {{"order", r.closed_loop.order()},
+        {"stable", is_stable(r.closed_loop)},
+        {"poles", poles_json(r.closed_loop)},
+        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))}}},
       {"plant",
-       {{"order", r.plant.plant.order()},
-        {"interconnection_order", r.plant.interconnection_order},
-        {"removed_modes", r.plant.removed_poles.size()},
-        {"stable", is_stable(r.plant.plant)},
-        {"poles", poles_json(r.plant.plant)},
-        {"termination", r.plant.report.termination}}},
+       {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
       {"warnings", r.warnings},
   };
+  if (era) {
+    const auto& sel = r.era.selection;
+    const Index shown = std::min<Index>(sel.singular_values.size(), 30);
+    report["closed_loop"].update({{"order_rule", sel.rule},
+                                  {"order_reason", sel.reason},
+                                  {"noise_floor", sel.noise_floor},
+                                  {"singular_values", std::vector<double>(sel.singular_values.data(),
+                                                                          sel.singular_values.data() + shown)},
+                                  {"block_rows", r.era.block_rows},
+                                  {"block_cols", r.era.block_cols},
+                                  {"stride", r.era.stride}});
+    report["plant"].update({{"interconnection_order", r.unloop.interconnection_order},
+                            {"removed_modes", r.unloop.removed_poles.size()},
+                            {"termination", r.unloop.report.termination}});
+  } else {
+    report["fit"] = structured_report(r);
+    report["plant"]["termination"] = r.fit.report.termination;
+  }
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
   if (truth) {
-    if (truth->num_inputs() != r.plant.plant.num_inputs() || truth->num_outputs() != r.plant.plant.num_outputs())
+    if (truth->num_inputs() != r.plant.num_inputs() || truth->num_outputs() != r.plant.num_outputs())
       throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}", o.truth,
-                                   truth->num_outputs(), truth->num_inputs(), r.plant.plant.num_outputs(),
-                                   r.plant.plant.num_inputs()));
-    const auto est = evaluate_response(r.plant.plant, band);
+                                   truth->num_outputs(), truth->num_inputs(), r.plant.num_outputs(),
+                                   r.plant.num_inputs()));
+    const auto est = evaluate_response(r.plant, band);
     const auto ref = evaluate_response(*truth, band);
     const ErrorSummary e = weighted_error_over(est, ref, band, weights, weights);
     report["truth"] = {{"model", o.truth},
@@ -151,29 +212,40 @@ void run(const IdentifyCliOptions& o) {
                        {"omega_at_max_rad_s", e.omega_at_max_rad_s}};
   }
 
-  // Plots.
-  const double nyquist = M_PI / set.sample_period_s;
+  // The plant's response with its variance (structured: the fit's covariance by the
+  // delta method) on a log grid up to Nyquist: plant_frd.csv, and the band in bode.png.
+  const double nyquist = M_PI / Ts;
   const Eigen::VectorXd omega = log_frequency_grid(std::min(1.0, o.band_min), 0.999 * nyquist, 400);
+  FrequencyResponse plant_frd = frequency_response(r.plant, omega);
   std::vector<BodeSeries> series;
-  series.push_back({"identified plant", frequency_response(r.plant.plant, omega), BodeSeries::Style::kLine});
+  series.push_back({"identified plant", plant_frd, BodeSeries::Style::kLine});
+  if (!era) {
+    plant_frd.variance = plant_response_variance(r.fit, omega);
+    FrequencyResponse upper = plant_frd, lower = plant_frd;
+    upper.variance.clear();
+    lower.variance.clear();
+    for (std::size_t k = 0; k < plant_frd.response.size(); ++k) {
+      const Eigen::MatrixXcd& H = plant_frd.response[k];
+      for (Index i = 0; i < H.rows(); ++i)
+        for (Index j = 0; j < H.cols(); ++j) {
+          const double a = std::abs(H(i, j)), d = kBandRadiusPerSigma * std::sqrt(plant_frd.variance[k](i, j));
+          const std::complex<double> unit = a > 0 ? H(i, j) / a : std::complex<double>(1.0, 0.0);
+          upper.response[k](i, j) = unit * (a + d);
+          lower.response[k](i, j) = unit * std::max(a - d, 1e-6 * a);
+        }
+    }
+    series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed});
+    series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed});
+  }
   if (truth) series.push_back({"true plant", frequency_response(*truth, omega), BodeSeries::Style::kDashed});
   BodePlotOptions bode;
-  bode.title = fmt::format("Plant identified from {} experiment(s), order {}", set.paths.size(), r.plant.plant.order());
+  bode.title = fmt::format("Plant identified from {} experiment(s), order {}", set.paths.size(), r.plant.order());
   const auto bode_bytes = bode_png(series, bode);
-  SingularValuePlotOptions svo;
-  svo.count = std::min<Index>(20, sel.singular_values.size());
-  svo.chosen_order = sel.order;
-  svo.noise_floor = sel.noise_floor;
-  svo.title = "Largest Hankel singular values of G (scaled channels)";
-  const auto sv_bytes = singular_values_png(sel.singular_values, svo);
 
   // Every computation succeeded: now write, each file atomically.
-  Eigen::MatrixXd table(sel.singular_values.size(), 3);
-  for (Index i = 0; i < table.rows(); ++i)
-    table.row(i) << static_cast<double>(i + 1), sel.singular_values(i), sel.singular_values(i) > sel.noise_floor;
   MarkovFile mf;
   mf.g = r.markov.g;
-  mf.sample_period_s = set.sample_period_s;
+  mf.sample_period_s = Ts;
   mf.inputs = excitation;
   mf.outputs = output;
   mf.noise_std = r.markov.noise_std;
@@ -184,29 +256,51 @@ void run(const IdentifyCliOptions& o) {
   // while writing leaves none of them.
   AtomicOutputSet files;
   files.stage(join_path(o.out, "markov.csv"), markov_csv_text(mf, join_path(o.out, "markov.csv")));
-  write_table_csv(files.stage(join_path(o.out, "hankel_sv.csv")), {"index", "singular_value", "above_noise_floor"},
-                  table, {"lpvid identify: Hankel singular values of G (scaled channels)", "rule: " + sel.reason});
-  files.stage(join_path(o.out, "hankel_sv.png"), std::string_view(reinterpret_cast<const char*>(sv_bytes.data()), sv_bytes.size()));
+  std::string written = "closed_loop.json, plant.json, plant_frd.csv, markov.csv, bode.png, report.json";
+  if (era) {
+    const auto& sel = r.era.selection;
+    SingularValuePlotOptions svo;
+    svo.count = std::min<Index>(20, sel.singular_values.size());
+    svo.chosen_order = sel.order;
+    svo.noise_floor = sel.noise_floor;
+    svo.title = "Largest Hankel singular values of G (scaled channels)";
+    const auto sv_bytes = singular_values_png(sel.singular_values, svo);
+    Eigen::MatrixXd table(sel.singular_values.size(), 3);
+    for (Index i = 0; i < table.rows(); ++i)
+      table.row(i) << static_cast<double>(i + 1), sel.singular_values(i), sel.singular_values(i) > sel.noise_floor;
+    write_table_csv(files.stage(join_path(o.out, "hankel_sv.csv")), {"index", "singular_value", "above_noise_floor"},
+                    table, {"lpvid identify: Hankel singular values of G (scaled channels)", "rule: " + sel.reason});
+    files.stage(join_path(o.out, "hankel_sv.png"),
+                std::string_view(reinterpret_cast<const char*>(sv_bytes.data()), sv_bytes.size()));
+    written += ", hankel_sv.csv, hankel_sv.png";
+  }
+  write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), plant_frd, "P",
+                {"lpvid identify: identified plant u -> q",
+                 era ? "no variance: --method era has no covariance" : "var_<i>_<j>: E|P^ - P|^2 from the fit's covariance (delta method)"});
   files.stage(join_path(o.out, "bode.png"), std::string_view(reinterpret_cast<const char*>(bode_bytes.data()), bode_bytes.size()));
-  files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop.model, {{"provenance", provenance}}));
-  files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant.plant, {{"provenance", provenance}}));
+  files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
+  files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "report.json"), report.dump(2) + "\n");
   files.commit();
 
-  std::string text = fmt::format(
-      "identify: {} experiment(s), Ts = {:.6g} s, {} lags\n"
-      "  closed loop: order {} ({})\n"
-      "  plant: order {} ({} modes removed), {}\n",
-      set.paths.size(), set.sample_period_s, r.num_lags, r.closed_loop.model.order(), sel.reason,
-      r.plant.plant.order(), r.plant.removed_poles.size(), is_stable(r.plant.plant) ? "stable" : "UNSTABLE");
+  std::string text = fmt::format("identify ({}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
+                                 set.paths.size(), Ts);
+  if (era) {
+    text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
+                        r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
+                        r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
+  } else {
+    const IdentifyChoices& ch = r.choices;
+    text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  plant: {}, closed loop stable\n",
+                        ch.horizon_reason, ch.band_reason, ch.start_reason, ch.plant_order, ch.order_reason,
+                        ch.tail_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)");
+  }
   if (truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
                         100 * report["truth"]["weighted_error_mean"].get<double>(),
                         100 * report["truth"]["weighted_error_max"].get<double>(), o.band_min, o.band_max);
   for (const auto& w : r.warnings) text += "warning: " + w + "\n";
-  text += fmt::format("  wrote {}/{{closed_loop.json, plant.json, markov.csv, hankel_sv.csv, hankel_sv.png, bode.png, "
-                      "report.json}}\n",
-                      o.out);
+  text += fmt::format("  wrote {}/{{{}}}\n", o.out, written);
   print_summary(o.json, report, text);
 }
 
@@ -222,10 +316,16 @@ Command make_identify_command() {
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "measured output columns q (comma separated)")->required();
             app->add_option("--out", o->out, "output directory")->required();
-            app->add_option("--lags", o->lags, "Markov lags (default: --horizon-s / Ts, at most N/4)");
-            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds");
-            app->add_option("--order", o->order, "closed-loop order (default: automatic)");
-            app->add_option("--plant-order", o->plant_order, "plant order (default: closed-loop minus controller)");
+            app->add_option("--method", o->method,
+                            "structured (default: the plant fitted with the known controller, every setting from the "
+                            "data, with bands) or era (the paper's recipe: Markov, ERA, unloop)");
+            app->add_option("--lags", o->lags, "Markov lags (default: from the data; era: --horizon-s / Ts, at most N/4)");
+            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds (default: from the data; era: 2 s)");
+            app->add_option("--order", o->order, "era: closed-loop order (default: automatic)");
+            app->add_option("--plant-order", o->plant_order,
+                            "plant order (default: structured from the data; era closed-loop minus controller)");
+            app->add_option("--fit-band-max", o->fit_band_max,
+                            "structured: upper edge of the fitted band in rad/s (default: from the data)");
             app->add_option("--truth", o->truth, "a known plant to compare with (state-space JSON)");
             app->add_option("--error-weights", o->weights,
                             "output weights W for the error |W(P^-P)W| / |WPW| (comma separated, default 1)");

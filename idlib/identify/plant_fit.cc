@@ -501,7 +501,6 @@ PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& c
         cost = model.evaluate(theta, true, &JtJ, &Jtr, rho);
         mu = std::max(mu / kDampingDown, kMinDamping);
         accepted = true;
-        if (getenv("FITDBG")) std::fprintf(stderr, "  it %d cost %.8g mu %.2g rho %.6f\n", it, cost, mu, rho);
         if (decrease < std::max(options.cost_tolerance_absolute, options.cost_tolerance_relative * cost))
           converged = true;
         break;

@@ -63,7 +63,7 @@ TEST_P(FrequencyVsTimeDomainRoute, PlantsAgreeWithin2PercentMeanWeightedError) {
   const SensitivityUnloopResult fd = plant_from_sensitivity(m.sensitivity, controller, {});
 
   const Eigen::Vector3d w(params.coil_arm_m, params.coil_arm_m, 1.0);
-  const auto td_response = evaluate_response(td.plant.plant, ao.omega_rad_s);
+  const auto td_response = evaluate_response(td.plant, ao.omega_rad_s);
   const auto truth = evaluate_response(plant, ao.omega_rad_s);
   const ErrorSummary between = weighted_error_over(fd.plant.response, td_response, ao.omega_rad_s, w, w);
   const ErrorSummary fd_err = weighted_error_over(fd.plant.response, truth, ao.omega_rad_s, w, w);
