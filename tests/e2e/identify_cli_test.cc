@@ -39,7 +39,7 @@ TempDir* CliPipeline::dir_ = nullptr;
 
 TEST_F(CliPipeline, IdentifyWritesEveryOutputAndFindsOrders9And6) {
   TempDir out("identify");
-  const auto r = run_lpvid("identify --controller " + data("controller.json") +
+  const auto r = run_lpvid("identify --method era --controller " + data("controller.json") +
                            " --excitation v1,v2,v3 --output q1,q2,q3 --truth " + data("truth_plant.json") +
                            " --out " + out.path().string() + " --json " + logs());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -128,7 +128,7 @@ class CliBadInput : public CliPipeline {
  protected:
   Failure identify_with(const std::string& log_args, const std::string& controller = "") {
     TempDir out("bad");
-    const auto r = run_lpvid("identify --controller " + (controller.empty() ? data("controller.json") : controller) +
+    const auto r = run_lpvid("identify --method era --controller " + (controller.empty() ? data("controller.json") : controller) +
                              " --excitation v1,v2,v3 --output q1,q2,q3 --out " + (out / "result") + " " + log_args);
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "not one line: " << r.err;
     return {r.exit_code, r.err, count_files(out.path())};
@@ -160,7 +160,7 @@ TEST_F(CliBadInput, MissingFile) {
 
 TEST_F(CliBadInput, MissingColumnNamesTheColumn) {
   TempDir out("bad");
-  const auto r = run_lpvid("identify --controller " + data("controller.json") +
+  const auto r = run_lpvid("identify --method era --controller " + data("controller.json") +
                            " --excitation v1,v2,v9 --output q1,q2,q3 --out " + (out / "r") + " " + logs());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("v9"));

@@ -28,7 +28,7 @@ class IdentifyGolden : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir("golden_identify");
-    const auto r = run_lpvid("identify --controller " + sim_dir() + "/controller.json " + kChannels + " --truth " +
+    const auto r = run_lpvid("identify --method era --controller " + sim_dir() + "/controller.json " + kChannels + " --truth " +
                              sim_dir() + "/truth_plant.json --out " + (*dir_ / "out") + " --json " + golden_logs());
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
