@@ -4,7 +4,7 @@
 // the frequency band and the fit options.  Parsing and loading only (STYLE.md
 // item 8).
 //
-// Dataset manifest (--datasets FILE, docs/formats.md "Dataset manifests"): every
+// Dataset manifest (--datasets FILE, docs/formats.md "Data-set manifest"): every
 // key but "datasets" is optional and a flag on the command line wins over it;
 // relative paths are relative to the manifest's folder.
 //
