@@ -19,7 +19,7 @@ using lpvid::testing::TempDir;
 constexpr double kMarkovDigits = 10.0;
 constexpr double kSingularValueDigits = 8.0;  // relative to the largest singular value
 constexpr double kResponseDigits = 8.0;       // relative to each channel's peak
-// The weighted error |W(P^ - P)W| / |WPW| is ~1 % here: the difference P^ - P
+// The weighted error |W(P^ - P)W| / |WPW| is ~1.5 % here: the difference P^ - P
 // cancels the leading two digits that P^ shares with the truth, so 8 digits of
 // the response leave ~6 in the error figures.
 constexpr double kWeightedErrorDigits = 6.0;

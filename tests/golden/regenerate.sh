@@ -18,7 +18,7 @@
 #   realize markov/g.csv (automatic order)     -> realize/closed_loop.json
 #   unloop  realize/closed_loop.json + simulate/.../controller.json
 #                                              -> unloop/plant.json
-#   identify (same logs, --truth truth_plant.json --json)
+#   identify --method era (same logs, --truth truth_plant.json --json)
 #                                              -> identify/{report.json, plant.json, closed_loop.json}
 #                                                 (its markov.csv equals markov/g.csv, its hankel_sv.csv
 #                                                 is in report.json, its PNGs are large: not kept)
@@ -47,7 +47,7 @@ logs="$sim/exp_T_psi.csv $sim/exp_T_theta.csv $sim/exp_F_z.csv"
 "$lpvid" unloop --closed-loop realize/closed_loop.json --controller "$sim/controller.json" --out unloop/plant.json
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-"$lpvid" identify --controller "$sim/controller.json" --excitation v1,v2,v3 --output q1,q2,q3 \
+"$lpvid" identify --method era --controller "$sim/controller.json" --excitation v1,v2,v3 --output q1,q2,q3 \
   --truth "$sim/truth_plant.json" --out "$tmp/identify" --json $logs > /dev/null
 cp "$tmp/identify/report.json" "$tmp/identify/plant.json" "$tmp/identify/closed_loop.json" identify/
 "$lpvid" bode --out bode/bode.png --labels resonance,lowpass bode/resonance.json bode/lowpass.json
