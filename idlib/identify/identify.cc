@@ -485,7 +485,18 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
             if (c < st.second) st = {fit.plant, c};
           }
           if (!std::isfinite(st.second)) continue;
-          fits.push_back(fit_plant_closed_loop(small, controller, st.first, fo));
+          // Screened as in the order check below: a candidate whose loop is still unstable
+          // after kOrderScreenIterations is not refined (it can be neither chosen nor the
+          // reference); a stable one continues with the usual iteration budget.
+          PlantFitOptions screen = fo;
+          screen.max_iterations = std::min(fo.max_iterations, kOrderScreenIterations);
+          PlantFitResult f = fit_plant_closed_loop(small, controller, st.first, screen);
+          if (f.closed_loop_stable && f.iterations >= screen.max_iterations) {
+            PlantFitOptions rest = fo;
+            rest.max_iterations = std::max(0, fo.max_iterations - f.iterations);
+            f = fit_plant_closed_loop(small, controller, f.plant, rest);
+          }
+          fits.push_back(std::move(f));
           IdentifyChoices::Candidate c;
           c.order = n;
           c.cost = fits.back().cost;
