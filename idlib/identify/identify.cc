@@ -569,6 +569,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
         PlantFitResult lower;
         lower.cost = std::numeric_limits<double>::infinity();
         double abandoned = std::numeric_limits<double>::infinity();  // smallest first-stage ratio abandoned
+        bool refined = false;                                         // a start went through every stage
         for (const MarkovSequence* ph : {&phat, &phat0}) {
           Index lag = 0;
           const auto st = best_start(*ph, small, n, &lag);
@@ -593,10 +594,13 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
             ref_first = std::min(ref_first, f.cost / static_cast<double>(std::max<Index>(1, f.residuals - f.parameters)));
           for (Index K = 2 * K0; K <= L; K *= 2)
             f = fit_plant_closed_loop(K == L ? final_data : bins_at(g0, spectrum0, K), controller, f.plant, fo);
+          refined = true;
           if (f.closed_loop_stable && f.cost < lower.cost) lower = std::move(f);
         }
         if (!std::isfinite(lower.cost)) {
-          if (std::isfinite(abandoned))
+          if (refined)
+            tried += fmt::format("{}{} (closes an unstable loop)", tried.empty() ? "" : ", ", n);
+          else if (std::isfinite(abandoned))
             tried += fmt::format("{}{} (first stage {:.3g}x the best cost per degree of freedom there: not refined)",
                                  tried.empty() ? "" : ", ", n, abandoned);
           continue;
