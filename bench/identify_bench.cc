@@ -1,11 +1,14 @@
-// identify end to end after parsing: Markov LS -> ERA -> unloop on simulated
-// platform experiments (3 experiments, one input each), at the paper's two rates.
+// identify end to end after parsing on simulated platform experiments (3 experiments,
+// one input each), at the paper's two rates: the default structured fit and the paper's
+// recipe (Markov LS -> ERA -> unloop); and the structured fit on the independent
+// simulator's seed-1 plant.
 #include <benchmark/benchmark.h>
 
 #include "idlib/identify/identify.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/models/platform.h"
 #include "idlib/sim/platform_sim.h"
+#include "tests/support/independent_draw.h"
 
 namespace {
 
@@ -34,20 +37,59 @@ Data make(double ts, double duration_s) {
   return d;
 }
 
-void run(benchmark::State& state, double ts, double duration_s) {
+void run(benchmark::State& state, double ts, double duration_s, IdentifyMethod method = IdentifyMethod::kStructured) {
   const Data d = make(ts, duration_s);
   std::vector<ExperimentView> views;
   for (std::size_t i = 0; i < d.v.size(); ++i) views.push_back({d.v[i], d.q[i]});
   for (auto _ : state) {
-    IdentifyResult r = identify_closed_loop(views, ts, d.controller, IdentifyOptions{});
+    IdentifyOptions options;
+    options.method = method;
+    IdentifyResult r = identify_closed_loop(views, ts, d.controller, options);
     benchmark::DoNotOptimize(r.plant.A.data());
+    state.counters["plant_order"] = static_cast<double>(r.plant.order());
     state.counters["closed_loop_order"] = static_cast<double>(r.closed_loop.order());
     state.counters["lags"] = static_cast<double>(r.num_lags);
   }
 }
 
 void BM_Identify_3x60s_1kHz(benchmark::State& state) { run(state, 1e-3, 60.0); }
+
+// The same on logs of the INDEPENDENT simulator (tests/support, as
+// independent_identify_test.cc): seed 1, 3 × 60 s at 1 kHz, beam at x_b = −0.1, 0, 0.1 m
+// (state.range(0) = 0, 1, 2), sensor noise × state.range(1) (0 = noise-free).
+void BM_Identify_Independent_Seed1_3x60s_1kHz(benchmark::State& state) {
+  constexpr double kTs = 1e-3;
+  const double xb[3] = {-0.1, 0.0, 0.1};
+  const auto position = static_cast<int>(state.range(0));
+  const indep::Draw d =
+      indep::draw_stable(1, indep::HiddenEffect::kNone, indep::DrawOptions{}, kTs, {xb[0], xb[1], xb[2]});
+  indep::Noise noise;
+  noise.sensor_std_m = 0.3e-6 * static_cast<double>(state.range(1));
+  const indep::Discrete C = indep::pid_controller(d.plant, d.pid, kTs);
+  const indep::Discrete P = indep::sampled_plant(d.plant, xb[position], kTs);
+  StateSpace controller;
+  controller.A = C.A, controller.B = C.B, controller.C = C.C, controller.D = C.D, controller.sample_period_s = kTs;
+  const double amplitude[3] = {0.05, 0.05, 1.0};
+  std::vector<Eigen::MatrixXd> v, q;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, amplitude, j, 60000,
+                                                    1000 + 10 * static_cast<std::uint64_t>(position) + static_cast<std::uint64_t>(j));
+    v.push_back(log.middleCols(1, 3));
+    q.push_back(log.middleCols(7, 3));
+  }
+  std::vector<ExperimentView> views;
+  for (std::size_t i = 0; i < v.size(); ++i) views.push_back({v[i], q[i]});
+  for (auto _ : state) {
+    IdentifyResult r = identify_closed_loop(views, kTs, controller, IdentifyOptions{});
+    benchmark::DoNotOptimize(r.plant.A.data());
+    state.counters["plant_order"] = static_cast<double>(r.plant.order());
+    state.counters["lags"] = static_cast<double>(r.num_lags);
+  }
+}
 void BM_Identify_3x100s_10kHz(benchmark::State& state) { run(state, 1e-4, 100.0); }
+// The paper's recipe (--method era), the default before issue 11.
+void BM_IdentifyEra_3x60s_1kHz(benchmark::State& state) { run(state, 1e-3, 60.0, IdentifyMethod::kEra); }
+void BM_IdentifyEra_3x100s_10kHz(benchmark::State& state) { run(state, 1e-4, 100.0, IdentifyMethod::kEra); }
 
 // Simulated seconds per wall second of the closed-loop platform simulator.
 void BM_SimulatePlatform_100s_10kHz(benchmark::State& state) {
@@ -68,4 +110,12 @@ void BM_SimulatePlatform_100s_10kHz(benchmark::State& state) {
 
 BENCHMARK(BM_Identify_3x60s_1kHz)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Identify_3x100s_10kHz)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_IdentifyEra_3x60s_1kHz)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_IdentifyEra_3x100s_10kHz)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Identify_Independent_Seed1_3x60s_1kHz)
+    ->ArgsProduct({{0, 1, 2}, {1, 0}})
+    ->ArgNames({"position", "noise"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
 BENCHMARK(BM_SimulatePlatform_100s_10kHz)->Unit(benchmark::kMillisecond)->UseRealTime();
