@@ -7,7 +7,7 @@ pkgs=(
   libeigen3-dev libceres-dev libnlopt-cxx-dev libnlopt-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libpng-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev libfast-float-dev
-  libfftw3-dev libmatio-dev libspectra-dev libopenblas-dev liblapacke-dev
+  libfftw3-dev libmatio-dev zlib1g-dev libspectra-dev libopenblas-dev liblapacke-dev
   libgtest-dev libgmock-dev libbenchmark-dev fonts-dejavu-core
 )
 missing=()

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <numbers>
 #include <optional>
+#include <sstream>
 #include <string_view>
 
 #include "formats/io/csv_detail.h"
@@ -110,13 +111,16 @@ struct Axis {
 
 class FrdCsvReader {
  public:
-  FrdCsvReader(const std::string& path, const FrdReadOptions& options) : path_(path), options_(options) {}
+  FrdCsvReader(const std::string& path, const FrdReadOptions& options, const std::string* text = nullptr)
+      : path_(path), options_(options), text_(text) {}
 
   FrdPart read(bool allow_missing_pairs) {
     options_.validate();
-    csv_ = detail::read_numeric_csv(path_, "freq_hz",
-                                    "the header must name 'freq_hz' (Hz) and the response columns, e.g. "
-                                    "'freq_hz,S_1_1_re,S_1_1_im' (see docs/formats.md)");
+    const std::string hint =
+        "the header must name 'freq_hz' (Hz) and the response columns, e.g. 'freq_hz,S_1_1_re,S_1_1_im' (see "
+        "docs/formats.md)";
+    csv_ = text_ != nullptr ? detail::read_numeric_csv_text(*text_, path_, "freq_hz", hint)
+                            : detail::read_numeric_csv(path_, "freq_hz", hint);
     parse_metadata();
     classify_columns();
     resolve_axes();
@@ -173,6 +177,15 @@ class FrdCsvReader {
           detail::fail_at(path_, comment.line, column,
                           fmt::format("empty name in '{}'; list the names separated by commas, e.g. {}", key,
                                       key == "outputs" ? "psi,theta" : "u1,u2"));
+        if (!valid_utf8(name))
+          detail::fail_at(path_, comment.line, column,
+                          fmt::format("name {} in '{}' is not valid UTF-8; save the file as UTF-8",
+                                      detail::quote_cell(name), key));
+        if (meta->names.size() == static_cast<size_t>(frd_detail::kMaxChannels))
+          detail::fail_at(path_, comment.line, column,
+                          fmt::format("'{}' lists more than {} names; lpvid reads responses of at most {} outputs and "
+                                      "inputs",
+                                      key, frd_detail::kMaxChannels, frd_detail::kMaxChannels));
         if (std::find(meta->names.begin(), meta->names.end(), name) != meta->names.end())
           detail::fail_at(path_, comment.line, column,
                           fmt::format("name '{}' appears twice in '{}'; give every channel its own name", name, key));
@@ -332,12 +345,21 @@ class FrdCsvReader {
         // Indices beyond this are surely typos (and would allocate huge responses).
         constexpr size_t kMaxIndexDigits = 5;
         const long index = token.size() > kMaxIndexDigits ? 0 : std::stol(token);
-        if (index < 1)
+        if (index < 1 || index > frd_detail::kMaxChannels)
           fail_header(c.column, fmt::format("{} index '{}' in column '{}' is not allowed; indices are 1, 2, ... up to "
-                                            "99999",
-                                            what, token, csv_.names[static_cast<size_t>(c.column)]));
+                                            "{}",
+                                            what, token, csv_.names[static_cast<size_t>(c.column)],
+                                            frd_detail::kMaxChannels));
         axis.size = std::max<Index>(axis.size, index);
       } else if (std::find(axis.names.begin(), axis.names.end(), token) == axis.names.end()) {
+        if (!valid_utf8(token))
+          fail_header(c.column, fmt::format("{} name {} in column '{}' is not valid UTF-8; save the file as UTF-8",
+                                            what, detail::quote_cell(token), csv_.names[static_cast<size_t>(c.column)]));
+        if (static_cast<Index>(axis.names.size()) == frd_detail::kMaxChannels)
+          fail_header(c.column, fmt::format("column '{}' names a {} beyond the first {}; lpvid reads responses of at "
+                                            "most {} outputs and inputs",
+                                            csv_.names[static_cast<size_t>(c.column)], what, frd_detail::kMaxChannels,
+                                            frd_detail::kMaxChannels));
         axis.names.push_back(token);
         axis.size = static_cast<Index>(axis.names.size());
       }
@@ -462,11 +484,17 @@ class FrdCsvReader {
 
   // Byte column of cell `column` on line `line` (re-reads the file: error path only).
   int64_t cell_column(int64_t line, Index column) const {
-    if (path_ == "-") return 1;  // stdin cannot be read twice
-    std::ifstream in(path_, std::ios::binary);
     std::string text;
-    for (int64_t k = 0; k < line; ++k)
-      if (!std::getline(in, text)) return 1;
+    if (text_ != nullptr) {
+      std::istringstream in(*text_);
+      for (int64_t k = 0; k < line; ++k)
+        if (!std::getline(in, text)) return 1;
+    } else {
+      if (path_ == "-") return 1;  // stdin cannot be read twice
+      std::ifstream in(path_, std::ios::binary);
+      for (int64_t k = 0; k < line; ++k)
+        if (!std::getline(in, text)) return 1;
+    }
     if (line == 1 && text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
     size_t p = 0;
     for (Index c = 0; c < column; ++c) {
@@ -502,6 +530,11 @@ class FrdCsvReader {
                                     f[k], f[k - 1]));
       }
     }
+    if (nf > frd_detail::kMaxEntries / std::max<Index>(1, outs_.size * ins_.size))
+      detail::fail_at(path_, csv_.header_line, 1,
+                      fmt::format("{} frequencies of a {}×{} response are more than the {} entries lpvid reads; split "
+                                  "the file or use fewer frequencies",
+                                  nf, outs_.size, ins_.size, frd_detail::kMaxEntries));
     FrequencyResponse frd;
     frd.omega_rad_s.resize(nf);
     for (Index k = 0; k < nf; ++k) frd.omega_rad_s[k] = frd_detail::omega_from_hz(f[k]);
@@ -555,6 +588,7 @@ class FrdCsvReader {
 
   const std::string& path_;
   const FrdReadOptions& options_;
+  const std::string* text_;
   detail::NumericCsv csv_;
   AxisMeta outs_meta_, ins_meta_;
   std::vector<ResponseColumn> columns_;
@@ -774,6 +808,10 @@ FrdPart read_frd_part(const std::string& path, const FrdReadOptions& options) {
 
 FrequencyResponse read_frd_csv(const std::string& path, const FrdReadOptions& options) {
   return FrdCsvReader(path, options).read(false).frd;
+}
+
+FrequencyResponse parse_frd_csv(const std::string& text, const std::string& path, const FrdReadOptions& options) {
+  return FrdCsvReader(path, options, &text).read(false).frd;
 }
 
 // ---- merging ---------------------------------------------------------------

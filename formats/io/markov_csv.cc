@@ -8,6 +8,8 @@
 #include <optional>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/model_json.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -160,10 +162,9 @@ class MarkovReader {
     double value = 0;
     const char* b = piece.text.data();
     const char* e = b + piece.text.size();
-    const auto result = fast_float::from_chars(b, e, value);
-    if (result.ec != std::errc() || result.ptr != e || !std::isfinite(value))
+    if (!parse_decimal(std::string_view(b, static_cast<size_t>(e - b)), value))
       detail::fail_at(path_, line, piece.column,
-                      fmt::format("cannot parse {} as a finite number for '{}'; write a number such as 0.001",
+                      fmt::format("cannot parse {} as a finite number for '{}'; write a decimal number such as 0.001",
                                   detail::quote_cell(piece.text), key));
     return value;
   }
@@ -186,11 +187,23 @@ class MarkovReader {
   }
 
   std::vector<std::string> names(Piece piece, int64_t line, const char* key) const {
+    // As many signals as a model may have (formats/io/model_json.h): realize
+    // builds a model with these inputs and outputs.
+    constexpr size_t kMaxNames = static_cast<size_t>(kMaxModelChannels);
     std::vector<std::string> out;
     for (const Piece& item : split(piece)) {
       if (item.text.empty())
         detail::fail_at(path_, line, item.column,
                         fmt::format("empty name in '{}'; list the names separated by commas, e.g. v1,v2", key));
+      if (!valid_utf8(item.text))
+        detail::fail_at(path_, line, item.column,
+                        fmt::format("name {} in '{}' is not valid UTF-8; save the file as UTF-8",
+                                    detail::quote_cell(item.text), key));
+      if (out.size() == kMaxNames)
+        detail::fail_at(path_, line, item.column,
+                        fmt::format("'{}' lists more than {} names; lpvid reads models of at most {} inputs and "
+                                    "outputs",
+                                    key, kMaxNames, kMaxNames));
       if (std::find(out.begin(), out.end(), item.text) != out.end())
         detail::fail_at(path_, line, item.column,
                         fmt::format("name '{}' appears twice in '{}'; give every signal its own name", item.text, key));

@@ -365,7 +365,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "1:27: column 'S_psi_1_re' names output 'psi' but column 'S_1_1_re' names output index '1'; name "
                 "all outputs by index or all by name"},
         BadFile{"IndexZero", "freq_hz,S_1_0_re,S_1_0_im\n1,2,3\n",
-                "1:9: input index '0' in column 'S_1_0_re' is not allowed; indices are 1, 2, ... up to 99999"},
+                "1:9: input index '0' in column 'S_1_0_re' is not allowed; indices are 1, 2, ... up to 256"},
         BadFile{"MetadataTwice", "# outputs: a\n# outputs: b\nfreq_hz,S_a_1_re,S_a_1_im\n1,2,3\n",
                 "2:3: 'outputs' is given twice (also on line 1); give it once"},
         BadFile{"MetadataNameTwice", "# inputs: u, v,u\nfreq_hz,S_1_u_re,S_1_u_im\n1,2,3\n",

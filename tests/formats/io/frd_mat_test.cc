@@ -72,7 +72,8 @@ struct Var {
   std::vector<double> re, im;
 };
 
-void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft version = MAT_FT_MAT5) {
+void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft version = MAT_FT_MAT5,
+                matio_compression compression = MAT_COMPRESSION_NONE) {
   mat_t* mat = Mat_CreateVer(path.c_str(), nullptr, version);
   ASSERT_NE(mat, nullptr);
   for (const Var& v : vars) {
@@ -83,7 +84,7 @@ void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft ve
                                   dims.data(), im.empty() ? static_cast<void*>(re.data()) : &split,
                                   im.empty() ? 0 : MAT_F_COMPLEX);
     ASSERT_NE(var, nullptr);
-    ASSERT_EQ(Mat_VarWrite(mat, var, MAT_COMPRESSION_NONE), 0);
+    ASSERT_EQ(Mat_VarWrite(mat, var, compression), 0);
     Mat_VarFree(var);
   }
   Mat_Close(mat);
@@ -237,6 +238,76 @@ TEST_F(FrdMat, WriterErrors_LeaveNoFile) {
                                                   "writable");
   EXPECT_EQ(input_error([&] { write_frd_mat("-", frd, "S"); }), "cannot write a .mat file to stdout; give a file path");
   EXPECT_TRUE(entries().empty());
+}
+
+// Issue 12, class 3: a truncated or damaged .mat file was accepted with values
+// read from uninitialised memory.  The v5 reader checks every size against the
+// bytes present: every prefix of a valid file is an error, or (cut between two
+// variables, which the format cannot tell from a complete file) the same
+// response without the optional variables that were cut off.
+TEST_F(FrdMat, EveryTruncation_IsAnErrorOrTheSameData) {
+  FrequencyResponse frd = random_frd(6, 2, 2, kSeed + 3);
+  frd.output_names = {"psi", "theta"};
+  const std::string p = path("whole.mat");
+  write_frd_mat(p, frd, "S");
+  const std::string bytes = read(p);
+  const FrequencyResponse whole = read_frd_mat(p);
+  int errors = 0;
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    const std::string cut = write("cut.mat", bytes.substr(0, n));
+    try {
+      FrequencyResponse got = read_frd_mat(cut);
+      // Optional variables after the response may be missing, never different.
+      if (got.flagged.empty()) got.flagged = whole.flagged;
+      if (got.coherence.empty()) got.coherence = whole.coherence;
+      if (got.output_names.empty()) got.output_names = whole.output_names;
+      expect_identical(got, whole);
+    } catch (const InputError& e) {
+      ++errors;
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+  EXPECT_GE(errors, static_cast<int>(bytes.size()) - 40);  // a few cuts between variables go unnoticed
+}
+
+TEST_F(FrdMat, CompressedVariables_AreInflatedAndChecked) {
+  const std::string p = path("z.mat");
+  write_vars(p, {{"f", {3, 1}, {1, 2, 3}, {}}, {"S", {3, 1}, {0.5, 0.25, 0.125}, {1, 2, 3}}}, MAT_FT_MAT5,
+             MAT_COMPRESSION_ZLIB);
+  const FrequencyResponse frd = read_frd_mat(p);
+  EXPECT_EQ(frd.response[2](0, 0), Complex(0.125, 3));
+  // A damaged byte inside the zlib stream: an error, never a value from nowhere.
+  std::string bytes = read(p);
+  bytes[bytes.size() - 12] = static_cast<char>(bytes[bytes.size() - 12] ^ 0x5A);
+  const std::string bad = write("zbad.mat", bytes);
+  const std::string message = input_error([&] { read_frd_mat(bad); });
+  EXPECT_NE(message, "<no error>");
+}
+
+TEST_F(FrdMat, RandomByteFlips_NeverCrashAndGiveFiniteResponses) {
+  FrequencyResponse frd = random_frd(5, 2, 1, kSeed + 4);
+  const std::string p = path("base.mat");
+  write_frd_mat(p, frd, "S");
+  const std::string base = read(p);
+  std::mt19937_64 rng(kSeed + 5);  // named seed: the same 500 mutants every run
+  std::uniform_int_distribution<size_t> at(0, base.size() - 1);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int k = 0; k < 500; ++k) {
+    std::string bytes = base;
+    for (int flips = 0; flips < 4; ++flips) bytes[at(rng)] = static_cast<char>(byte(rng));
+    const std::string q = write("m.mat", bytes);
+    try {
+      const FrequencyResponse r = read_frd_mat(q);
+      for (const auto& h : r.response) EXPECT_TRUE(h.allFinite());
+    } catch (const InputError&) {
+    }
+  }
+}
+
+TEST_F(FrdMat, PipeInsteadOfAFile_IsRefused) {
+  EXPECT_EQ(input_error([&] { read_frd_mat("/dev/null"); }),
+            "cannot read '/dev/null': a .mat file must be a regular file (not a pipe or device); save it to a file "
+            "first");
 }
 
 }  // namespace

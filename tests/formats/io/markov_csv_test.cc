@@ -138,7 +138,7 @@ TEST_F(MarkovCsv, MissingSamplePeriod_IsNamed) {
 TEST_F(MarkovCsv, BadSamplePeriod_PointsAtTheValue) {
   const std::string p = write("g.csv", replace(kGood, "0.001", "1ms"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
-            p + ":3:20: cannot parse '1ms' as a finite number for 'sample_period_s'; write a number such as 0.001");
+            p + ":3:20: cannot parse '1ms' as a finite number for 'sample_period_s'; write a decimal number such as 0.001");
   const std::string q = write("h.csv", replace(kGood, "0.001", "0"));
   EXPECT_EQ(input_error([&] { read_markov_csv(q); }),
             q + ":3:20: sample_period_s is 0; it must be a positive sample period in seconds");
