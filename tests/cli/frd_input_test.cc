@@ -138,7 +138,7 @@ TEST_F(FrdCli, UnloopFlagsLowLoopGainOnRequestAndRejectsANegativeThreshold) {
   EXPECT_THAT(r.out, HasSubstr("low loop gain: 40 of 40 frequencies"));
   r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
                 " --min-loop-gain -1 --out " + (out / "Q.csv"));
-  expect_rejected(r, out / "Q.csv", "min_loop_gain = -1; it must be finite and >= 0");
+  expect_rejected(r, out / "Q.csv", "--min-loop-gain: '-1' is out of range; give the smallest loop gain >= 0");
 }
 
 TEST_F(FrdCli, UnloopRejectsAPairMissingFromEveryFile) {
