@@ -71,7 +71,7 @@ void run(const BodeCliOptions& o) {
   };
   for (std::size_t i = 0; i < items.size(); ++i)
     if (shape(items[i]) != shape(items[0]))
-      throw InputError(fmt::format("{} is {}x{} but {} is {}x{}; overlaid responses must have the same shape",
+      throw InputError(fmt::format("{} is {}x{} but {} is {}x{}; give responses of the same shape to overlay",
                                    o.models[i], shape(items[i]).first, shape(items[i]).second, o.models[0],
                                    shape(items[0]).first, shape(items[0]).second));
   std::vector<BodeSeries> series;

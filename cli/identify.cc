@@ -139,7 +139,7 @@ void run(const IdentifyCliOptions& o) {
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
   if (truth) {
     if (truth->num_inputs() != r.plant.plant.num_inputs() || truth->num_outputs() != r.plant.plant.num_outputs())
-      throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}", o.truth,
+      throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}; give the true plant of these outputs and inputs", o.truth,
                                    truth->num_outputs(), truth->num_inputs(), r.plant.plant.num_outputs(),
                                    r.plant.plant.num_inputs()));
     const auto est = evaluate_response(r.plant.plant, band);

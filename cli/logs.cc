@@ -43,7 +43,7 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
       set.sample_period_s = log.sample_period_s;
     } else if (std::abs(log.sample_period_s - set.sample_period_s) > kSamePeriodTolerance * set.sample_period_s) {
       throw InputError(fmt::format(
-          "{}: sampled every {:.6g} s but {} every {:.6g} s; logs of one identification must share the sample rate",
+          "{}: sampled every {:.6g} s but {} every {:.6g} s; give logs of one sample rate (resample, or identify them separately)",
           path, log.sample_period_s, set.paths.front(), set.sample_period_s));
     }
     set.paths.push_back(path);

@@ -46,7 +46,7 @@ namespace {
 std::string one_line(std::string text) {
   constexpr std::size_t kMaxMessage = 2000;
   for (char& c : text)
-    if (c == '\n' || c == '\r') c = ' ';
+    if (c == '\n' || c == '\r' || c == '\0') c = ' ';
   if (text.size() > kMaxMessage) text = text.substr(0, kMaxMessage / 2) + " ... " + text.substr(text.size() - kMaxMessage / 2);
   return text;
 }

@@ -36,7 +36,7 @@ StateSpace read_controller(const std::string& path) {
 }
 
 FrequencyResponse load_frd_merged(const std::vector<std::string>& paths) {
-  if (paths.empty()) throw InputError("no frequency-response file given");
+  if (paths.empty()) throw InputError("no frequency-response file given; give one or more FRD files (.csv, .mat)");
   for (const auto& p : paths)
     if (ends_with(p, ".json"))
       throw InputError(fmt::format("'{}' is a model file; give frequency-response data (FRD .csv or .mat) here", p));

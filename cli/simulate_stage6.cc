@@ -84,7 +84,7 @@ void run(const Stage6Options& o) {
   for (const auto& e : o.effects) {
     if (e == "gap") effects.gap_dependence = true;
     else if (e == "lag") effects.electrical_lag = true;
-    else throw InputError(fmt::format("--effects: unknown effect '{}'; known: gap, lag", e));
+    else throw InputError(fmt::format("--effects: unknown effect '{}'; use gap or lag", e));
   }
   SlidingModeOptions smc;
   smc.gain_K = o.gain_K;

@@ -38,7 +38,7 @@ void run_simulate_trajectory(const TrajectoryCliOptions& o, const PlatformParame
   if (!o.trajectory.empty() && !o.profile.empty())
     throw InputError("give either --trajectory FILE or --profile NAME, not both");
   if (!o.profile.empty() && o.profile != "sweep")
-    throw InputError(fmt::format("--profile '{}': unknown profile; known: sweep", o.profile));
+    throw InputError(fmt::format("--profile '{}': unknown profile; use sweep", o.profile));
   MovingBeamOptions base;
   base.substeps = o.substeps;
   base.sensor_noise_std *= shared.noise_scale;

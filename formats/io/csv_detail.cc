@@ -36,8 +36,16 @@ void fail_at(const std::string& path, int64_t line, int64_t column, const std::s
 
 std::string quote_cell(std::string_view text) {
   constexpr size_t kMaxShown = 40;  // keeps the message on one readable line
-  if (text.size() <= kMaxShown) return fmt::format("'{}'", text);
-  return fmt::format("'{}...'", text.substr(0, kMaxShown));
+  std::string shown = "'";
+  for (const char c : text.substr(0, kMaxShown)) {
+    // Control bytes (NUL, line breaks, escapes) would cut or break the line: shown as \xNN.
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+      shown += fmt::format("\\x{:02X}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+    else
+      shown += c;
+  }
+  shown += text.size() > kMaxShown ? "...'" : "'";
+  return shown;
 }
 
 void advise_huge_pages(void* data, size_t bytes) {
@@ -383,9 +391,9 @@ class HeaderParser {
   // At the end of the input without a header: throws.
   [[noreturn]] void fail_no_header(bool file_empty) const {
     if (file_empty)
-      fail_at(out_.path, 1, 1, "the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'");
+      fail_at(out_.path, 1, 1, "the file is empty; give a file that starts with a header row naming the columns, e.g. 't,v1,q1'");
     fail_at(out_.path, line_ + 1, 1,
-            "no header row, only comments and blank lines; the first other line must name the columns, e.g. 't,v1,q1'");
+            "no header row, only comments and blank lines; add a header row naming the columns, e.g. 't,v1,q1'");
   }
 
  private:
@@ -474,9 +482,9 @@ class RowParser {
     const int64_t column = cell - b + 1;
     if (text.empty())
       fail_at(csv_.path, line_, column,
-              fmt::format("empty cell in column '{}'; every cell after the header must be a number", csv_.names[j]));
+              fmt::format("empty cell in column '{}'; write a number there (every cell after the header is a number)", csv_.names[j]));
     fail_at(csv_.path, line_, column,
-            fmt::format("cannot parse {} as a number in column '{}'; every cell after the header must be a number",
+            fmt::format("cannot parse {} as a number in column '{}'; write a number there (every cell after the header is a number)",
                         quote_cell(text), csv_.names[j]));
   }
 
@@ -489,7 +497,7 @@ class RowParser {
 
   [[noreturn]] void not_finite(const char* b, const char* cell, const char* e, size_t j) const {
     fail_at(csv_.path, line_, cell - b + 1,
-            fmt::format("{} in column '{}' is not a finite number; NaN/Inf not allowed, every cell must be a finite number",
+            fmt::format("{} in column '{}' is not a finite number; write a finite number there (NaN/Inf not allowed)",
                         quote_cell(cell_text(cell, e)), csv_.names[j]));
   }
 

@@ -21,7 +21,8 @@ std::string display_path(const std::string& path);
 // Throws InputError "path:line:column: what".
 [[noreturn]] void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what);
 
-// Quotes a cell for a message: at most 40 bytes, longer text cut with "...".
+// Quotes a cell for a message: at most 40 bytes, longer text cut with "...",
+// control bytes (NUL, line breaks, ESC) shown as \xNN.
 std::string quote_cell(std::string_view text);
 
 // What a CSV file may ask of the reader (docs/formats.md, "Limits"): bounded

@@ -184,7 +184,7 @@ class FrdCsvReader {
         if (meta->names.size() == static_cast<size_t>(frd_detail::kMaxChannels))
           detail::fail_at(path_, comment.line, column,
                           fmt::format("'{}' lists more than {} names; lpvid reads responses of at most {} outputs and "
-                                      "inputs",
+                                      "inputs: split the file",
                                       key, frd_detail::kMaxChannels, frd_detail::kMaxChannels));
         if (std::find(meta->names.begin(), meta->names.end(), name) != meta->names.end())
           detail::fail_at(path_, comment.line, column,
@@ -250,7 +250,7 @@ class FrdCsvReader {
         if (it == kSuffix.end() || first == last || !frd_detail::quantity_allowed(std::string_view(name).substr(0, first)))
           fail_header(column, fmt::format("column '{}' is not an FRD column; the columns are freq_hz, "
                                           "<Q>_<output>_<input>_re and _im (or _db and _deg), coh_<output>_<input>, "
-                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...)",
+                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...): rename or remove the column",
                                           name));
         part = static_cast<Part>(it - kSuffix.begin());
         const std::string quantity = name.substr(0, first);
@@ -346,7 +346,7 @@ class FrdCsvReader {
         constexpr size_t kMaxIndexDigits = 5;
         const long index = token.size() > kMaxIndexDigits ? 0 : std::stol(token);
         if (index < 1 || index > frd_detail::kMaxChannels)
-          fail_header(c.column, fmt::format("{} index '{}' in column '{}' is not allowed; indices are 1, 2, ... up to "
+          fail_header(c.column, fmt::format("{} index '{}' in column '{}' is not allowed; give an index from 1 to "
                                             "{}",
                                             what, token, csv_.names[static_cast<size_t>(c.column)],
                                             frd_detail::kMaxChannels));
@@ -357,7 +357,7 @@ class FrdCsvReader {
                                             what, detail::quote_cell(token), csv_.names[static_cast<size_t>(c.column)]));
         if (static_cast<Index>(axis.names.size()) == frd_detail::kMaxChannels)
           fail_header(c.column, fmt::format("column '{}' names a {} beyond the first {}; lpvid reads responses of at "
-                                            "most {} outputs and inputs",
+                                            "most {} outputs and inputs: split the file",
                                             csv_.names[static_cast<size_t>(c.column)], what, frd_detail::kMaxChannels,
                                             frd_detail::kMaxChannels));
         axis.names.push_back(token);
@@ -520,7 +520,7 @@ class FrdCsvReader {
       if (!(f[k] > 0)) {
         const detail::CellPosition at = csv_.key_position(k);
         detail::fail_at(path_, at.line, at.column,
-                        fmt::format("frequency {} Hz is not positive; freq_hz must be > 0", f[k]));
+                        fmt::format("frequency {} Hz is not positive; give freq_hz > 0 in Hz", f[k]));
       }
       if (k > 0 && !(f[k] > f[k - 1])) {
         const detail::CellPosition at = csv_.key_position(k);
@@ -558,7 +558,7 @@ class FrdCsvReader {
         if (s.coh >= 0) {
           const double c = csv_.data(k, s.coh);
           if (!(c >= 0 && c <= 1))
-            fail_cell(k, s.coh, fmt::format("coherence {} in column '{}' is outside [0, 1]; coherence is a fraction "
+            fail_cell(k, s.coh, fmt::format("coherence {} in column '{}' is outside [0, 1]; write a coherence "
                                             "between 0 and 1",
                                             c, name_of(s.coh)));
           frd.coherence[static_cast<size_t>(k)](i, j) = c;
@@ -566,7 +566,7 @@ class FrdCsvReader {
         if (s.var >= 0) {
           const double v = csv_.data(k, s.var);
           if (!(v >= 0))
-            fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; a variance is >= 0", v,
+            fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; write a variance >= 0", v,
                                             name_of(s.var)));
           frd.variance[static_cast<size_t>(k)](i, j) = v;
         }
@@ -626,7 +626,7 @@ void check_channel_names(const std::string& path, const std::vector<std::string>
 
 void FrdReadOptions::validate() const {
   if (!quantity.empty() && !frd_detail::quantity_allowed(quantity))
-    throw InputError(fmt::format("quantity {} is not allowed; a quantity is letters and digits (not 'coh'), e.g. S",
+    throw InputError(fmt::format("quantity {} is not allowed; use letters and digits (not 'coh'), e.g. S",
                                  detail::quote_cell(quantity)));
 }
 
@@ -716,7 +716,7 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
                    const std::vector<std::string>& comments) {
   const std::string path = detail::display_path(out.path());
   if (!frd_detail::quantity_allowed(quantity))
-    throw InputError(fmt::format("cannot write '{}': quantity {} is not allowed; a quantity is letters and digits "
+    throw InputError(fmt::format("cannot write '{}': quantity {} is not allowed; use letters and digits "
                                  "(not 'coh'), e.g. S",
                                  path, detail::quote_cell(quantity)));
   frd_detail::check_frd_for_writing(path, frd);
@@ -825,17 +825,17 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
   const Index nf = first.frd.num_frequencies();
   for (const FrdPart& p : parts) {
     if (p.quantity != first.quantity)
-      throw InputError(fmt::format("{}: '{}' holds quantity '{}' but '{}' holds '{}'; merge files of one quantity",
+      throw InputError(fmt::format("{}: '{}' holds quantity '{}' but '{}' holds '{}'; give files of one quantity",
                                    kFail, shown(first), first.quantity, shown(p), p.quantity));
     if (p.frd.num_frequencies() != nf)
-      throw InputError(fmt::format("{}: '{}' has {} frequencies but '{}' has {}; merge files measured on the same "
+      throw InputError(fmt::format("{}: '{}' has {} frequencies but '{}' has {}; give files measured on the same "
                                    "frequency grid",
                                    kFail, shown(first), nf, shown(p), p.frd.num_frequencies()));
     for (Index k = 0; k < nf; ++k) {
       const double a = first.frd.omega_rad_s[k], b = p.frd.omega_rad_s[k];
       if (std::abs(a - b) > options.frequency_tolerance * std::max(std::abs(a), std::abs(b)))
         throw InputError(fmt::format("{}: frequency {} is {} Hz in '{}' but {} Hz in '{}' (relative difference {:.3g}, "
-                                     "above the tolerance {}); merge files measured on the same frequency grid",
+                                     "above the tolerance {}); give files measured on the same frequency grid",
                                      kFail, k + 1, frd_detail::hz_from_omega(a), shown(first),
                                      frd_detail::hz_from_omega(b), shown(p), std::abs(a - b) / std::max(a, b),
                                      options.frequency_tolerance));
@@ -855,7 +855,7 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
                                    kFail, shown(with), shown(without)));
     }
     if (p.frd.averages != first.frd.averages)
-      throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; merge files measured with the "
+      throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; give files measured with the "
                                    "same number of averages (0 = not stated)",
                                    kFail, shown(first), first.frd.averages, shown(p), p.frd.averages));
   }

@@ -155,9 +155,9 @@ class V5Source : public MatSource {
     const size_t n = count(v.dims);
     const bool numeric = v.klass >= kMxDouble && v.klass <= kMxUint64;
     if (!numeric && n > 0)
-      fail(fmt::format("variable '{}' is not a numeric array (a full double, single or integer array is needed)", name));
+      fail(fmt::format("variable '{}' is not a numeric array; save it as a full double, single or integer array", name));
     if (n == 0) return out;
-    if (v.complex && !complex_allowed) fail(fmt::format("variable '{}' is complex; it must be real", name));
+    if (v.complex && !complex_allowed) fail(fmt::format("variable '{}' is complex; save it as a real array", name));
     try {
       out.re = values(v.real, n, name);
       if (v.complex) out.im = values(v.imag, n, name);
@@ -170,13 +170,13 @@ class V5Source : public MatSource {
   std::vector<std::string> names(const std::string& name, size_t wanted) override {
     const Var& v = var(name);
     if (v.klass != kMxCell || v.cells.size() != wanted)
-      fail(fmt::format("'{}' must be a cell array of {} names (one per {}), e.g. {{'psi','theta'}}", name, wanted,
+      fail(fmt::format("'{}' must be a cell array of {} names (one per {}), e.g. save outputs = {{'psi','theta'}}", name, wanted,
                        name == "outputs" ? "output" : "input"));
     std::vector<std::string> out;
     for (size_t k = 0; k < v.cells.size(); ++k) {
       const Var& cell = v.cells[k];
       if (cell.klass != kMxChar)
-        fail(fmt::format("'{}'{{{}}} is not text; '{}' must be a cell array of names", name, k + 1, name));
+        fail(fmt::format("'{}'{{{}}} is not text; '{}' must be a cell array of names: save each name as char", name, k + 1, name));
       std::string text;
       try {
         text = chars(cell, name, k);
@@ -353,7 +353,7 @@ class V5Source : public MatSource {
   std::vector<double> values(const Part& part, size_t n, const std::string& name) const {
     const size_t size = type_size(part.type);
     if (size == 0 || part.type == kMiUtf8 || part.type == kMiUtf16 || part.type == kMiUtf32)
-      fail(fmt::format("variable '{}' is not a numeric array (a full double, single or integer array is needed)", name));
+      fail(fmt::format("variable '{}' is not a numeric array; save it as a full double, single or integer array", name));
     if (part.bytes != n * size)
       throw Damaged{fmt::format("variable '{}' holds {} bytes for {} values", name, part.bytes, n)};
     std::vector<double> out(n);
@@ -446,16 +446,16 @@ class MatioSource : public MatSource {
                          var->class_type != MAT_C_OBJECT && var->class_type != MAT_C_FUNCTION &&
                          var->class_type != MAT_C_OPAQUE && var->class_type != MAT_C_EMPTY;
     if (!numeric && n > 0)
-      fail(fmt::format("variable '{}' is not a numeric array (a full double, single or integer array is needed)", name));
+      fail(fmt::format("variable '{}' is not a numeric array; save it as a full double, single or integer array", name));
     if (n == 0) return out;
     if (var->data == nullptr) fail(fmt::format("cannot read variable '{}'; the file may be damaged", name));
     if (var->isComplex) {
-      if (!complex_allowed) fail(fmt::format("variable '{}' is complex; it must be real", name));
+      if (!complex_allowed) fail(fmt::format("variable '{}' is complex; save it as a real array", name));
       const auto* split = static_cast<const mat_complex_split_t*>(var->data);
       if (!to_double(var.get(), split->Re, n, out.re) || !to_double(var.get(), split->Im, n, out.im))
-        fail(fmt::format("variable '{}' is not a numeric array (a full double, single or integer array is needed)", name));
+        fail(fmt::format("variable '{}' is not a numeric array; save it as a full double, single or integer array", name));
     } else if (!to_double(var.get(), var->data, n, out.re)) {
-      fail(fmt::format("variable '{}' is not a numeric array (a full double, single or integer array is needed)", name));
+      fail(fmt::format("variable '{}' is not a numeric array; save it as a full double, single or integer array", name));
     }
     return out;
   }
@@ -466,13 +466,13 @@ class MatioSource : public MatSource {
     size_t n = 1;
     for (int d = 0; d < var->rank; ++d) n *= var->dims[d];
     if (var->class_type != MAT_C_CELL || n != count)
-      fail(fmt::format("'{}' must be a cell array of {} names (one per {}), e.g. {{'psi','theta'}}", name, count,
+      fail(fmt::format("'{}' must be a cell array of {} names (one per {}), e.g. save outputs = {{'psi','theta'}}", name, count,
                        name == "outputs" ? "output" : "input"));
     std::vector<std::string> out;
     for (size_t k = 0; k < n; ++k) {
       const matvar_t* cell = Mat_VarGetCell(var.get(), static_cast<int>(k));
       if (cell == nullptr || cell->class_type != MAT_C_CHAR)
-        fail(fmt::format("'{}'{{{}}} is not text; '{}' must be a cell array of names", name, k + 1, name));
+        fail(fmt::format("'{}'{{{}}} is not text; '{}' must be a cell array of names: save each name as char", name, k + 1, name));
       size_t len = 1;
       for (int d = 0; d < cell->rank; ++d) len *= cell->dims[d];
       std::string text;
@@ -537,10 +537,10 @@ class MatReader {
       for (size_t k = 0; k < nf; ++k) {
         const double v = f.re[k];
         if (!std::isfinite(v) || !(v > 0))
-          fail(fmt::format("frequency '{}'({}) = {} is not a positive finite number; frequencies must be > 0",
+          fail(fmt::format("frequency '{}'({}) = {} is not a positive finite number; give frequencies > 0",
                            freq_name, k + 1, v));
         if (k > 0 && !(v > f.re[k - 1]))
-          fail(fmt::format("frequency '{}'({}) = {} is not above '{}'({}) = {}; frequencies must increase strictly",
+          fail(fmt::format("frequency '{}'({}) = {} is not above '{}'({}) = {}; give strictly increasing frequencies",
                            freq_name, k + 1, v, freq_name, k, f.re[k - 1]));
         frd.omega_rad_s[static_cast<Index>(k)] = in_hz ? frd_detail::omega_from_hz(v) : v;
       }
@@ -605,7 +605,7 @@ class MatReader {
     if (has("averages")) {
       const Array a = source_->load("averages", false);
       if (a.re.size() != 1 || !std::isfinite(a.re[0]) || a.re[0] < 1 || a.re[0] > 1e9)
-        fail(fmt::format("'averages' must be one number >= 1 (the independent averages behind the coherence); got {} "
+        fail(fmt::format("'averages' must be one number >= 1 (the independent averages behind the coherence): give one number; got {} "
                          "value(s){}",
                          a.re.size(), a.re.size() == 1 ? fmt::format(" = {}", a.re[0]) : std::string()));
       frd.averages = a.re[0];
@@ -618,7 +618,7 @@ class MatReader {
       frd.flagged.resize(nf);
       for (size_t k = 0; k < nf; ++k) {
         if (g.re[k] != 0 && g.re[k] != 1)
-          fail(fmt::format("'flag'({}) is {}; a flag is 0 or 1 (1 = untrusted frequency)", k + 1, g.re[k]));
+          fail(fmt::format("'flag'({}) is {}; write 0 or 1 (1 = untrusted frequency)", k + 1, g.re[k]));
         frd.flagged[k] = g.re[k] == 1;
       }
     }
@@ -704,7 +704,7 @@ class MatReader {
   std::string pick_response() const {
     if (!options_.quantity.empty()) {
       if (!has(options_.quantity))
-        fail(fmt::format("no variable '{}' (the quantity asked for); the file holds: {}", options_.quantity, holds()));
+        fail(fmt::format("no variable '{}' (the quantity asked for); choose one the file holds: {}", options_.quantity, holds()));
       return options_.quantity;
     }
     std::vector<std::string> found;
@@ -823,7 +823,7 @@ void write_frd_mat(AtomicFileWriter& file, const FrequencyResponse& frd, const s
                    MatVersion version) {
   const std::string& path = file.path();
   if (!frd_detail::quantity_allowed(quantity))
-    throw InputError(fmt::format("cannot write '{}': quantity '{}' is not allowed; a quantity is letters and digits "
+    throw InputError(fmt::format("cannot write '{}': quantity '{}' is not allowed; use letters and digits "
                                  "(not 'coh'), e.g. S",
                                  path, quantity));
   if (quantity == "freq_hz" || quantity == "f" || quantity == "freq" || quantity == "w" || quantity == "omega" ||

@@ -42,7 +42,7 @@ class ModelReader {
     const json* value = find(root, key);
     if (value == nullptr) return out;
     const std::string rule = fmt::format("key '{}' must be an array of unique, non-empty names", key);
-    if (!value->is_array()) fail(key, fmt::format("{}, got {}; e.g. \"{}\": [\"v1\", \"v2\"]", rule, value->type_name(), key));
+    if (!value->is_array()) fail(key, fmt::format("{}, got {}; write e.g. \"{}\": [\"v1\", \"v2\"]", rule, value->type_name(), key));
     if (static_cast<Index>(value->size()) > kMaxModelChannels)
       fail(key, fmt::format("key '{}' lists {} names: lpvid reads models of at most {} inputs and outputs; check the file",
                             key, value->size(), kMaxModelChannels));
@@ -60,7 +60,7 @@ class ModelReader {
   // Shape of a nested array: rows and columns (columns = -1 when there are no rows).
   Eigen::MatrixXd matrix(const json& value, const std::string& key, const std::string& shape_words, Index& cols) const {
     const std::string rule = fmt::format("key '{}' must be a matrix ({}) written as an array of rows", key, shape_words);
-    if (!value.is_array()) fail(key, fmt::format("{}, got {}; e.g. [[1, 0], [0, 1]]", rule, value.type_name()));
+    if (!value.is_array()) fail(key, fmt::format("{}, got {}; write e.g. [[1, 0], [0, 1]]", rule, value.type_name()));
     const Index rows = static_cast<Index>(value.size());
     // Rows and columns of A, B, C, D count states or channels: bounded before
     // anything is allocated (model_json.h).
@@ -121,17 +121,17 @@ class ModelReader {
     const json root = detail::parse_json(path_, text_);
     if (!root.is_object())
       fail("", fmt::format("the file holds {} where a JSON object is expected; a model file is an object "
-                           "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}",
+                           "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}: check that this is a model file",
                            root.type_name()));
     const json& type = require(root, "type", "a model file starts with \"type\": \"state_space\"");
     if (!type.is_string() || type.get_ref<const std::string&>() != "state_space")
-      fail("type", fmt::format("key 'type' is {}; this reader knows only \"state_space\"", detail::json_excerpt(type)));
+      fail("type", fmt::format("key 'type' is {}; write \"type\": \"state_space\" (the only type lpvid reads)", detail::json_excerpt(type)));
     const json& ts = require(root, "ts", "give the sample period in seconds, \"ts\": 0 for continuous time");
     if (!ts.is_number())
-      fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}", ts.type_name()));
+      fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}; write a number", ts.type_name()));
     const double sample_period_s = ts.get<double>();
     if (!(sample_period_s >= 0) || !std::isfinite(sample_period_s))
-      fail("ts", fmt::format("key 'ts' is {}; it must be 0 (continuous time) or a positive sample period in seconds",
+      fail("ts", fmt::format("key 'ts' is {}; write 0 (continuous time) or the positive sample period in seconds",
                              sample_period_s));
 
     StateSpace model;

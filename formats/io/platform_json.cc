@@ -53,7 +53,7 @@ PlatformParameters read_platform_parameters(const std::string& path) {
   const json root = detail::parse_json(path, text);
   if (!root.is_object())
     fail("", fmt::format("the file holds {} where a JSON object of platform parameters is expected, e.g. "
-                         "{{\"beam_mass_kg\": 1.0}}",
+                         "{{\"beam_mass_kg\": 1.0}}: check that this is a parameter file",
                          root.type_name()));
   PlatformParameters p = PlatformParameters::defaults();
   auto fields = platform_parameter_fields(p);
@@ -62,14 +62,14 @@ PlatformParameters read_platform_parameters(const std::string& path) {
     if (key == "provenance") continue;
     if (key == "type") {
       if (!it->is_string() || it->get<std::string>() != "platform_parameters")
-        fail(key, fmt::format("key 'type' is {}; a parameter file has \"type\": \"platform_parameters\"", detail::json_excerpt(*it)));
+        fail(key, fmt::format("key 'type' is {}; write \"type\": \"platform_parameters\" (or leave it out)", detail::json_excerpt(*it)));
       continue;
     }
     if (key == "rod_axis_angles_rad") {
       if (!it->is_array() || it->size() != 3)
-        fail(key, "key 'rod_axis_angles_rad' must be an array of 3 angles in rad");
+        fail(key, "key 'rod_axis_angles_rad' must be an array of 3 angles in rad: write e.g. [1.5708, 3.6652, 5.7596]");
       for (size_t j = 0; j < 3; ++j) {
-        if (!(*it)[j].is_number()) fail(key, "key 'rod_axis_angles_rad' must hold 3 numbers (rad)");
+        if (!(*it)[j].is_number()) fail(key, "key 'rod_axis_angles_rad' must hold 3 numbers (rad): write e.g. [1.5708, 3.6652, 5.7596]");
         p.rod_axis_angles_rad[j] = (*it)[j].get<double>();
       }
       continue;
@@ -77,9 +77,9 @@ PlatformParameters read_platform_parameters(const std::string& path) {
     double* field = nullptr;
     for (auto& [n, f] : fields)
       if (n == key) field = f;
-    if (!field) fail(key, fmt::format("unknown parameter {}; known: {}", detail::quote_cell(key), known_names(p)));
+    if (!field) fail(key, fmt::format("unknown parameter {}; use one of {}", detail::quote_cell(key), known_names(p)));
     if (!it->is_number())
-      fail(key, fmt::format("key '{}' must be a finite number in the units of its name, got {}", key, detail::json_excerpt(*it)));
+      fail(key, fmt::format("key '{}' must be a finite number in the units of its name, got {}; write a number", key, detail::json_excerpt(*it)));
     *field = it->get<double>();
   }
   try {
@@ -101,7 +101,7 @@ void apply_parameter_overrides(PlatformParameters& params, const std::vector<std
     for (auto& [n, f] : table)
       if (n == name) field = f;
     if (!field)
-      throw InputError(fmt::format("--set: unknown parameter {}; known: {}", detail::quote_cell(name), known_names(params)));
+      throw InputError(fmt::format("--set: unknown parameter {}; use one of {}", detail::quote_cell(name), known_names(params)));
     if (!parse_decimal(value, *field))
       throw InputError(fmt::format("--set {}: {} is not a finite number; give a decimal number in the units of its name",
                                    name, detail::quote_cell(value)));

@@ -228,7 +228,7 @@ TEST_F(FrdCli, BodeRejectsNaNNonIncreasingAndMismatchedChannels) {
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "order.csv")), png, (out / "order.csv") + ":3:1:");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "half.csv")), png, (out / "half.csv") + ":1:");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "one.csv") + " " + data("truth_plant.json")), png,
-                  "overlaid responses must have the same shape");
+                  "give responses of the same shape to overlay");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "bad.mat")), png, "is not a MATLAB .mat file");
 }
 

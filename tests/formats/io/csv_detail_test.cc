@@ -101,8 +101,8 @@ TEST_F(CsvDetail, ErrorInSecondPart_HasTheSerialLineAndColumn) {
   const std::string p = write("bad.csv", text);
   const std::string expected = outcome(p, serial());
   EXPECT_EQ(expected, "error: " + p +
-                          ":7:3: cannot parse 'x' as a number in column 'a'; every cell after the header must be a "
-                          "number");
+                          ":7:3: cannot parse 'x' as a number in column 'a'; write a number there (every cell after the "
+                          "header is a number)");
   for (uint64_t at = 0; at <= text.size(); ++at) EXPECT_EQ(outcome(p, split_at({at})), expected) << "split at " << at;
 }
 
@@ -133,7 +133,7 @@ TEST_F(CsvDetail, LargeFileOnParallelThreads_ReportsAnErrorNearTheEndAtItsLine) 
   EXPECT_EQ(csv.end_line, kRows + 3);
   const std::string q = write("big_bad.csv", text + "500000,1,2\n500001,1,2;\n");
   EXPECT_EQ(input_error([&] { read_numeric_csv(q, "t", kKeyHint); }),
-            q + ":500004:10: cannot parse '2;' as a number in column 'b'; every cell after the header must be a number");
+            q + ":500004:10: cannot parse '2;' as a number in column 'b'; write a number there (every cell after the header is a number)");
 }
 
 TEST_F(CsvDetail, Stdin_ReadsTheSameAsTheFile) {

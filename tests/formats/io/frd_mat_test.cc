@@ -201,7 +201,7 @@ INSTANTIATE_TEST_SUITE_P(
                "no response variable; give one of S, P, G, H, frd, or choose one with the quantity option; the file "
                "holds: f, coh"},
         BadMat{"QuantityMissing", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}}, "T",
-               "no variable 'T' (the quantity asked for); the file holds: f, S"},
+               "no variable 'T' (the quantity asked for); choose one the file holds: f, S"},
         BadMat{"TwoResponses", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}, {"G", {1, 1}, {1}, {}}}, "",
                "several response variables (S, G); choose one with the quantity option"},
         BadMat{"WrongDims", {{"f", {4, 1}, {1, 2, 3, 4}, {}}, {"S", {2, 3, 5}, std::vector<double>(30, 1.0), {}}}, "",
@@ -211,11 +211,11 @@ INSTANTIATE_TEST_SUITE_P(
                "response 'S' is 2×2 but there are 2 frequencies; give an outputs × inputs × frequencies array (or a "
                "vector of 2 entries for one output and one input)"},
         BadMat{"NonIncreasingFrequency", {{"freq_hz", {3, 1}, {1, 3, 2}, {}}, {"S", {3, 1}, {1, 2, 3}, {}}}, "",
-               "frequency 'freq_hz'(3) = 2 is not above 'freq_hz'(2) = 3; frequencies must increase strictly"},
+               "frequency 'freq_hz'(3) = 2 is not above 'freq_hz'(2) = 3; give strictly increasing frequencies"},
         BadMat{"NonPositiveFrequency", {{"w", {2, 1}, {0, 3}, {}}, {"S", {2, 1}, {1, 2}, {}}}, "",
-               "frequency 'w'(1) = 0 is not a positive finite number; frequencies must be > 0"},
+               "frequency 'w'(1) = 0 is not a positive finite number; give frequencies > 0"},
         BadMat{"ComplexFrequency", {{"f", {1, 1}, {1}, {2}}, {"S", {1, 1}, {1}, {}}}, "",
-               "variable 'f' is complex; it must be real"},
+               "variable 'f' is complex; save it as a real array"},
         BadMat{"NaNResponse", {{"f", {2, 1}, {1, 2}, {}}, {"S", {2, 1}, {1, NAN}, {}}}, "",
                "response 'S' is nan at output 1, input 1, frequency 2; NaN/Inf not allowed"},
         BadMat{"CoherenceOutOfRange",
@@ -225,7 +225,7 @@ INSTANTIATE_TEST_SUITE_P(
                {{"f", {1, 1}, {1}, {}}, {"S", {1, 2}, {1, 2}, {}}, {"coh", {1, 1}, {1}, {}}}, "",
                "coherence 'coh' is 1×1 per frequency but response 'S' is 1×2; give coherence of the response's shape"},
         BadMat{"FlagNotBinary", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}, {"flag", {1, 1}, {3}, {}}}, "",
-               "'flag'(1) is 3; a flag is 0 or 1 (1 = untrusted frequency)"}),
+               "'flag'(1) is 3; write 0 or 1 (1 = untrusted frequency)"}),
     [](const ::testing::TestParamInfo<BadMat>& info) { return std::string(info.param.name); });
 
 TEST_F(FrdMat, WriterErrors_LeaveNoFile) {
