@@ -75,7 +75,7 @@ void check_writable_directory(const std::string& flag, const std::string& shown_
                                      named(flag, shown_as), at.string(), std::strerror(errno)));
       return;
     }
-    if (!may_create || errno != ENOENT || at == "." || at == at.root_path())
+    if (!may_create || (errno != ENOENT && errno != ENOTDIR) || at == "." || at == at.root_path())
       throw InputError(fmt::format("{}: directory '{}' does not exist; create it first or choose another path",
                                    named(flag, shown_as), at.string()));
     at = at.has_parent_path() ? at.parent_path() : fs::path(".");
