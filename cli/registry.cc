@@ -51,6 +51,23 @@ std::string one_line(std::string text) {
   return text;
 }
 
+// An empty argument ('' or --out=) would read as "not given" (an optional output
+// silently skipped): refused, naming the flag it belongs to.
+bool empty_argument(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool empty_value = arg.size() > 2 && arg.rfind("--", 0) == 0 && arg.back() == '=';
+    if (!arg.empty() && !empty_value) continue;
+    const std::string flag = empty_value ? arg.substr(0, arg.size() - 1)
+                             : (i > 1 && argv[i - 1][0] == '-') ? std::string(argv[i - 1])
+                                                                : std::string("a file argument");
+    std::fprintf(stderr, "lpvid: error: empty value for %s; give a value (a path, a number) or leave the flag out\n",
+                 one_line(flag).c_str());
+    return true;
+  }
+  return false;
+}
+
 // "lpvid frobnicate" and "lpvid simulate frob": CLI11 would only say that a
 // subcommand is required.  Walks the leading words of argv down the command
 // tree; prints one line naming the unknown word and the known ones.
@@ -88,7 +105,7 @@ int run_main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "lpvid 0.1.0");
   for (const Command& command : commands()) command.install(app);
-  if (unknown_subcommand(app, argc, argv)) return 2;
+  if (unknown_subcommand(app, argc, argv) || empty_argument(argc, argv)) return 2;
   const char* sub = "lpvid";
   try {
     app.parse(argc, argv);

@@ -294,8 +294,10 @@ class V5Source : public MatSource {
       const int32_t d = static_cast<int32_t>(u32(dims.data + 4 * k));
       if (d < 0) throw Damaged{"a dimension is negative"};
       v.dims.push_back(static_cast<size_t>(d));
+      constexpr uint64_t kMaxElements = uint64_t{1} << 40;  // far beyond any 512 MiB file
+      if (d > 0 && total > kMaxElements / static_cast<uint64_t>(d))
+        throw Damaged{"a variable's dimensions multiply beyond any file"};
       total *= static_cast<uint64_t>(d);
-      if (total > (uint64_t{1} << 40)) throw Damaged{"a variable's dimensions multiply beyond any file"};
     }
     const Element name = element(dims.next, e);
     if ((name.type != kMiInt8 && name.type != kMiUint8 && name.type != kMiUtf8) || name.bytes > kMaxNameBytes)

@@ -312,6 +312,11 @@ TEST_F(BadInput, UnknownSubcommand_IsNamedWithTheKnownOnes) {
   refused("model frob", "unknown subcommand 'frob'; the subcommands are init, add, export, effects");
 }
 
+TEST_F(BadInput, EmptyValue_IsNotTakenForAFlagLeftOut) {
+  refused("hankel " + at("g.csv") + " --out sv.csv --png ''", "empty value for --png");
+  refused("hankel " + at("g.csv") + " --out=", "empty value for --out");
+}
+
 TEST_F(BadInput, LogGivenTwiceOrStdinTwice_IsRefused) {
   refused("markov --excitation v1 --output q1 --out g.csv " + data("exp_T_psi.csv") + " " + data("exp_T_psi.csv"),
           "is given twice");
