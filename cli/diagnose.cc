@@ -9,6 +9,7 @@
 
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/physical_model_json.h"
@@ -69,15 +70,16 @@ void run(const DiagnoseCliOptions& o) {
   options.significance_delta_bic = o.delta_bic;
   options.model_error.averages = o.averages;
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
-  if (!o.out.empty() && o.out == o.png)
-    throw InputError(fmt::format("diagnose: --out and --png are both '{}'; give two files", o.out));
-  const FitInputs in = load_fit_inputs(o.in, {o.out, o.png});
+  OutputSet outputs;
+  outputs.file("--out", o.out);
+  outputs.file("--png", o.png);
+  const FitInputs in = load_fit_inputs(o.in, outputs);
   options.fit = in.options;
   for (const std::string& c : options.candidates)
     if (find_effect(c) == nullptr) {
       std::string known;
       for (const EffectInfo& e : effect_library()) known += (known.empty() ? "" : ", ") + e.name;
-      throw InputError(fmt::format("--candidates: unknown effect '{}'; the library has {}", c, known));
+      throw InputError(fmt::format("--candidates: unknown effect '{}'; use one of {}", c, known));
     }
   const Diagnosis d = diagnose(in.start, in.data, options);
 
@@ -112,7 +114,6 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.out.empty() && !d.explained)
     throw NumericalError(
         "diagnose: no candidate is significant, so there is no model to write to --out; nothing was written");
-  AtomicOutputSet outputs;
   if (!o.out.empty()) outputs.stage(o.out, physical_model_to_json(d.ranked.front().fit.model, nlohmann::json()));
   if (!o.png.empty()) {
     // Where the baseline fails: data and refitted model per x_b, the error over the
@@ -138,7 +139,7 @@ void run(const DiagnoseCliOptions& o) {
     if (static_cast<Index>(first.input_names.size()) == first.num_inputs()) po.input_labels = first.input_names;
     if (static_cast<Index>(first.output_names.size()) == first.num_outputs()) po.output_labels = first.output_names;
     const auto bytes = compare_png(series, marks, po);
-    outputs.stage(o.png, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+    outputs.stage(o.png, bytes);
   }
   outputs.commit();
 
@@ -158,7 +159,7 @@ void run(const DiagnoseCliOptions& o) {
       {"delta_bic_threshold", o.delta_bic},
       {"summary", d.summary},
       {"out", o.out}};
-  print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -170,8 +171,10 @@ Command make_diagnose_command() {
                 "diagnose", "Which physical effect is the model missing?" + std::string(kExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--candidates", o->candidates, "effects to try, comma separated (default: all it lacks)");
-            app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs to be significant (default 10)");
-            app->add_option("--averages", o->averages, "independent averages of the H1 data, for the noise (default 16)");
+            app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs to be significant (default 10)")
+                ->check(positive_up_to(1e9, "the BIC decrease"));
+            app->add_option("--averages", o->averages, "independent averages of the H1 data, for the noise (default 16)")
+                ->check(number_in(1, 1e9, "the number of averages"));
             app->add_option("--out", o->out, "write the winning candidate's fitted model here");
             app->add_option("--png", o->png, "figure: data and model per x_b, the error over the noise band, failing bands in red");
             app->add_flag("--json", o->json, "print the report as JSON");

@@ -15,6 +15,8 @@ class App;
 
 namespace lpvid::cli {
 
+class OutputSet;
+
 struct FitInputOptions {
   std::string model, controller, target = "plant";
   std::vector<std::string> data;  // FILE@X_B
@@ -46,10 +48,11 @@ struct FitInputs {
   std::string sample_period_source;  // where options.sample_period_s came from ("" = continuous)
 };
 
-// Validates the options first (before reading anything), refuses any output
-// path that names an input, then reads the model, controller and data.  The
-// sample period: --rate-hz, else a discrete data model's, else the controller's.
-// @throws InputError  as the readers and FitOptions::validate.
-FitInputs load_fit_inputs(const FitInputOptions& o, const std::vector<std::string>& outputs);
+// Validates the options first (before reading anything), registers every input
+// with `outputs` (whose outputs the caller has registered) and checks them all
+// (cli/output_set.h), then reads the model, controller and data.  The sample
+// period: --rate-hz, else a discrete data model's, else the controller's.
+// @throws InputError  as the readers, OutputSet::check and FitOptions::validate.
+FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
 
 }  // namespace lpvid::cli

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/model_json.h"
@@ -37,38 +38,48 @@ struct ModelCliOptions {
 };
 
 void run_init(const ModelCliOptions& o) {
+  OutputSet outputs;
+  outputs.file("--out", o.out);
+  outputs.check();
   const PhysicalModel m = o.bare ? PhysicalModel::bare_platform() : PhysicalModel::default_platform();
-  write_physical_model(o.out, m);
+  outputs.stage(o.out, physical_model_to_json(m));
+  outputs.commit();
   std::string effects;
   for (const auto& e : m.effects) effects += (effects.empty() ? "" : ", ") + e;
-  if (o.out != "-")
+  if (!outputs.to_stdout())
     print_summary(o.json, {{"out", o.out}, {"effects", m.effects}, {"parameters", m.parameters.size()}},
                   fmt::format("model init: wrote {} (base platform; effects: {})\n", o.out,
                               effects.empty() ? "none" : effects));
 }
 
 void run_add(const ModelCliOptions& o) {
+  OutputSet outputs;  // the model file is read and rewritten on purpose
+  outputs.input(o.model);
+  outputs.rewrite("--model", o.model);
+  outputs.check();
   PhysicalModel m = read_physical_model(o.model);
   m.add_effect(o.effect);
-  write_physical_model(o.model, m);
+  outputs.stage(o.model, physical_model_to_json(m));
+  outputs.commit();
   print_summary(o.json, {{"model", o.model}, {"added", o.effect}, {"effects", m.effects}},
                 fmt::format("model add: {} added to {} (effects now: {})\n", o.effect, o.model,
                             fmt::join(m.effects, ", ")));
 }
 
 void run_export(const ModelCliOptions& o) {
-  if (!std::isfinite(o.rate_hz) || o.rate_hz < 0)
-    throw InputError(fmt::format("--rate-hz {}: give the sample rate in Hz (> 0), or omit it for continuous time",
-                                 o.rate_hz));
-  check_not_overwriting({o.model}, o.out);
+  OutputSet outputs;
+  outputs.input(o.model);
+  outputs.file("--out", o.out);
+  outputs.check();
   const PhysicalModel m = read_physical_model(o.model);
   const double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
   const PhysicalStateSpace ss = physical_state_space(m, o.xb, ts);
-  write_state_space(o.out, ss.system,
-                    {{"provenance",
-                      {{"command", "lpvid model export"}, {"model", o.model}, {"x_b_m", o.xb},
-                       {"effects", m.effects}, {"input_delay_s", ss.input_delay_s},
-                       {"delay_in_matrices_samples", ss.delay_samples}}}});
+  outputs.stage(o.out, state_space_to_json(ss.system, {{"provenance",
+                                                        {{"command", "lpvid model export"}, {"model", o.model},
+                                                         {"x_b_m", o.xb}, {"effects", m.effects},
+                                                         {"input_delay_s", ss.input_delay_s},
+                                                         {"delay_in_matrices_samples", ss.delay_samples}}}}));
+  outputs.commit();
   std::string text = fmt::format("model export: {} at x_b = {} m, order {}, {}\n", o.model, o.xb, ss.system.order(),
                                  ts > 0 ? fmt::format("ZOH at {} Hz", o.rate_hz) : "continuous");
   if (ss.input_delay_s > 0)
@@ -76,7 +87,7 @@ void run_export(const ModelCliOptions& o) {
                                  ss.delay_samples)
                    : fmt::format("note: input delay {} s is not in the continuous matrices; apply exp(-s tau)\n",
                                  ss.input_delay_s);
-  if (o.out != "-")
+  if (!outputs.to_stdout())
     print_summary(o.json, {{"out", o.out}, {"order", ss.system.order()}, {"sample_period_s", ts},
                            {"input_delay_s", ss.input_delay_s}, {"delay_samples", ss.delay_samples}},
                   text);
@@ -120,8 +131,11 @@ Command make_model_command() {
             add->callback([o] { run_add(*o); });
             auto* exp = app->add_subcommand("export", "the model at one x_b as a state-space JSON");
             exp->add_option("--model", o->model, "model file")->required();
-            exp->add_option("--xb", o->xb, "beam position x_b in m")->required();
-            exp->add_option("--rate-hz", o->rate_hz, "ZOH-discretise at this rate (default: continuous)");
+            exp->add_option("--xb", o->xb, "beam position x_b in m")
+                ->required()
+                ->check(number_in(-1e3, 1e3, "the beam position in m"));
+            exp->add_option("--rate-hz", o->rate_hz, "ZOH-discretise at this rate (default: continuous)")
+                ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it for continuous time)"));
             exp->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
             exp->add_flag("--json", o->json, "print the summary as JSON");
             exp->callback([o] { run_export(*o); });
