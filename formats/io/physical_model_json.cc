@@ -18,18 +18,6 @@ namespace {
 
 using nlohmann::json;
 
-std::string read_text(const std::string& path) {
-  std::stringstream s;
-  if (path == "-") {
-    s << std::cin.rdbuf();
-    return s.str();
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
-  s << in.rdbuf();
-  return s.str();
-}
-
 // 1-based line and byte column of text[offset].
 std::pair<int64_t, int64_t> position_of(const std::string& text, size_t offset) {
   const detail::CellPosition at = detail::text_position(text, offset);
@@ -66,16 +54,7 @@ class Reader {
   }
 
   PhysicalModel read() const {
-    json root;
-    try {
-      root = json::parse(text_);
-    } catch (const json::parse_error& e) {
-      std::string what = e.what();
-      const size_t column = what.find("column ");
-      const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
-      if (colon != std::string::npos) what = what.substr(colon + 2);
-      fail_at(e.byte == 0 ? 0 : e.byte - 1, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
-    }
+    const json root = detail::parse_json(path_, text_);
     if (!root.is_object())
       fail_at(0, "a physical model file is a JSON object {\"format\": \"lpvid-physical-model\", ...}; see "
                  "docs/formats.md or run 'lpvid model init'");
@@ -86,15 +65,15 @@ class Reader {
                                          kPhysicalModelFormat));
     const auto version = root.find("version");
     if (version == root.end() || !version->is_number_integer() || version->get<int>() != 1)
-      fail_at(top("version"), "key 'version' must be 1; this lpvid reads version 1 model files");
+      fail_at(top("version"), "key 'version' must be 1; write version 1 (the version this lpvid reads)");
     for (auto it = root.begin(); it != root.end(); ++it) {
       static const char* const kKeys[] = {"format", "version", "base", "effects", "parameters", "fit"};
       bool known = false;
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
-        fail_at(top(it.key()), fmt::format("unknown key '{}'; a model file has format, version, base, effects, "
-                                           "parameters and optionally fit",
-                                           it.key()));
+        fail_at(top(it.key()), fmt::format("unknown key {}; remove it (a model file has format, version, base, "
+                                           "effects, parameters and optionally fit)",
+                                           detail::quote_cell(it.key())));
     }
     PhysicalModel model;
     const auto base = root.find("base");
@@ -102,18 +81,19 @@ class Reader {
       fail_at(top("base"), "missing key 'base' (a string); give \"base\": \"platform\"");
     model.base = base->get<std::string>();
     if (model.base != kPlatformBase)
-      fail_at(top("base"), fmt::format("unknown base model '{}'; the only base is \"platform\"", model.base));
+      fail_at(top("base"), fmt::format("unknown base model '{}'; write \"base\": \"platform\" (the only base)", model.base));
     const auto effects = root.find("effects");
     if (effects == root.end() || !effects->is_array())
       fail_at(top("effects"), "missing key 'effects' (an array of effect names, [] for none); see 'lpvid model effects'");
     for (const json& e : *effects) {
-      if (!e.is_string()) fail_at(top("effects"), fmt::format("effects: {} is not a name; write names as strings", e.dump()));
+      if (!e.is_string())
+        fail_at(top("effects"), fmt::format("effects: {} is not a name; write names as strings", detail::json_excerpt(e)));
       const std::string name = e.get<std::string>();
       if (find_effect(name) == nullptr) {
         std::string names;
         for (const auto& x : effect_library()) names += (names.empty() ? "" : ", ") + x.name;
         fail_at(find_key(text_, "effects", 0) == std::string::npos ? 0 : text_.find("\"" + name + "\"", top("effects")),
-                fmt::format("unknown effect '{}'; the library has {}", name, names));
+                fmt::format("unknown effect {}; use one of {} (lpvid model effects)", detail::quote_cell(name), names));
       }
       for (const auto& prev : model.effects)
         if (prev == name)
@@ -123,6 +103,13 @@ class Reader {
     const auto params = root.find("parameters");
     if (params == root.end() || !params->is_object())
       fail_at(top("parameters"), "missing key 'parameters' (an object name -> {value, unit, lower, upper, free})");
+    // A model has a few dozen parameters; more is not a model file (and would
+    // make the ordering below quadratic).
+    constexpr std::size_t kMaxParameters = 1000;
+    if (params->size() > kMaxParameters)
+      fail_at(top("parameters"), fmt::format("'parameters' lists {} entries; a model has at most a few dozen: check "
+                                             "that this is the right file",
+                                             params->size()));
     // Canonical order first (base, then each effect's), then any unknown names
     // (validate() reports them).
     std::vector<std::string> order;
@@ -154,15 +141,15 @@ class Reader {
   PhysicalParameter parameter(const std::string& name, const json& v) const {
     const size_t at = param(name);
     if (!v.is_object())
-      fail_at(at, fmt::format("parameter '{}' must be an object {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
+      fail_at(at, fmt::format("parameter '{}' must be an object; write {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
                               name));
     for (auto it = v.begin(); it != v.end(); ++it) {
       static const char* const kFields[] = {"value", "unit", "lower", "upper", "free"};
       bool known = false;
       for (const char* k : kFields) known = known || it.key() == k;
       if (!known)
-        fail_at(at, fmt::format("parameter '{}' has unknown field '{}'; the fields are value, unit, lower, upper, free",
-                                name, it.key()));
+        fail_at(at, fmt::format("parameter '{}' has unknown field {}; remove it (the fields are value, unit, lower, upper, free)",
+                                name, detail::quote_cell(it.key())));
     }
     PhysicalParameter p;
     p.name = name;
@@ -170,7 +157,7 @@ class Reader {
       const auto f = v.find(field);
       if (f == v.end()) fail_at(at, fmt::format("parameter '{}' has no field '{}'; give all of value, unit, lower, upper, free", name, field));
       if (!f->is_number())
-        fail_at(at, fmt::format("parameter '{}': field '{}' must be a number, got {}", name, field, f->dump()));
+        fail_at(at, fmt::format("parameter '{}': field '{}' must be a number, got {}; write a number", name, field, detail::json_excerpt(*f)));
       return f->get<double>();
     };
     p.value = number("value");
@@ -178,11 +165,11 @@ class Reader {
     p.upper = number("upper");
     const auto unit = v.find("unit");
     if (unit == v.end() || !unit->is_string())
-      fail_at(at, fmt::format("parameter '{}': field 'unit' must be a string (e.g. \"kg\")", name));
+      fail_at(at, fmt::format("parameter '{}': field 'unit' must be a string; write the library's unit, e.g. \"kg\"", name));
     p.unit = unit->get<std::string>();
     const auto free = v.find("free");
     if (free == v.end() || !free->is_boolean())
-      fail_at(at, fmt::format("parameter '{}': field 'free' must be true or false", name));
+      fail_at(at, fmt::format("parameter '{}': field 'free' must be true or false; write one of them", name));
     p.free = free->get<bool>();
     return p;
   }
@@ -197,7 +184,9 @@ PhysicalModel parse_physical_model(const std::string& text, const std::string& p
   return Reader(text, path).read();
 }
 
-PhysicalModel read_physical_model(const std::string& path) { return parse_physical_model(read_text(path), path); }
+PhysicalModel read_physical_model(const std::string& path) {
+  return parse_physical_model(detail::read_json_text(path, "a physical model file"), path);
+}
 
 std::string physical_model_to_json(const PhysicalModel& model, const json& fit_section) {
   model.validate();
@@ -214,7 +203,8 @@ std::string physical_model_to_json(const PhysicalModel& model, const json& fit_s
   }
   out += "  }";
   if (fit_section.is_object() && !fit_section.empty()) {
-    std::string fit = fit_section.dump(2);
+    // The fit section names data files, which may not be UTF-8: written with U+FFFD.
+    std::string fit = fit_section.dump(2, ' ', false, json::error_handler_t::replace);
     for (size_t pos = fit.find('\n'); pos != std::string::npos; pos = fit.find('\n', pos + 1)) fit.insert(pos + 1, "  ");
     out += ",\n  \"fit\": " + fit;
   }
