@@ -8,14 +8,19 @@
 // (A time-domain form, --log, is dispatched to cli/compare_time.cc.)
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "cli/beam_commands.h"
 #include "cli/common.h"
+#include "cli/fit_inputs.h"
 #include "cli/output_set.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/physical_model_json.h"
 #include "formats/plot/compare_plot.h"
+#include "idlib/diagnose/diagnose.h"
+#include "idlib/fit/fit.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/compare.h"
@@ -29,14 +34,18 @@ Example:
   lpvid compare --model plant.json --data P_left.csv --data P_right.csv --out-png compare.png
   lpvid compare --model left.json --model right.json --data P_left.csv --data P_right.csv --json
 With --model and --data: the model-error model E = P_data - P_model of every channel, its
-99 % noise band from the data's coherence (H1 estimate with --averages independent
-averages; without coherence a default noise level, --noise-level, and the output says so),
-and the failing bands: frequencies where |E| is beyond the noise, at least --min-points
-of them together.  The table (or --json) lists each failure: data set, channel, band
-rad/s, size in dB, degrees and percent of |P_data|, and a signature in plain words
-("phase lag growing with frequency", "narrow peak at 612 rad/s", "off-diagonal coupling",
-"low-frequency gain error", "differs between data sets").  One --model for all data, or
-one per --data (in order).  Failures are results: the exit code is 0.
+99 % noise band from the data (their variance, or coherence with the averages the files
+state or --averages, or --noise-level: the relative rms error of the measurement; without
+any of them compare stops and says so), and the failing bands: frequencies where |E| is
+beyond the noise, at least --min-points of them together.  The table (or --json) lists
+each failure: data set, channel, band rad/s, size in dB, degrees and percent of |P_data|,
+and a signature in plain words ("phase lag growing with frequency", "narrow peak at 612
+rad/s", "off-diagonal coupling", "low-frequency gain error", "differs between data sets"),
+then the distinct phenomena.  One --model for all data, or one per --data (in order).
+A physical model file (lpvid model/fit) is compared as fit and diagnose see it:
+  lpvid compare --model fit2.json --datasets data.json --out-png where.png
+  lpvid compare --model fit2.json --target S --controller C.json --data S_left.csv@-0.1 ...
+with the error figure and its noise floor.  Failures are results: the exit code is 0.
 
   lpvid compare P_from_S.csv truth_plant.json --band-min 1 --band-max 400 --weights 0.1,0.1,1
   lpvid compare P_from_S.csv P_from_G.csv --json
@@ -60,6 +69,10 @@ struct CompareCliOptions {
   std::vector<std::string> models, data;
   std::string out_png, labels;
   ModelErrorOptions mem;
+  NoiseOptions noise;
+  // A physical model: the inputs of fit/diagnose.
+  std::string datasets, target, controller;
+  double rate_hz = kUnset;
 };
 
 nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
@@ -70,95 +83,46 @@ std::string channel_name(const std::vector<std::string>& names, Index i) {
              : std::to_string(i + 1);
 }
 
-void run_model_error(const CompareCliOptions& o) {
-  o.mem.validate();
-  if (o.models.empty()) throw InputError("compare: --data needs --model; give the model to compare the data with (--model M.json)");
-  if (o.models.size() != 1 && o.models.size() != o.data.size())
-    throw InputError(fmt::format("compare: {} --model for {} --data; give one model for all data or one per data set",
-                                 o.models.size(), o.data.size()));
-  if (!o.estimate.empty())
-    throw InputError(fmt::format("compare: '{}' given with --model/--data; use either ESTIMATE REFERENCE or "
-                                 "--model M --data FRD",
-                                 o.estimate));
-  std::vector<std::string> labels;
-  if (!o.labels.empty()) {
-    labels = split_names(o.labels, "--labels");
-    if (labels.size() != o.data.size())
-      throw InputError(fmt::format("--labels: {} labels for {} --data; give one per data set", labels.size(),
-                                   o.data.size()));
-  }
-  OutputSet outputs;
-  outputs.inputs(o.models);
-  outputs.inputs(o.data);
-  outputs.file("--out-png", o.out_png);
-  outputs.file("--out", o.out);
-  outputs.check();
-
-  std::vector<LoadedResponse> models;
-  for (const auto& m : o.models) models.push_back(load_response(m));
+// The model-error report of per-data-set model-error models (shared by both model kinds).
+struct ErrorReport {
   std::vector<ModelErrorModel> mems;
   std::vector<std::vector<FailingBand>> failures;
-  std::vector<FrequencyResponse> datas;
-  for (std::size_t d = 0; d < o.data.size(); ++d) {
-    LoadedResponse data = load_response(o.data[d]);
-    if (!data.frd)
-      throw InputError(fmt::format("--data '{}' is a model; give measured frequency-response data (FRD .csv "
-                                   "or .mat) to --data and the model to --model",
-                                   o.data[d]));
-    const LoadedResponse& model = models[models.size() == 1 ? 0 : d];
-    const FrequencyResponse on = response_on(model, data.frd->omega_rad_s);
-    if (on.num_outputs() != data.frd->num_outputs() || on.num_inputs() != data.frd->num_inputs())
-      throw InputError(fmt::format("compare: '{}' is {}x{} but the model '{}' is {}x{}; give data and model of one plant",
-                                   o.data[d], data.frd->num_outputs(), data.frd->num_inputs(), model.path,
-                                   on.num_outputs(), on.num_inputs()));
-    mems.push_back(model_error(*data.frd, on.response, o.mem));
-    failures.push_back(failing_bands(mems.back(), o.mem, static_cast<Index>(d)));
-    datas.push_back(std::move(*data.frd));
-  }
-  mark_differences_between_data(failures);
-  const FrequencyResponse& first = datas.front();
-  const std::vector<std::string>& out_names =
-      !first.output_names.empty() ? first.output_names
-                                  : (models.front().model ? models.front().model->output_names : std::vector<std::string>{});
-  const std::vector<std::string>& in_names =
-      !first.input_names.empty() ? first.input_names
-                                 : (models.front().model ? models.front().model->input_names : std::vector<std::string>{});
-  auto label_of = [&](std::size_t d) { return labels.empty() ? o.data[d] : labels[d]; };
+  std::vector<std::string> data_names, labels, models, noise;
+  std::vector<std::string> out_names, in_names;
+  nlohmann::json extra;  // added to the summary (physical model: error figure, floor)
+  std::string extra_text;
+};
 
-  // --- report ---
+void report(const CompareCliOptions& o, ErrorReport& r, OutputSet& outputs) {
+  mark_differences_between_data(r.failures);
   nlohmann::json jdata = nlohmann::json::array(), jfail = nlohmann::json::array();
   std::string text = fmt::format("compare: model-error model of {} data set(s) against {}; {:.3g} % noise band (k = {:.3f} sigma)\n",
-                                 o.data.size(), fmt::join(o.models, ", "), 100 * o.mem.confidence, mems.front().k);
+                                 r.data_names.size(), fmt::join(r.models, ", "), 100 * o.mem.confidence, r.mems.front().k);
+  text += r.extra_text;
   std::size_t total = 0;
-  for (std::size_t d = 0; d < o.data.size(); ++d) {
-    const std::string noise =
-        mems[d].coherence_used
-            ? fmt::format("noise from the data's coherence, {:g} averages (--averages)", o.mem.averages)
-            : fmt::format("no coherence in the data: default noise level {:g} % of |P| (row max; --noise-level)",
-                          100 * o.mem.default_relative_sigma);
+  for (std::size_t d = 0; d < r.data_names.size(); ++d) {
     Index skipped = 0;
-    for (bool s : mems[d].skipped) skipped += s ? 1 : 0;
-    jdata.push_back({{"file", o.data[d]},
-                     {"label", label_of(d)},
-                     {"frequencies", mems[d].omega_rad_s.size()},
-                     {"flagged_skipped", skipped},
-                     {"coherence_used", mems[d].coherence_used},
-                     {"noise", noise},
-                     {"failing_bands", failures[d].size()}});
-    text += fmt::format("  data {} '{}': {} frequencies ({} flagged, skipped); {}; {} failing band(s)\n", d + 1,
-                        label_of(d), mems[d].omega_rad_s.size(), skipped, noise, failures[d].size());
-    total += failures[d].size();
+    for (bool s : r.mems[d].skipped) skipped += s ? 1 : 0;
+    jdata.push_back({{"file", r.data_names[d]},
+                     {"label", r.labels[d]},
+                     {"frequencies", r.mems[d].omega_rad_s.size()},
+                     {"skipped", skipped},
+                     {"noise", r.noise[d]},
+                     {"failing_bands", r.failures[d].size()}});
+    text += fmt::format("  data {} '{}': {} frequencies ({} flagged or outside the band, skipped); noise from {}; {} failing band(s)\n",
+                        d + 1, r.labels[d], r.mems[d].omega_rad_s.size(), skipped, r.noise[d], r.failures[d].size());
+    total += r.failures[d].size();
   }
   if (total == 0) {
     text += "  no failing band: every difference is within the measurement's noise\n";
   } else {
     text += "  data  output    input     band [rad/s]         points  gain dB mean/max   phase deg mean/max  error % mean/max  signature\n";
   }
-  for (const auto& set : failures)
+  for (const auto& set : r.failures)
     for (const FailingBand& b : set) {
-      const std::string out = channel_name(out_names, b.output), in = channel_name(in_names, b.input);
+      const std::string out = channel_name(r.out_names, b.output), in = channel_name(r.in_names, b.input);
       jfail.push_back({{"data", b.data_index + 1},
-                       {"data_file", o.data[static_cast<std::size_t>(b.data_index)]},
+                       {"data_file", r.data_names[static_cast<std::size_t>(b.data_index)]},
                        {"output", out},
                        {"input", in},
                        {"band_rad_s", {b.lo_rad_s, b.hi_rad_s}},
@@ -178,31 +142,46 @@ void run_model_error(const CompareCliOptions& o) {
                           num(b.gain_db_max, "{:+.2f}"), num(b.phase_deg_mean, "{:+.1f}"), num(b.phase_deg_max, "{:+.1f}"),
                           num(b.relative_percent_mean, "{:.1f}"), num(b.relative_percent_max, "{:.1f}"), b.hint);
     }
-  nlohmann::json summary = {{"models", o.models},
+  const std::vector<Phenomenon> phenomena = group_phenomena(r.failures, r.out_names, r.in_names);
+  nlohmann::json jph = nlohmann::json::array();
+  if (!phenomena.empty()) text += fmt::format("  {} distinct phenomena, strongest first:\n", phenomena.size());
+  for (std::size_t k = 0; k < phenomena.size(); ++k) {
+    const Phenomenon& p = phenomena[k];
+    std::vector<std::string> sets;
+    for (Index d : p.data_sets) sets.push_back(r.labels[static_cast<std::size_t>(d)]);
+    jph.push_back({{"omega_rad_s", p.omega_rad_s}, {"where", p.where}, {"data", sets}, {"bands", p.bands.size()},
+                   {"max_sigma_ratio", p.max_sigma_ratio}, {"hint", p.bands.front().hint}});
+    if (k < 8)
+      text += fmt::format("    {}. near {:.4g} rad/s in {} ({}): up to {:.3g} %, {:.0f}x the noise; {}\n", k + 1,
+                          p.omega_rad_s, p.where, fmt::join(sets, ", "), p.bands.front().relative_percent_max,
+                          p.max_sigma_ratio, p.bands.front().hint);
+  }
+  nlohmann::json summary = {{"models", r.models},
                             {"data", jdata},
                             {"confidence", o.mem.confidence},
-                            {"k_sigma", mems.front().k},
-                            {"averages", o.mem.averages},
+                            {"k_sigma", r.mems.front().k},
                             {"min_points", o.mem.min_band_points},
                             {"failing_bands", total},
-                            {"failures", jfail}};
+                            {"failures", jfail},
+                            {"phenomena", jph}};
+  for (auto it = r.extra.begin(); it != r.extra.end(); ++it) summary[it.key()] = it.value();
 
   // --- outputs, staged and committed together ---
   if (!o.out_png.empty()) {
     std::vector<CompareSeries> series;
     std::vector<CompareBandMark> marks;
-    for (std::size_t d = 0; d < mems.size(); ++d) {
-      series.push_back({o.data.size() > 1 ? label_of(d) : "", mems[d].omega_rad_s, mems[d].data, mems[d].model,
-                        mems[d].radius, mems[d].skipped});
-      for (const auto& b : failures[d]) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
+    for (std::size_t d = 0; d < r.mems.size(); ++d) {
+      series.push_back({r.mems.size() > 1 ? r.labels[d] : "", r.mems[d].omega_rad_s, r.mems[d].data, r.mems[d].model,
+                        r.mems[d].radius, r.mems[d].skipped});
+      for (const auto& b : r.failures[d]) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
     }
     ComparePlotOptions po;
-    po.same_model = o.models.size() == 1;
+    po.same_model = r.models.size() == 1 && !r.extra.contains("error");
     po.band_label = fmt::format("{:g} % noise band", 100 * o.mem.confidence);
-    po.title = fmt::format("Model {} vs measurement: {} failing band{}", fmt::join(o.models, ", "), total,
+    po.title = fmt::format("Model {} vs measurement: {} failing band{}", fmt::join(r.models, ", "), total,
                            total == 1 ? "" : "s");
-    if (static_cast<Index>(out_names.size()) == first.num_outputs()) po.output_labels = out_names;
-    if (static_cast<Index>(in_names.size()) == first.num_inputs()) po.input_labels = in_names;
+    if (static_cast<Index>(r.out_names.size()) == r.mems.front().data.front().rows()) po.output_labels = r.out_names;
+    if (static_cast<Index>(r.in_names.size()) == r.mems.front().data.front().cols()) po.input_labels = r.in_names;
     const auto png = compare_png(series, marks, po);
     outputs.stage(o.out_png, png);
     summary["png"] = o.out_png;
@@ -212,8 +191,143 @@ void run_model_error(const CompareCliOptions& o) {
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
+// --model is a physical model file: the inputs of fit/diagnose, the fit's error figure.
+void run_physical_model_error(const CompareCliOptions& o) {
+  FitInputOptions f;
+  f.model = o.models.front();
+  f.data = o.data;
+  f.datasets = o.datasets;
+  f.target = o.target;
+  f.controller = o.controller;
+  f.rate_hz = o.rate_hz;
+  f.averages = o.noise.averages > 0 ? o.noise.averages : kUnset;
+  f.noise_level = o.noise.noise_level > 0 ? o.noise.noise_level : kUnset;
+  f.band_min = o.band_min > 0 ? o.band_min : kUnset;
+  f.band_max = o.band_max > 0 ? o.band_max : kUnset;
+  OutputSet outputs;
+  outputs.file("--out-png", o.out_png);
+  outputs.file("--out", o.out);
+  const FitInputs in = load_fit_inputs(f, outputs);
+  for (const FitDataset& ds : in.data) {
+    bool known = false;
+    std::string source;
+    data_sigma(ds.response, in.options.noise, &source, &known);
+    if (!known)
+      throw InputError(fmt::format("compare: {}: the noise of the data is not known ({}); give --averages N or "
+                                   "--noise-level X, or data that carry their variance",
+                                   ds.label, source));
+  }
+  const ModelScore score = score_model(in.start, in.data, in.options);
+  const ModelErrorSet mes = model_errors(in.start, in.data, in.options, o.mem);
+  ErrorReport r;
+  r.mems = mes.models;
+  r.failures = mes.failures;
+  r.models = {f.model};
+  for (const FitDataset& ds : in.data) {
+    r.data_names.push_back(ds.label);
+    r.labels.push_back(fmt::format("x_b = {:g} m", ds.beam_position_m));
+    std::string source;
+    data_sigma(ds.response, in.options.noise, &source);
+    r.noise.push_back(source);
+  }
+  const FrequencyResponse named = target_response(in.start, in.data.front().beam_position_m,
+                                                  in.data.front().response.omega_rad_s, in.options);
+  const FrequencyResponse& first = in.data.front().response;
+  r.out_names = first.output_names.size() == named.output_names.size() ? first.output_names : named.output_names;
+  r.in_names = first.input_names.size() == named.input_names.size() ? first.input_names : named.input_names;
+  r.extra = {{"error", score.error}, {"noise_floor", number_or_null(score.noise_floor)},
+             {"effective_floor", mes.effective_floor}, {"target", target_name(in.options.target)}};
+  r.extra_text = fmt::format("  error {:.4g} % (rms over the channels of the relative rms error); noise floor {} "
+                             "({:.4g} % with lpvid's resolution){}\n",
+                             100 * score.error,
+                             std::isfinite(score.noise_floor) ? fmt::format("{:.4g} %", 100 * score.noise_floor) : "unknown",
+                             100 * mes.effective_floor,
+                             score.error <= 1.5 * mes.effective_floor ? ": within the noise" : "");
+  report(o, r, outputs);
+}
+
+void run_model_error(const CompareCliOptions& o) {
+  o.mem.validate();
+  o.noise.validate();
+  if (o.models.empty()) throw InputError("compare: --data needs --model; give the model to compare the data with (--model M.json)");
+  if (!o.estimate.empty())
+    throw InputError(fmt::format("compare: '{}' given with --model/--data; use either ESTIMATE REFERENCE or "
+                                 "--model M --data FRD",
+                                 o.estimate));
+  if (o.models.size() == 1 && is_physical_model_file(o.models.front())) return run_physical_model_error(o);
+  if (!o.datasets.empty())
+    throw InputError("compare: --datasets needs a physical model file as --model (lpvid model/fit); a state-space "
+                     "or FRD model takes --data FRD");
+  if (o.models.size() != 1 && o.models.size() != o.data.size())
+    throw InputError(fmt::format("compare: {} --model for {} --data; give one model for all data or one per data set",
+                                 o.models.size(), o.data.size()));
+  std::vector<std::string> labels;
+  if (!o.labels.empty()) {
+    labels = split_names(o.labels, "--labels");
+    if (labels.size() != o.data.size())
+      throw InputError(fmt::format("--labels: {} labels for {} --data; give one per data set", labels.size(),
+                                   o.data.size()));
+  }
+  OutputSet outputs;
+  outputs.inputs(o.models);
+  outputs.inputs(o.data);
+  outputs.file("--out-png", o.out_png);
+  outputs.file("--out", o.out);
+  outputs.check();
+
+  std::vector<LoadedResponse> models;
+  for (const auto& m : o.models) models.push_back(load_response(m));
+  ErrorReport r;
+  r.models = o.models;
+  std::vector<FrequencyResponse> datas;
+  for (std::size_t d = 0; d < o.data.size(); ++d) {
+    LoadedResponse data = load_response(o.data[d]);
+    if (!data.frd)
+      throw InputError(fmt::format("--data '{}' is a model; give measured frequency-response data (FRD .csv "
+                                   "or .mat) to --data and the model to --model",
+                                   o.data[d]));
+    const LoadedResponse& model = models[models.size() == 1 ? 0 : d];
+    const FrequencyResponse on = response_on(model, data.frd->omega_rad_s);
+    if (on.num_outputs() != data.frd->num_outputs() || on.num_inputs() != data.frd->num_inputs())
+      throw InputError(fmt::format("compare: '{}' is {}x{} but the model '{}' is {}x{}; give data and model of one plant",
+                                   o.data[d], data.frd->num_outputs(), data.frd->num_inputs(), model.path,
+                                   on.num_outputs(), on.num_inputs()));
+    std::string source;
+    bool known = false;
+    const std::vector<Eigen::MatrixXd> sigma = data_sigma(*data.frd, o.noise, &source, &known);
+    if (!known)
+      throw InputError(fmt::format("compare: '{}': the noise of the data is not known ({}); give --averages N (the "
+                                   "independent averages behind its coherence) or --noise-level X (the relative rms "
+                                   "error of the measurement, e.g. 0.01)",
+                                   o.data[d], source));
+    FrequencyResponse banded = *data.frd;
+    if (o.band_min > 0 || o.band_max > 0) {
+      if (banded.flagged.empty()) banded.flagged.assign(static_cast<std::size_t>(banded.num_frequencies()), false);
+      for (Index k = 0; k < banded.num_frequencies(); ++k) {
+        const double w = banded.omega_rad_s(k);
+        if ((o.band_min > 0 && w < o.band_min) || (o.band_max > 0 && w > o.band_max))
+          banded.flagged[static_cast<std::size_t>(k)] = true;
+      }
+    }
+    r.mems.push_back(model_error(banded, on.response, sigma, o.mem));
+    r.failures.push_back(failing_bands(r.mems.back(), o.mem, static_cast<Index>(d)));
+    r.noise.push_back(source);
+    r.data_names.push_back(o.data[d]);
+    r.labels.push_back(labels.empty() ? o.data[d] : labels[d]);
+    datas.push_back(std::move(*data.frd));
+  }
+  const FrequencyResponse& first = datas.front();
+  r.out_names = !first.output_names.empty()
+                    ? first.output_names
+                    : (models.front().model ? models.front().model->output_names : std::vector<std::string>{});
+  r.in_names = !first.input_names.empty()
+                   ? first.input_names
+                   : (models.front().model ? models.front().model->input_names : std::vector<std::string>{});
+  report(o, r, outputs);
+}
+
 void run(const CompareCliOptions& o) {
-  if (!o.data.empty()) return run_model_error(o);
+  if (!o.data.empty() || !o.datasets.empty()) return run_model_error(o);
   if (!o.models.empty()) throw InputError("compare: --model needs --data; give the measured FRD to compare it with (--data P.csv)");
   if (o.estimate.empty() || o.reference.empty())
     throw InputError("compare: give --model M --data FRD (where the model fails), ESTIMATE REFERENCE (distance "
@@ -315,13 +429,18 @@ Command make_compare_command() {
             app->add_option("--data", o->data, "measured FRD (.csv, .mat), repeatable")->take_all()->expected(1);
             app->add_option("--out-png", o->out_png, "figure: measurement and model overlaid with error panels (with --log: the time-domain overlay)");
             app->add_option("--labels", o->labels, "one label per --data for the table and figure (comma separated)");
-            app->add_option("--averages", o->mem.averages, "independent averages of the H1 estimate (default 16)")
+            app->add_option("--averages", o->noise.averages,
+                            "independent averages behind the data's coherence, when the files do not state it")
                 ->check(number_in(1, 1e9, "the number of averages"));
             app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)")
                 ->check(number_in(0, 1, "the confidence", true, true));
-            app->add_option("--noise-level", o->mem.default_relative_sigma,
-                            "noise per real part as a fraction of the row's largest |P| when the data carry no coherence (default 0.02)")
-                ->check(positive_up_to(1e6, "the noise level"));
+            app->add_option("--noise-level", o->noise.noise_level,
+                            "relative rms error of the measurement (e.g. 0.01) for data with neither variance nor coherence")
+                ->check(number_in(0, 1, "the relative noise level (0.01 for 1 %)", true, true));
+            app->add_option("--datasets", o->datasets, "physical model: the dataset manifest (as for fit)");
+            app->add_option("--target", o->target, "physical model: what the data are (plant, G, S)");
+            app->add_option("--rate-hz", o->rate_hz, "physical model: sample rate of the experiment")
+                ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
             app->add_option("--min-points", o->mem.min_band_points,
                             "significant frequencies a failing band needs (default 3)")
                 ->check(integer_in(1, kMaxFrequencyPoints, "the number of frequencies"));
@@ -343,6 +462,7 @@ Command make_compare_command() {
             auto t = std::make_shared<TimeCompareCliOptions>();
             add_time_compare_options(app, *t);
             app->callback([o, t] {
+              o->controller = t->controller;  // one --controller for both forms
               if (!t->active()) return run(*o);
               t->out_png = o->out_png;  // one --out-png for both forms
               run_time_compare(*t, o->out, o->json);

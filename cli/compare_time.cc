@@ -3,6 +3,7 @@
 // predicts the measured outputs (fit %, residual tests, failing windows).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
+#include "idlib/physical/platform/platform_base.h"
 #include "formats/io/platform_json.h"
 #include "formats/plot/canvas.h"
 #include "formats/plot/time_plot.h"
@@ -85,7 +87,8 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
                   "model");
   app->add_option("--params", o.params, "with --log: the model: a fitted physical model file (lpvid fit) or a platform parameter file (default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
-  app->add_option("--controller", o.controller, "with --log: the discrete controller of the run (JSON model)");
+  app->add_option("--controller", o.controller,
+                  "the discrete controller (JSON model): of the run with --log; for G and S data of a physical model");
   app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)")
       ->check(positive_up_to(kMaxDurationS, "the window length in s"));
   app->add_option("--threshold-percent", o.threshold_percent,
@@ -123,14 +126,12 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
     head.resize(static_cast<std::size_t>(probe.gcount()));
     if (head.find("lpvid-physical-model") != std::string::npos) {
       const PhysicalModel physical = read_physical_model(o.params);
-      model = to_platform_parameters(physical);
-      std::string ignored;
-      for (const std::string& e : physical.effects)
-        if (e == "structural_mode" || e == "input_delay" || e == "actuator_lag" || e == "gain_error")
-          ignored += (ignored.empty() ? "" : ", ") + e;
-      if (!ignored.empty())
+      std::vector<std::string> left_out;
+      model = platform_parameters(physical, &left_out);
+      if (!left_out.empty())
         std::fprintf(stderr, "lpvid compare --log: warning: %s of %s not simulated in the time domain (rigid-body "
-                             "platform terms only)\n", ignored.c_str(), o.params.c_str());
+                             "platform terms only)\n", fmt::format("{}", fmt::join(left_out, ", ")).c_str(),
+                     o.params.c_str());
     } else {
       model = read_platform_parameters(o.params);
     }

@@ -2,6 +2,7 @@
 // jointly to responses measured at several x_b (seed 000, Fig. 13).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -89,19 +90,28 @@ void run(const FitCliOptions& o) {
     for (Index b = 0; b < r.correlation.cols(); ++b) row.push_back(r.correlation(a, b));
     corr.push_back(row);
   }
-  static const char* const kOut[3] = {"psi", "theta", "z"};
-  static const char* const kIn[3] = {"T_psi", "T_theta", "F_z"};
+  const auto& outs = r.output_names;
+  const auto& ins = r.input_names;
   nlohmann::json channels = nlohmann::json::array();
   for (const auto& c : r.channels)
-    channels.push_back({{"output", kOut[c.output]}, {"input", kIn[c.input]},
-                        {"relative_rms_error", c.relative_rms_error}, {"per_dataset", c.per_dataset}});
+    channels.push_back({{"output", outs[static_cast<std::size_t>(c.output)]},
+                        {"input", ins[static_cast<std::size_t>(c.input)]},
+                        {"relative_rms_error", c.relative_rms_error},
+                        {"noise_floor", std::isfinite(c.noise_floor) ? nlohmann::json(c.noise_floor) : nlohmann::json()},
+                        {"per_dataset", c.per_dataset}});
   nlohmann::json used = nlohmann::json::array();
-  for (const auto& s : specs) used.push_back({{"file", s.path}, {"x_b_m", s.beam_position_m}});
+  for (const auto& s : specs) used.push_back({{"files", s.files}, {"x_b_m", s.beam_position_m}});
   const nlohmann::json fit_section = {
       {"target", target_name(options.target)},
       {"sample_period_s", ts},
       {"data", used},
-      {"controller", o.in.controller},
+      {"controller", in.controller_path},
+      {"band_rad_s", {options.band_min_rad_s, std::isfinite(options.band_max_rad_s)
+                                                  ? nlohmann::json(options.band_max_rad_s)
+                                                  : nlohmann::json()}},
+      {"error", r.error},
+      {"noise_floor", std::isfinite(r.noise_floor) ? nlohmann::json(r.noise_floor) : nlohmann::json()},
+      {"noise_source", r.noise_source},
       {"cost_start", r.cost_start},
       {"cost_after_global_start", r.cost_global},
       {"cost_final", r.cost_final},
@@ -134,8 +144,8 @@ void run(const FitCliOptions& o) {
       BodeSeries lower{tag + " model -2 sigma", band.response, BodeSeries::Style::kDashed};
       BodeSeries upper{tag + " model +2 sigma", band.response, BodeSeries::Style::kDashed};
       for (std::size_t k = 0; k < band.response.response.size(); ++k) {
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) {
+        for (Index i = 0; i < band.response.response[k].rows(); ++i)
+          for (Index j = 0; j < band.response.response[k].cols(); ++j) {
             const Complex v = band.response.response[k](i, j);
             const double mag = std::abs(v), sm = band.magnitude_sigma[k](i, j);
             const Complex unit = mag > 0 ? v / mag : Complex(1.0, 0.0);
@@ -161,9 +171,8 @@ void run(const FitCliOptions& o) {
                        "magnitude_upper", "phase_deg", "phase_sigma_deg"},
                       table,
                       {"lpvid fit: fitted model response with delta-method standard deviations (docs/formats.md)",
-                       fmt::format("target {}; output 1..3 = {}; input 1..3 = {}", target_name(options.target),
-                                   options.target == FitTarget::kInputSensitivity ? "u_psi,u_theta,u_z" : "psi,theta,z",
-                                   options.target == FitTarget::kPlant ? "T_psi,T_theta,F_z" : "v_psi,v_theta,v_z"),
+                       fmt::format("target {}; output 1..{} = {}; input 1..{} = {}", target_name(options.target),
+                                   outs.size(), fmt::join(outs, ","), ins.size(), fmt::join(ins, ",")),
                        "magnitude_lower/upper = magnitude -/+ 2 magnitude_sigma (lower clamped at 0)"});
     }
     if (!o.plot.empty()) {
@@ -192,8 +201,11 @@ void run(const FitCliOptions& o) {
     for (const auto& c : r.channels) {
       rec.error_mean += c.relative_rms_error / static_cast<double>(r.channels.size());
       rec.error_max = std::max(rec.error_max, c.relative_rms_error);
-      rec.channels.push_back({kOut[c.output], kIn[c.input], c.relative_rms_error, c.relative_rms_error});
+      rec.channels.push_back({outs[static_cast<std::size_t>(c.output)], ins[static_cast<std::size_t>(c.input)],
+                              c.relative_rms_error, c.relative_rms_error});
     }
+    rec.error = r.error;
+    rec.noise_floor = r.noise_floor;
     rec.aic = r.aic;
     rec.bic = r.bic;
     rec.note = fmt::format("fit of {} to {} data sets ({} target)", o.in.model, data.size(), target_name(options.target));
@@ -211,19 +223,26 @@ void run(const FitCliOptions& o) {
                                  r.residual_count);
   text += fmt::format("cost: start {:.4g}, after global start {:.4g}, final {:.4g}; AIC {:.1f}, BIC {:.1f}\n",
                       r.cost_start, r.cost_global, r.cost_final, r.aic, r.bic);
-  text += fmt::format("{:<26} {:>12} {:>12} {:>11} {:>9}  {}\n", "parameter", "start", "estimate", "std error", "unit",
-                      "flags");
+  std::size_t name_width = 26;  // names of user-defined effects' parameters can be longer
+  for (const auto& e : r.parameters) name_width = std::max(name_width, e.name.size());
+  text += fmt::format("{:<{}} {:>12} {:>12} {:>11} {:>9}  {}\n", "parameter", name_width, "start", "estimate",
+                      "std error", "unit", "flags");
   for (const auto& e : r.parameters) {
     std::string flags;
     for (const auto& f : e.flags) flags += (flags.empty() ? "" : "; ") + f;
-    text += fmt::format("{:<26} {:>12} {:>12} {:>11} {:>9}  {}\n", e.name, fmt_value(e.start), fmt_value(e.estimate),
-                        fmt_value(e.std_error), e.unit, flags);
+    text += fmt::format("{:<{}} {:>12} {:>12} {:>11} {:>9}  {}\n", e.name, name_width, fmt_value(e.start),
+                        fmt_value(e.estimate), fmt_value(e.std_error), e.unit, flags);
   }
+  text += fmt::format("error {:.4g} % (rms over the channels of the relative rms error); noise floor {} ({}){}\n",
+                      100.0 * r.error,
+                      std::isfinite(r.noise_floor) ? fmt::format("{:.4g} %", 100.0 * r.noise_floor) : "unknown",
+                      r.noise_source,
+                      std::isfinite(r.noise_floor) && r.error <= 1.5 * r.noise_floor ? ": within the noise" : "");
   text += "per-channel relative rms error (%), pooled over x_b:\n";
-  for (int i = 0; i < 3; ++i) {
-    text += fmt::format("  {:<6}", kOut[i]);
-    for (int j = 0; j < 3; ++j)
-      text += fmt::format("  {}: {:8.3f}", kIn[j], 100.0 * r.channels[static_cast<std::size_t>(3 * i + j)].relative_rms_error);
+  for (std::size_t i = 0; i < outs.size(); ++i) {
+    text += fmt::format("  {:<8}", outs[i]);
+    for (std::size_t j = 0; j < ins.size(); ++j)
+      text += fmt::format("  {}: {:8.3f}", ins[j], 100.0 * r.channels[i * ins.size() + j].relative_rms_error);
     text += "\n";
   }
   for (const auto& w : r.identifiability) text += "identifiability: " + w + "\n";

@@ -4,11 +4,13 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "cli/common.h"
 #include "cli/output_set.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/dataset_manifest.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/io/text.h"
@@ -19,11 +21,26 @@ namespace lpvid::cli {
 
 void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
   app.add_option("--model", o.model, "start model file (lpvid model init)")->required();
-  app.add_option("--data", o.data, "FILE@X_B: FRD (.csv/.mat; A.csv,B.csv,C.csv@X_B merges one file per excited input) or state-space .json, x_b in m (repeat)")->required();
+  app.add_option("--data", o.data,
+                 "FILE@X_B: FRD (.csv/.mat; A.csv,B.csv,C.csv@X_B merges one file per excited input) or "
+                 "state-space .json, x_b in m (repeat); or give --datasets once");
+  app.add_option("--datasets", o.datasets,
+                 "dataset manifest (JSON): the files and x_b of every data set, and optionally target, "
+                 "controller, rate_hz, averages, noise_level, band_rad_s (docs/formats.md)");
   app.add_option("--target", o.target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
   app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space JSON; for G and S");
-  app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the ZOH response")
+  app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the sampled (ZOH) response")
       ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
+  app.add_option("--averages", o.averages,
+                 "independent averages behind the data's coherence, when the files do not state it ('# averages: K')")
+      ->check(number_in(1, 1e9, "the number of averages"));
+  app.add_option("--noise-level", o.noise_level,
+                 "relative rms error of the measurement (e.g. 0.01), for data with neither variance nor coherence")
+      ->check(number_in(0, 1, "the relative noise level (0.01 for 1 %)", true, true));
+  app.add_option("--band-min", o.band_min, "use only frequencies >= this (rad/s)")
+      ->check(positive_up_to(kMaxFrequency, "the lowest frequency in rad/s"));
+  app.add_option("--band-max", o.band_max, "use only frequencies <= this (rad/s)")
+      ->check(positive_up_to(kMaxFrequency, "the highest frequency in rad/s"));
   app.add_option("--starts", o.starts, "global start: number of BOBYQA starts (default 8)")
       ->check(integer_in(1, 1000, "the number of global starts"));
   app.add_flag("--no-global", o.no_global, "skip the global start (Levenberg-Marquardt from the start only)");
@@ -43,57 +60,105 @@ FitDataSpec parse_data_spec(const std::string& spec) {
   const size_t at = spec.rfind('@');
   if (at == std::string::npos || at == 0)
     throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
-                                 "e.g. P_left.csv@-0.1",
+                                 "e.g. P_left.csv@-0.1, or give the data sets once with --datasets",
                                  spec));
   FitDataSpec d;
-  d.path = spec.substr(0, at);
+  d.label = spec;
+  const std::string path = spec.substr(0, at);
   const std::string xb = spec.substr(at + 1);
   if (!parse_decimal(xb, d.beam_position_m))
     throw InputError(fmt::format("--data '{}': the x_b tag '{}' is not a number; write FILE@X_B with x_b in metres, "
                                  "e.g. P_left.csv@-0.1",
                                  spec, xb));
+  d.files = path.find(',') != std::string::npos ? split_names(path, "--data") : std::vector<std::string>{path};
   return d;
 }
 
+namespace {
+
+double pick(double flag, double manifest) { return std::isnan(flag) ? manifest : flag; }
+
+}  // namespace
+
 FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   FitInputs in;
+  if (o.data.empty() == o.datasets.empty())
+    throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
+                                    : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
+  DatasetManifest m;
+  if (!o.datasets.empty()) {
+    m = read_dataset_manifest(o.datasets);
+    for (const ManifestDataset& d : m.datasets) in.specs.push_back({d.files, d.beam_position_m, d.label});
+  } else {
+    for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
+  }
   FitOptions& options = in.options;
-  options.target = parse_target(o.target);
+  const std::string target = !o.target.empty() ? o.target : !m.target.empty() ? m.target : "plant";
+  options.target = parse_target(target);
   options.global_start = !o.no_global;
   options.global_starts = o.starts;
   options.max_iterations = o.max_iterations;
   options.seed = o.seed;
+  const double rate = pick(o.rate_hz, m.rate_hz);
+  if (!std::isnan(rate) && !(rate > 0 && rate <= kMaxRateHz))
+    throw InputError(fmt::format("{} {}: give the sample rate in Hz (> 0, at most {:g}), or omit it",
+                                 std::isnan(o.rate_hz) ? o.datasets + ": rate_hz" : "--rate-hz", rate, kMaxRateHz));
+  const double averages = pick(o.averages, m.averages);
+  if (!std::isnan(averages)) {
+    if (!(averages >= 1 && averages <= 1e9))
+      throw InputError(fmt::format("--averages {}: give the independent averages behind the coherence, a number >= 1",
+                                   averages));
+    options.noise.averages = averages;
+  }
+  const double level = pick(o.noise_level, m.noise_level);
+  if (!std::isnan(level)) {
+    if (!std::isfinite(level) || level <= 0 || level >= 1)
+      throw InputError(fmt::format("--noise-level {}: give the relative rms error of the measurement, in (0, 1), e.g. "
+                                   "0.01 for 1 %",
+                                   level));
+    options.noise.noise_level = level;
+  }
+  const double lo = pick(o.band_min, m.band_min), hi = pick(o.band_max, m.band_max);
+  for (const double b : {lo, hi})
+    if (!std::isnan(b) && !(b > 0))
+      throw InputError(fmt::format("{}: the band [{}, {}] rad/s has a bound <= 0; give frequencies > 0 in rad/s",
+                                   o.datasets.empty() ? "--band-min/--band-max" : o.datasets, lo, hi));
+  if (!std::isnan(lo)) options.band_min_rad_s = lo;
+  if (!std::isnan(hi)) options.band_max_rad_s = hi;
   if (!(o.grid_hi > o.grid_lo))
     throw InputError(fmt::format("--grid-lo {} is not below --grid-hi {} (rad/s); give --grid-lo below --grid-hi",
                                  o.grid_lo, o.grid_hi));
-  if (o.data.empty()) throw InputError("give at least one --data FILE@X_B");
-  for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
-  if (options.target != FitTarget::kPlant && o.controller.empty())
-    throw InputError(fmt::format("--target {} needs the controller; give --controller C.json (the known controller, e = -q -> u_c)",
-                                 o.target));
-  outputs.input(o.model);
+  if (!std::isnan(lo) && !std::isnan(hi) && !(lo < hi))
+    throw InputError(fmt::format("--band-min {} is not below --band-max {} (rad/s); give a band with low < high",
+                                 lo, hi));
+  in.controller_path = !o.controller.empty() ? o.controller : m.controller;
+  if (options.target != FitTarget::kPlant && in.controller_path.empty())
+    throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c)",
+                                 target));
+  in.inputs = {o.model};
+  if (!o.datasets.empty()) in.inputs.push_back(o.datasets);
   for (const auto& s : in.specs)
-    for (const auto& part : split_names(s.path, "--data")) outputs.input(part);
-  outputs.input(o.controller);
+    for (const auto& f : s.files) in.inputs.push_back(f);
+  if (!in.controller_path.empty()) in.inputs.push_back(in.controller_path);
+  outputs.inputs(in.inputs);
   outputs.check();
 
   in.start = read_physical_model(o.model);
-  if (!o.controller.empty()) options.controller = read_controller(o.controller);
+  if (!in.controller_path.empty()) options.controller = read_controller(in.controller_path);
   std::vector<LoadedResponse> loaded;
   for (const auto& s : in.specs) {
-    // "S_v1.csv,S_v2.csv,S_v3.csv@0": one file per excited input, merged.
-    if (s.path.find(',') != std::string::npos) {
+    if (s.files.size() > 1) {
       LoadedResponse merged;
-      merged.path = s.path;
-      merged.frd = load_frd_merged(split_names(s.path, "--data"));
+      merged.path = s.label;
+      merged.frd = load_frd_merged(s.files);
       loaded.push_back(std::move(merged));
     } else {
-      loaded.push_back(load_response(s.path));
+      loaded.push_back(load_response(s.files.front()));
     }
   }
-  // Sample period: flag, else a discrete data model's, else the controller's.
-  double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
-  in.sample_period_source = o.rate_hz > 0 ? "--rate-hz" : "";
+  // Sample period: flag (or manifest), else a discrete data model's, else the controller's.
+  double ts = !std::isnan(rate) ? 1.0 / rate : 0.0;
+  in.sample_period_source = !std::isnan(o.rate_hz) ? "--rate-hz" : !std::isnan(m.rate_hz) ? o.datasets : "";
   for (const auto& l : loaded)
     if (ts == 0.0 && l.model && l.model->is_discrete()) {
       ts = l.model->sample_period_s;
@@ -101,7 +166,7 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     }
   if (ts == 0.0 && options.controller && options.controller->is_discrete()) {
     ts = options.controller->sample_period_s;
-    in.sample_period_source = o.controller;
+    in.sample_period_source = in.controller_path;
   }
   options.sample_period_s = ts;
   options.validate();
@@ -109,13 +174,13 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   for (std::size_t i = 0; i < in.specs.size(); ++i) {
     FitDataset d;
     d.beam_position_m = in.specs[i].beam_position_m;
-    d.label = in.specs[i].path;
+    d.label = in.specs[i].label;
     if (loaded[i].model) {
-      double hi = o.grid_hi;
+      double top = o.grid_hi;
       const double period = loaded[i].model->sample_period_s;
       // Below 0.9 of the data model's Nyquist frequency.
-      if (period > 0) hi = std::min(hi, 0.9 * M_PI / period);
-      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, hi, o.grid_count));
+      if (period > 0) top = std::min(top, 0.9 * M_PI / period);
+      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, top, o.grid_count));
     } else {
       d.response = *loaded[i].frd;
     }

@@ -1,8 +1,14 @@
-// The inputs shared by `fit` and `diagnose`: a start model file, data files
-// tagged with their beam position (FILE@X_B), the target (plant, G or S), the
-// controller and the fit options.  Parsing and loading only (STYLE.md item 8).
+// The inputs shared by `fit`, `diagnose` and `compare --model M.json` with a
+// physical model: a model file, the data (FILE@X_B flags, or a dataset manifest
+// given once), the target (plant, G or S), the controller, the noise of the data,
+// the frequency band and the fit options.  Parsing and loading only (STYLE.md
+// item 8).
+//
+// Dataset manifest (--datasets FILE): formats/io/dataset_manifest.h; every key but
+// "datasets" is optional and a flag on the command line wins over it.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -17,26 +23,32 @@ namespace lpvid::cli {
 
 class OutputSet;
 
+inline constexpr double kUnset = std::numeric_limits<double>::quiet_NaN();
+
 struct FitInputOptions {
-  std::string model, controller, target = "plant";
+  std::string model, controller, target, datasets;
   std::vector<std::string> data;  // FILE@X_B
-  double rate_hz = 0.0, grid_lo = 1.0, grid_hi = 600.0;
+  // NaN: not given on the command line (the manifest's value, or the default)
+  double rate_hz = kUnset, averages = kUnset, noise_level = kUnset, band_min = kUnset, band_max = kUnset;
+  double grid_lo = 1.0, grid_hi = 600.0;
   Index grid_count = 200;
   int starts = 8, max_iterations = 200;
   unsigned seed = 1;
   bool no_global = false;
 };
 
-// Declares --model, --data, --target, --controller, --rate-hz, --starts,
-// --no-global, --seed, --max-iterations, --grid-lo/-hi/-count on app.
+// Declares --model, --data, --datasets, --target, --controller, --rate-hz,
+// --averages, --noise-level, --band-min, --band-max, --starts, --no-global, --seed,
+// --max-iterations, --grid-lo/-hi/-count on app.
 void add_fit_input_options(CLI::App& app, FitInputOptions& o);
 
 struct FitDataSpec {
-  std::string path;
+  std::vector<std::string> files;  // one file, or one per excited input (merged)
   double beam_position_m = 0.0;
+  std::string label;               // as the user wrote it
 };
 
-// "P_left.csv@-0.1" -> {P_left.csv, -0.1}.
+// "P_left.csv@-0.1" -> {P_left.csv, -0.1}; "A.csv,B.csv,C.csv@0" -> three files.
 // @throws InputError  no @x_b tag, or the tag is not a finite number.
 FitDataSpec parse_data_spec(const std::string& spec);
 
@@ -46,13 +58,18 @@ struct FitInputs {
   std::vector<FitDataset> data;
   std::vector<FitDataSpec> specs;
   std::string sample_period_source;  // where options.sample_period_s came from ("" = continuous)
+  std::string controller_path;       // "" = none
+  std::vector<std::string> inputs;   // every file read (for output guards)
 };
 
 // Validates the options first (before reading anything), registers every input
-// with `outputs` (whose outputs the caller has registered) and checks them all
+// (the manifest, then the model, data and controller it names) with `outputs`
+// (whose outputs the caller has registered) and checks them all
 // (cli/output_set.h), then reads the model, controller and data.  The sample
-// period: --rate-hz, else a discrete data model's, else the controller's.
-// @throws InputError  as the readers, OutputSet::check and FitOptions::validate.
+// period: --rate-hz (or the manifest's), else a discrete data model's, else the
+// controller's.
+// @throws InputError  as the readers, OutputSet::check and FitOptions::validate;
+//   --data and --datasets both or neither given.
 FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
 
 }  // namespace lpvid::cli

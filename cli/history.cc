@@ -22,10 +22,12 @@ Example:
   lpvid history --model plant.json --png history.png
   lpvid history --model plant.json --json
 Reads plant.json.history.jsonl (one record per fit, appended by the fit; docs/formats.md,
-"Fit history") and prints the error model by model: effects, free parameters, cost,
-mean and largest weighted error, AIC/BIC and the change from the previous fit.  --png
-draws the error falling: one bar per fit (log scale), labelled with the effects the fit
-added or removed.)";
+"Fit history") and prints the error model by model: effects, free parameters, cost, the
+error figure (the number fit and diagnose print) beside the data's noise floor, the
+largest channel error, AIC/BIC and the change from the previous fit.  A model whose
+error is within about 1.5x its floor fits within the noise.  --png draws the error
+falling: one bar per fit (log scale) with the noise floor as a green line, labelled
+with the effects the fit added or removed.)";
 
 struct HistoryCliOptions {
   std::string model, png;
@@ -33,6 +35,9 @@ struct HistoryCliOptions {
 };
 
 nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+// The error figure of a record (older records without one: the mean channel error).
+double figure(const HistoryRecord& r) { return std::isfinite(r.error) ? r.error : r.error_mean; }
 
 std::string effects_text(const HistoryRecord& r) {
   return r.effects.empty() ? std::string("(no effects)") : fmt::format("{}", fmt::join(r.effects, ", "));
@@ -61,12 +66,11 @@ void run(const HistoryCliOptions& o) {
   nlohmann::json fits = nlohmann::json::array();
   std::string text = fmt::format("history of {} ({} fit{}, {}):\n", o.model, records.size(),
                                  records.size() == 1 ? "" : "s", path);
-  text += "  fit  timestamp             params  cost        mean err   max err    change   AIC         BIC         effects\n";
+  text += "  fit  timestamp             params  cost        error      floor      max chan   change   AIC         BIC         effects\n";
   for (std::size_t k = 0; k < records.size(); ++k) {
     const HistoryRecord& r = records[k];
-    const double change = k == 0 || records[k - 1].error_mean == 0
-                              ? std::nan("")
-                              : 100.0 * (r.error_mean - records[k - 1].error_mean) / records[k - 1].error_mean;
+    const double before = k == 0 ? 0.0 : figure(records[k - 1]);
+    const double change = k == 0 || before == 0 ? std::nan("") : 100.0 * (figure(r) - before) / before;
     nlohmann::json channels = nlohmann::json::array();
     for (const auto& c : r.channels)
       channels.push_back({{"output", c.output}, {"input", c.input}, {"error_mean", c.error_mean}, {"error_max", c.error_max}});
@@ -76,6 +80,8 @@ void run(const HistoryCliOptions& o) {
                     {"effects", r.effects},
                     {"free_parameters", r.free_parameters},
                     {"cost", r.cost},
+                    {"error", number_or_null(r.error)},
+                    {"noise_floor", number_or_null(r.noise_floor)},
                     {"error_mean", r.error_mean},
                     {"error_max", r.error_max},
                     {"change_percent", number_or_null(change)},
@@ -84,8 +90,9 @@ void run(const HistoryCliOptions& o) {
                     {"channels", channels},
                     {"note", r.note}});
     auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:<10.4g}", v) : std::string("-         "); };
-    text += fmt::format("  {:<4} {:<20}  {:6d}  {:<10.4g}  {:7.3f} %  {:7.3f} %  {:>7}  {}  {}  {}{}\n", k + 1,
-                        r.timestamp, r.free_parameters, r.cost, 100 * r.error_mean, 100 * r.error_max,
+    auto pct = [](double v) { return std::isfinite(v) ? fmt::format("{:7.3f} %", 100 * v) : std::string("      -  "); };
+    text += fmt::format("  {:<4} {:<20}  {:6d}  {:<10.4g}  {}  {}  {:7.3f} %  {:>7}  {}  {}  {}{}\n", k + 1,
+                        r.timestamp, r.free_parameters, r.cost, pct(figure(r)), pct(r.noise_floor), 100 * r.error_max,
                         std::isfinite(change) ? fmt::format("{:+.0f} %", change) : std::string("-"), num(r.aic),
                         num(r.bic), effects_text(r), r.note.empty() ? "" : "  (" + r.note + ")");
   }
@@ -94,11 +101,13 @@ void run(const HistoryCliOptions& o) {
     std::vector<HistoryBar> bars;
     for (std::size_t k = 0; k < records.size(); ++k) {
       const auto& r = records[k];
-      if (!(r.error_mean > 0))
-        throw InputError(fmt::format("{}: fit {} has a mean error of 0, which a log-scale chart cannot show; use --json",
+      if (!(figure(r) > 0))
+        throw InputError(fmt::format("{}: fit {} has an error of 0, which a log-scale chart cannot show; use --json",
                                      path, k + 1));
-      bars.push_back({fmt::format("{}: {}", k + 1, k == 0 ? effects_text(r) : effects_change(records[k - 1], r)),
-                      100 * r.error_mean, 100 * r.error_max});
+      HistoryBar bar{fmt::format("{}: {}", k + 1, k == 0 ? effects_text(r) : effects_change(records[k - 1], r)),
+                     100 * figure(r), 100 * std::max(r.error_max, figure(r))};
+      if (std::isfinite(r.noise_floor) && r.noise_floor > 0) bar.floor_percent = 100 * r.noise_floor;
+      bars.push_back(bar);
     }
     const auto png = history_png(bars, fmt::format("Model error, fit by fit: {}", o.model));
     outputs.stage(o.png, png);

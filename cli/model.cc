@@ -1,17 +1,22 @@
-// lpvid model — physical model files: create one, list and add effects, export
-// the model at any beam position as a state-space JSON (the LPV model frozen at x_b).
+// lpvid model — physical model files: create one, list, add, remove and define
+// effects, export the model at an operating point (the platform: a beam position)
+// as a state-space JSON.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <cmath>
+#include <filesystem>
 #include <memory>
 
 #include "cli/common.h"
 #include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/history.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 #include "idlib/physical/evaluate.h"
 
@@ -20,50 +25,138 @@ namespace {
 
 constexpr const char* kExample = R"(
 Example:
-  lpvid model init --out start.json                 (platform + rod_twist, com_offset, beam_gravity)
-  lpvid model init --bare --out base.json           (the base model of eqs 2-8 alone)
-  lpvid model effects                               (the effect library: parameters, units, bounds)
-  lpvid model add input_delay --model start.json    (adds the effect with its defaults)
+  lpvid model init --out model.json                  (the platform base with beam gravity)
+  lpvid model init --out model.json --set k_torque_low_Nm_per_rad=45 --set beam_height_m=0.06
+                                                     (with the design values you know)
+  lpvid model effects                                (the effect library: parameters, units, bounds)
+  lpvid model add input_delay --model fit1.json --out start2.json
+                                                     (a new file; its fit history continues fit1's)
+  lpvid model remove input_delay --model start2.json (in place)
+  lpvid model define --model fit1.json --from theta_mount.json [--add]
+                                                     (a user-defined effect from building blocks)
   lpvid model export --model fitted.json --xb 0.05 --rate-hz 1000 --out P_005.json
-'model add' reads and rewrites the same file on purpose (atomically: a failed run leaves it
-unchanged); it drops the file's "fit" section, which no longer describes the model.
-'model export' writes the state-space JSON at x_b: continuous without --rate-hz (an input
-delay is then not in the matrices; the summary gives it), ZOH-discretised with it (a delay is
-rounded to whole samples and realised as extra states).  See docs/effects.md.)";
+'model add/remove/define' rewrite the model file in place unless --out names a new one
+(atomically: a failed run leaves it unchanged); they drop the "fit" section, which no longer
+describes the model, and --out copies the fit history so that 'lpvid history' shows the
+whole lineage.  'model export' writes the state-space JSON at x_b: continuous without
+--rate-hz (input delays are then not in the matrices; the summary gives them), exactly
+sampled with it (delays, fractional ones too, realised as extra states).  See docs/effects.md.)";
 
 struct ModelCliOptions {
-  std::string out, model, effect;
+  std::string out, model, effect, base = "platform", from;
+  std::vector<std::string> sets;
   double xb = 0.0, rate_hz = 0.0;
-  bool bare = false, json = false;
+  bool bare = false, json = false, add_defined = false;
 };
+
+// --set NAME=VALUE: a parameter's value (its bounds must hold it).
+void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
+  for (const std::string& s : sets) {
+    const size_t eq = s.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw InputError(fmt::format("--set '{}': write NAME=VALUE, e.g. --set k_torque_low_Nm_per_rad=45", s));
+    const std::string name = s.substr(0, eq), text = s.substr(eq + 1);
+    double v = NAN;
+    if (!parse_decimal(text, v))
+      throw InputError(fmt::format("--set '{}': '{}' is not a number; give the value in the parameter's unit", s, text));
+    PhysicalParameter& p = m.parameter(name);
+    if (v < p.lower || v > p.upper)
+      throw InputError(fmt::format("--set '{}': {} is outside the bounds [{}, {}] {} of {}; give a value inside them",
+                                   s, v, p.lower, p.upper, p.unit, name));
+    p.value = v;
+  }
+  m.validate();
+}
 
 void run_init(const ModelCliOptions& o) {
   OutputSet outputs;
   outputs.file("--out", o.out);
   outputs.check();
-  const PhysicalModel m = o.bare ? PhysicalModel::bare_platform() : PhysicalModel::default_platform();
+  PhysicalModel m = o.bare ? PhysicalModel::bare(o.base) : PhysicalModel::initial(o.base);
+  apply_sets(m, o.sets);
   outputs.stage(o.out, physical_model_to_json(m));
   outputs.commit();
-  std::string effects;
-  for (const auto& e : m.effects) effects += (effects.empty() ? "" : ", ") + e;
   if (!outputs.to_stdout())
-    print_summary(o.json, {{"out", o.out}, {"effects", m.effects}, {"parameters", m.parameters.size()}},
-                  fmt::format("model init: wrote {} (base platform; effects: {})\n", o.out,
-                              effects.empty() ? "none" : effects));
+    print_summary(o.json,
+                  {{"out", o.out}, {"base", m.base}, {"effects", m.effects}, {"parameters", m.parameters.size()}},
+                  fmt::format("model init: wrote {} (base {}; effects: {})\n", o.out, m.base,
+                              m.effects.empty() ? std::string("none") : fmt::format("{}", fmt::join(m.effects, ", "))));
+}
+
+// add/remove/define: every input and output, checked before the model is read.
+// The model is rewritten in place unless --out names a new file; then the
+// source's fit history, if any, continues beside --out (a file; '-' prints the
+// model alone).
+void check_changed(const ModelCliOptions& o, OutputSet& outputs) {
+  const bool in_place = o.out.empty() || o.out == o.model;
+  if (in_place && o.model == "-")
+    throw InputError("--model '-' is read from standard input and cannot be rewritten in place; give --out FILE "
+                     "(or --out - to print the result)");
+  outputs.input(o.model);
+  outputs.input(o.from);
+  if (in_place) {
+    outputs.rewrite("--model", o.model);
+  } else {
+    outputs.input(history_path_for(o.model));
+    outputs.file("--out", o.out);
+    if (o.out != "-") outputs.file("--out (its history)", history_path_for(o.out));
+  }
+  outputs.check();
+}
+
+// Stages the changed model (in place or --out, with the lineage) and commits;
+// returns the file written.
+std::string write_changed(const ModelCliOptions& o, OutputSet& outputs, const PhysicalModel& m) {
+  const std::string target = o.out.empty() ? o.model : o.out;
+  outputs.stage(target, physical_model_to_json(m));
+  // the lineage: the source's fit history continues in the new file's
+  if (target != o.model && target != "-" && std::filesystem::exists(history_path_for(o.model))) {
+    std::string text;  // never continue a broken history: every record checked, then copied byte for byte
+    read_history(history_path_for(o.model), &text);
+    outputs.stage(history_path_for(o.out), text);
+  }
+  outputs.commit();
+  return target;
 }
 
 void run_add(const ModelCliOptions& o) {
-  OutputSet outputs;  // the model file is read and rewritten on purpose
-  outputs.input(o.model);
-  outputs.rewrite("--model", o.model);
-  outputs.check();
+  OutputSet outputs;
+  check_changed(o, outputs);
   PhysicalModel m = read_physical_model(o.model);
   m.add_effect(o.effect);
-  outputs.stage(o.model, physical_model_to_json(m));
-  outputs.commit();
-  print_summary(o.json, {{"model", o.model}, {"added", o.effect}, {"effects", m.effects}},
-                fmt::format("model add: {} added to {} (effects now: {})\n", o.effect, o.model,
-                            fmt::join(m.effects, ", ")));
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"added", o.effect}, {"effects", m.effects}},
+                  fmt::format("model add: {} added{} (effects now: {})\n", o.effect,
+                              written == o.model ? " to " + o.model : fmt::format(" to {} from {}", written, o.model),
+                              fmt::join(m.effects, ", ")));
+}
+
+void run_remove(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
+  PhysicalModel m = read_physical_model(o.model);
+  m.remove_effect(o.effect);
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"removed", o.effect}, {"effects", m.effects}},
+                  fmt::format("model remove: {} removed{} (effects now: {})\n", o.effect,
+                              written == o.model ? " from " + o.model : fmt::format(", wrote {} from {}", written, o.model),
+                              m.effects.empty() ? std::string("none") : fmt::format("{}", fmt::join(m.effects, ", "))));
+}
+
+void run_define(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
+  PhysicalModel m = read_physical_model(o.model);
+  const EffectInfo e = read_effect_definition(o.from);
+  m.define_effect(e);
+  if (o.add_defined) m.add_effect(e.name);
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"defined", e.name}, {"added", o.add_defined}, {"effects", m.effects}},
+                  fmt::format("model define: {} defined{} in {} ({} block(s), {} parameter(s))\n", e.name,
+                              o.add_defined ? " and added" : "", written, e.blocks.size(), e.parameters.size()));
 }
 
 void run_export(const ModelCliOptions& o) {
@@ -81,12 +174,14 @@ void run_export(const ModelCliOptions& o) {
                                                          {"delay_in_matrices_samples", ss.delay_samples}}}}));
   outputs.commit();
   std::string text = fmt::format("model export: {} at x_b = {} m, order {}, {}\n", o.model, o.xb, ss.system.order(),
-                                 ts > 0 ? fmt::format("ZOH at {} Hz", o.rate_hz) : "continuous");
-  if (ss.input_delay_s > 0)
-    text += ts > 0 ? fmt::format("input delay {} s realised as {} samples of extra states\n", ss.input_delay_s,
-                                 ss.delay_samples)
-                   : fmt::format("note: input delay {} s is not in the continuous matrices; apply exp(-s tau)\n",
-                                 ss.input_delay_s);
+                                 ts > 0 ? fmt::format("sampled (ZOH) at {} Hz", o.rate_hz) : "continuous");
+  double largest = 0;
+  for (double t : ss.input_delay_s) largest = std::max(largest, t);
+  if (largest > 0)
+    text += ts > 0 ? fmt::format("input delays {} s realised with {} samples of registers\n",
+                                 fmt::join(ss.input_delay_s, ", "), ss.delay_samples + 1)
+                   : fmt::format("note: input delays {} s are not in the continuous matrices; apply exp(-s tau)\n",
+                                 fmt::join(ss.input_delay_s, ", "));
   if (!outputs.to_stdout())
     print_summary(o.json, {{"out", o.out}, {"order", ss.system.order()}, {"sample_period_s", ts},
                            {"input_delay_s", ss.input_delay_s}, {"delay_samples", ss.delay_samples}},
@@ -94,52 +189,78 @@ void run_export(const ModelCliOptions& o) {
 }
 
 void run_effects(const ModelCliOptions& o) {
+  const BaseInfo& b = base_info(o.base);
   nlohmann::json list = nlohmann::json::array();
-  std::string text;
-  for (const auto& e : effect_library()) {
+  std::string text = fmt::format("base {}: {}\n", b.name, b.description);
+  for (const auto& p : b.parameters)
+    text += fmt::format("  {} = {:.10g} {} in [{:.10g}, {:.10g}]{}\n", p.name, p.value, p.unit, p.lower, p.upper,
+                        p.free ? " (free)" : " (fixed)");
+  text += fmt::format("inputs {}; outputs {}; model init adds {}\n\n", fmt::join(b.input_names, ", "),
+                      fmt::join(b.output_names, ", "), fmt::join(b.default_effects, ", "));
+  for (const auto& e : effect_library(o.base)) {
     nlohmann::json params = nlohmann::json::array();
     text += fmt::format("{}: {}\n  changes: {}\n  residual signature: {}\n", e.name, e.description, e.changes,
                         e.signature);
     for (const auto& p : e.parameters) {
       params.push_back({{"name", p.name}, {"unit", p.unit}, {"value", p.value}, {"lower", p.lower},
                         {"upper", p.upper}, {"free", p.free}});
-      text += fmt::format("  {} = {} {} in [{}, {}]{}\n", p.name, p.value, p.unit, p.lower, p.upper,
+      text += fmt::format("  {} = {:.10g} {} in [{:.10g}, {:.10g}]{}\n", p.name, p.value, p.unit, p.lower, p.upper,
                           p.free ? " (free)" : " (fixed)");
     }
     list.push_back({{"name", e.name}, {"description", e.description}, {"changes", e.changes},
-                    {"signature", e.signature}, {"parameters", params}});
+                    {"signature", e.signature}, {"physics_of_the_base", e.blocks.empty()}, {"parameters", params}});
   }
-  print_summary(o.json, {{"effects", list}}, text);
+  text += "\nuser-defined effects: building blocks delay, first_order, second_order, resonance, gain, coupling, mode "
+          "(docs/effects.md; lpvid model define)\n";
+  print_summary(o.json, {{"base", b.name}, {"effects", list}}, text);
 }
 
 }  // namespace
 
 Command make_model_command() {
-  return {"model", "physical model files: init, effects, add, export", [](CLI::App& parent) {
+  return {"model", "physical model files: init, effects, add, remove, define, export", [](CLI::App& parent) {
             auto o = std::make_shared<ModelCliOptions>();
             auto* app = parent.add_subcommand("model", "Physical (grey-box) model files" + std::string(kExample));
             app->require_subcommand(1);
-            auto* init = app->add_subcommand("init", "write the default platform model file");
+            auto* init = app->add_subcommand("init", "write a model file: a base with its default effects");
             init->add_option("--out", o->out, "model file to write")->required();
-            init->add_flag("--bare", o->bare, "the base model only (no effect)");
+            init->add_option("--base", o->base, "the base model (default platform)");
+            init->add_option("--set", o->sets, "NAME=VALUE: a design value you know (repeat)");
+            init->add_flag("--bare", o->bare, "the base alone (no effect)");
             init->add_flag("--json", o->json, "print the summary as JSON");
             init->callback([o] { run_init(*o); });
-            auto* add = app->add_subcommand("add", "add an effect (with its defaults) to a model file, in place");
+            auto* add = app->add_subcommand("add", "add an effect (with its defaults) to a model file");
             add->add_option("effect", o->effect, "effect name (see 'lpvid model effects')")->required();
-            add->add_option("--model", o->model, "model file to read and rewrite")->required();
+            add->add_option("--model", o->model, "model file to read")->required();
+            add->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
             add->add_flag("--json", o->json, "print the summary as JSON");
             add->callback([o] { run_add(*o); });
+            auto* rem = app->add_subcommand("remove", "remove an effect and its parameters from a model file");
+            rem->add_option("effect", o->effect, "effect name")->required();
+            rem->add_option("--model", o->model, "model file to read")->required();
+            rem->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
+            rem->add_flag("--json", o->json, "print the summary as JSON");
+            rem->callback([o] { run_remove(*o); });
+            auto* def = app->add_subcommand("define", "declare a user-defined effect (building blocks) in a model file");
+            def->add_option("--model", o->model, "model file to read")->required();
+            def->add_option("--from", o->from, "effect definition file (JSON; lpvid diagnose --out-effect writes one)")
+                ->required();
+            def->add_flag("--add", o->add_defined, "also add the effect to the model");
+            def->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
+            def->add_flag("--json", o->json, "print the summary as JSON");
+            def->callback([o] { run_define(*o); });
             auto* exp = app->add_subcommand("export", "the model at one x_b as a state-space JSON");
             exp->add_option("--model", o->model, "model file")->required();
             exp->add_option("--xb", o->xb, "beam position x_b in m")
                 ->required()
                 ->check(number_in(-1e3, 1e3, "the beam position in m"));
-            exp->add_option("--rate-hz", o->rate_hz, "ZOH-discretise at this rate (default: continuous)")
+            exp->add_option("--rate-hz", o->rate_hz, "sample (ZOH) at this rate (default: continuous)")
                 ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it for continuous time)"));
             exp->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
             exp->add_flag("--json", o->json, "print the summary as JSON");
             exp->callback([o] { run_export(*o); });
-            auto* eff = app->add_subcommand("effects", "list the effect library");
+            auto* eff = app->add_subcommand("effects", "list a base's parameters and its effect library");
+            eff->add_option("--base", o->base, "the base (default platform)");
             eff->add_flag("--json", o->json, "print the list as JSON");
             eff->callback([o] { run_effects(*o); });
           }};

@@ -28,6 +28,7 @@
 #include "idlib/lti/interconnect.h"
 #include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/physical/platform/platform_base.h"
 #include "idlib/sim/platform_sim.h"
 
 namespace lpvid::cli {
@@ -131,7 +132,7 @@ void run(const SimulateOptions& o) {
   // are designed on its rigid-body terms, as for --set).
   std::optional<PhysicalModel> truth;
   if (!o.truth_model.empty()) truth = read_physical_model(o.truth_model);
-  const PlatformParameters params = truth ? to_platform_parameters(*truth) : parameters_with(o.overrides);
+  const PlatformParameters params = truth ? platform_parameters(*truth) : parameters_with(o.overrides);
   for (std::size_t ip = 0; ip < positions_m.size(); ++ip)
     if (!(std::abs(positions_m[ip]) <= params.beam_stroke_m))
       throw InputError(fmt::format("--positions {}: x_b = {} m is outside the stroke |x_b| <= {} m (beam_stroke_m); "

@@ -76,6 +76,7 @@ nlohmann::json write_analyzer_files(OutputSet& files, const AnalyzerCliOptions& 
     // Column j of S: what the analyzer records while input j is excited.
     FrequencyResponse part = m.sensitivity;
     part.flagged.clear();  // the analyzer flags nothing: no flag column
+    part.averages = a.averages;  // the blocks behind its coherence ('# averages: K')
     part.input_names = {m.sensitivity.input_names[static_cast<std::size_t>(j)]};
     for (std::size_t k = 0; k < part.response.size(); ++k) {
       part.response[k] = m.sensitivity.response[k].col(j);
@@ -93,6 +94,7 @@ nlohmann::json write_analyzer_files(OutputSet& files, const AnalyzerCliOptions& 
     const std::string mat = join_path(dir, "S.mat");
     FrequencyResponse whole = m.sensitivity;
     whole.flagged.clear();
+    whole.averages = a.averages;
     write_frd_mat(files.stage(mat), whole, "S");
     written.push_back(mat);
   }

@@ -48,11 +48,12 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
   auto fail = [&](const std::string& what) { detail::fail_at(path, line, 1, what); };
   if (!j.is_object()) fail(fmt::format("the line holds {} where a JSON object (one fit record) is expected", j.type_name()));
   static const std::set<std::string> known = {"timestamp", "model", "effects", "free_parameters", "cost", "error_mean",
-                                              "error_max", "channels", "aic", "bic", "note"};
+                                              "error_max", "error", "noise_floor", "channels", "aic", "bic",
+                                              "note"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key))
-      fail(fmt::format("unknown key {}; a fit record has timestamp, model, effects, free_parameters, cost, "
-                       "error_mean, error_max, channels, aic, bic, note",
+      fail(fmt::format("unknown key {}; remove it (a fit record has timestamp, model, effects, free_parameters, "
+                       "cost, error_mean, error_max, error, noise_floor, channels, aic, bic, note)",
                        detail::quote_cell(key)));
   auto need = [&](const char* key) -> const json& {
     if (!j.contains(key)) fail(fmt::format("no key '{}'; every fit record needs it (docs/formats.md, \"Fit history\")", key));
@@ -93,6 +94,9 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
   }
   for (const char* key : {"aic", "bic"})
     if (j.contains(key) && !j.at(key).is_null()) (key[0] == 'a' ? r.aic : r.bic) = number_at(j.at(key), key);
+  if (j.contains("error") && !j.at("error").is_null()) r.error = number_at(j.at("error"), "error");
+  if (j.contains("noise_floor") && !j.at("noise_floor").is_null())
+    r.noise_floor = number_at(j.at("noise_floor"), "noise_floor");
   if (j.contains("note")) r.note = string_at(j.at("note"), "note");
   try {
     r.validate();
@@ -120,6 +124,9 @@ void HistoryRecord::validate() const {
       throw InputError(fmt::format("channel '{}' <- '{}': give non-empty names and finite errors >= 0",
                                    c.output, c.input));
   if (std::isinf(aic) || std::isinf(bic)) throw InputError("aic and bic are not finite; write finite numbers or null (not computed)");
+  if (!(std::isnan(error) || nonneg(error)) || !(std::isnan(noise_floor) || nonneg(noise_floor)))
+    throw InputError(fmt::format("error {} and noise_floor {}: write finite numbers >= 0, or null (not recorded)",
+                                 error, noise_floor));
 }
 
 std::string history_path_for(const std::string& model_path) { return model_path + ".history.jsonl"; }
@@ -145,6 +152,8 @@ std::string history_line(const HistoryRecord& r) {
             {"cost", r.cost},
             {"error_mean", r.error_mean},
             {"error_max", r.error_max},
+            {"error", number_or_null(r.error)},
+            {"noise_floor", number_or_null(r.noise_floor)},
             {"channels", channels},
             {"aic", number_or_null(r.aic)},
             {"bic", number_or_null(r.bic)},
@@ -164,7 +173,7 @@ void append_history(const std::string& path, const HistoryRecord& record) {
   write_file_atomic(path, old + line + "\n");
 }
 
-std::vector<HistoryRecord> read_history(const std::string& path) {
+std::vector<HistoryRecord> read_history(const std::string& path, std::string* text_out) {
   bool exists = false;
   const std::string text = read_all(path, exists);
   if (!exists)
@@ -184,6 +193,7 @@ std::vector<HistoryRecord> read_history(const std::string& path) {
     out.push_back(parse_line(path, line, row));
     start = end + 1;
   }
+  if (text_out != nullptr) *text_out = text;
   return out;
 }
 

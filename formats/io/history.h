@@ -19,6 +19,8 @@
 // | cost            | number >= 0, the fit's final cost | required |
 // | error_mean      | number >= 0, mean weighted error (fraction, 0.01 = 1 %) | required |
 // | error_max       | number >= error_mean, largest weighted error (fraction) | required |
+// | error           | number >= 0 or null: the fit's error figure (idlib/fit/fit.h; fraction) | optional |
+// | noise_floor     | number >= 0 or null: the same figure for the data's noise | optional |
 // | channels        | array of {output, input: string; error_mean, error_max: number >= 0} | optional |
 // | aic, bic        | number or null (not computed) | optional |
 // | note            | string | optional |
@@ -49,6 +51,10 @@ struct HistoryRecord {
   Index free_parameters = 0;
   double cost = 0;
   double error_mean = 0, error_max = 0;         // fractions (0.01 = 1 %)
+  // The error figure of the fit (rms over channels; the number fit and diagnose print)
+  // and its noise floor; NaN = not recorded (records of an earlier lpvid).
+  double error = std::numeric_limits<double>::quiet_NaN();
+  double noise_floor = std::numeric_limits<double>::quiet_NaN();
   std::vector<HistoryChannelError> channels;    // may be empty
   double aic = std::numeric_limits<double>::quiet_NaN();  // NaN = not computed (null)
   double bic = std::numeric_limits<double>::quiet_NaN();
@@ -72,9 +78,10 @@ std::string utc_timestamp_now();
 //                     the file cannot be written.
 void append_history(const std::string& path, const HistoryRecord& record);
 
-// Every record, oldest first.  A missing file is an error ("no history ... fit a
-// model first").  @throws InputError "path:line:column: ..." for a bad line.
-std::vector<HistoryRecord> read_history(const std::string& path);
+// Every record, oldest first; text_out (if given) receives the file's bytes, to
+// copy a checked history unchanged.  A missing file is an error ("no history ... fit
+// a model first").  @throws InputError "path:line:column: ..." for a bad line.
+std::vector<HistoryRecord> read_history(const std::string& path, std::string* text_out = nullptr);
 
 // One record as its JSON line (without the newline).
 std::string history_line(const HistoryRecord& record);

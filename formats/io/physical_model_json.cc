@@ -4,9 +4,7 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <iostream>
-#include <sstream>
+#include <filesystem>
 
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_detail.h"
@@ -16,7 +14,8 @@
 namespace lpvid {
 namespace {
 
-using nlohmann::json;
+// ordered: a user-defined effect's parameters keep the order of the file
+using json = nlohmann::ordered_json;
 
 // 1-based line and byte column of text[offset].
 std::pair<int64_t, int64_t> position_of(const std::string& text, size_t offset) {
@@ -33,6 +32,13 @@ size_t find_key(const std::string& text, const std::string& name, size_t from) {
     if (j < text.size() && text[j] == ':') return at;
   }
   return std::string::npos;
+}
+
+// The file's JSON, checked by the bounded reader (depth, syntax, range; errors at
+// file:line:column), then parsed again in the file's order (user-defined effects).
+json parse_ordered(const std::string& path, const std::string& text) {
+  detail::parse_json(path, text);
+  return json::parse(text);
 }
 
 class Reader {
@@ -54,7 +60,7 @@ class Reader {
   }
 
   PhysicalModel read() const {
-    const json root = detail::parse_json(path_, text_);
+    const json root = parse_ordered(path_, text_);
     if (!root.is_object())
       fail_at(0, "a physical model file is a JSON object {\"format\": \"lpvid-physical-model\", ...}; see "
                  "docs/formats.md or run 'lpvid model init'");
@@ -64,15 +70,22 @@ class Reader {
                                          "init' writes one)",
                                          kPhysicalModelFormat));
     const auto version = root.find("version");
-    if (version == root.end() || !version->is_number_integer() || version->get<int>() != 1)
-      fail_at(top("version"), "key 'version' must be 1; write version 1 (the version this lpvid reads)");
+    if (version == root.end() || !version->is_number_integer() || version->get<int>() != kPhysicalModelVersion) {
+      if (version != root.end() && version->is_number_integer() && version->get<int>() == 1)
+        fail_at(top("version"), "this model file is version 1, written by an earlier lpvid whose platform base had "
+                                "no damping per DOF or bending tolerance; write a new one with 'lpvid model init' and "
+                                "copy your values into it");
+      fail_at(top("version"), fmt::format("key 'version' must be {}; write version {} (the version this lpvid "
+                                          "reads; 'lpvid model init' writes one)",
+                                          kPhysicalModelVersion, kPhysicalModelVersion));
+    }
     for (auto it = root.begin(); it != root.end(); ++it) {
-      static const char* const kKeys[] = {"format", "version", "base", "effects", "parameters", "fit"};
+      static const char* const kKeys[] = {"format", "version", "base", "effects", "definitions", "parameters", "fit"};
       bool known = false;
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
         fail_at(top(it.key()), fmt::format("unknown key {}; remove it (a model file has format, version, base, "
-                                           "effects, parameters and optionally fit)",
+                                           "effects, parameters and optionally definitions and fit)",
                                            detail::quote_cell(it.key())));
     }
     PhysicalModel model;
@@ -80,8 +93,28 @@ class Reader {
     if (base == root.end() || !base->is_string())
       fail_at(top("base"), "missing key 'base' (a string); give \"base\": \"platform\"");
     model.base = base->get<std::string>();
-    if (model.base != kPlatformBase)
-      fail_at(top("base"), fmt::format("unknown base model '{}'; write \"base\": \"platform\" (the only base)", model.base));
+    if (find_base(model.base) == nullptr) {
+      try {
+        base_info(model.base);
+      } catch (const InputError& e) {
+        fail_at(top("base"), e.what());
+      }
+    }
+    // User-defined effects first: "effects" may name them.
+    const auto defs = root.find("definitions");
+    if (defs != root.end()) {
+      if (!defs->is_object())
+        fail_at(top("definitions"), "key 'definitions' must be an object; write effect name -> {description, blocks, "
+                                    "parameters} (docs/formats.md)");
+      for (auto it = defs->begin(); it != defs->end(); ++it) {
+        const size_t at = find_key(text_, it.key(), top("definitions"));
+        try {
+          model.define_effect(effect_definition(it.key(), it.value(), at == std::string::npos ? top("definitions") : at));
+        } catch (const InputError& e) {
+          fail_at(at == std::string::npos ? top("definitions") : at, e.what());
+        }
+      }
+    }
     const auto effects = root.find("effects");
     if (effects == root.end() || !effects->is_array())
       fail_at(top("effects"), "missing key 'effects' (an array of effect names, [] for none); see 'lpvid model effects'");
@@ -89,11 +122,13 @@ class Reader {
       if (!e.is_string())
         fail_at(top("effects"), fmt::format("effects: {} is not a name; write names as strings", detail::json_excerpt(e)));
       const std::string name = e.get<std::string>();
-      if (find_effect(name) == nullptr) {
+      if (model.effect_info(name) == nullptr) {
         std::string names;
-        for (const auto& x : effect_library()) names += (names.empty() ? "" : ", ") + x.name;
+        for (const auto& x : effect_library(model.base)) names += (names.empty() ? "" : ", ") + x.name;
+        for (const auto& x : model.definitions) names += ", " + x.name + " (defined in the file)";
         fail_at(find_key(text_, "effects", 0) == std::string::npos ? 0 : text_.find("\"" + name + "\"", top("effects")),
-                fmt::format("unknown effect {}; use one of {} (lpvid model effects)", detail::quote_cell(name), names));
+                fmt::format("unknown effect {}; use one of {} (the library of base '{}'; lpvid model effects)",
+                            detail::quote_cell(name), names, model.base));
       }
       for (const auto& prev : model.effects)
         if (prev == name)
@@ -113,9 +148,9 @@ class Reader {
     // Canonical order first (base, then each effect's), then any unknown names
     // (validate() reports them).
     std::vector<std::string> order;
-    for (const auto& q : platform_base_parameters()) order.push_back(q.name);
+    for (const auto& q : base_info(model.base).parameters) order.push_back(q.name);
     for (const auto& e : model.effects)
-      for (const auto& q : find_effect(e)->parameters) order.push_back(q.name);
+      for (const auto& q : model.effect_info(e)->parameters) order.push_back(q.name);
     for (auto it = params->begin(); it != params->end(); ++it)
       if (std::find(order.begin(), order.end(), it.key()) == order.end()) order.push_back(it.key());
     for (const auto& name : order) {
@@ -137,9 +172,92 @@ class Reader {
     return model;
   }
 
+  // One user-defined effect: {"description", "blocks": [...], "parameters": {...}}.
+  EffectInfo effect_definition(const std::string& name, const json& v, size_t at) const {
+    if (!v.is_object())
+      fail_at(at, fmt::format("definition '{}' must be an object; write {{\"description\", \"blocks\", \"parameters\"}}",
+                              name));
+    for (auto it = v.begin(); it != v.end(); ++it) {
+      static const char* const kFields[] = {"name", "description", "blocks", "parameters"};
+      bool known = false;
+      for (const char* k : kFields) known = known || it.key() == k;
+      if (!known)
+        fail_at(at, fmt::format("definition '{}' has unknown field {}; remove it (the fields are description, blocks, "
+                                "parameters)",
+                                name, detail::quote_cell(it.key())));
+    }
+    EffectInfo e;
+    e.name = name;
+    e.user_defined = true;
+    const auto d = v.find("description");
+    if (d != v.end()) {
+      if (!d->is_string())
+        fail_at(at, fmt::format("definition '{}': 'description' must be a string; write it in double quotes", name));
+      e.description = d->get<std::string>();
+    }
+    if (e.description.empty()) e.description = "user-defined effect";
+    e.changes = "user-defined (docs/effects.md, building blocks)";
+    e.signature = "as its blocks say";
+    const auto blocks = v.find("blocks");
+    if (blocks == v.end() || !blocks->is_array() || blocks->empty())
+      fail_at(at, fmt::format("definition '{}' needs 'blocks'; give a non-empty array of {{\"kind\", \"side\", "
+                              "\"channels\", \"parameters\"}}",
+                              name));
+    for (const json& b : *blocks) {
+      if (!b.is_object())
+        fail_at(at, fmt::format("definition '{}': each block is an object; write {{\"kind\", \"side\", \"channels\", "
+                                "\"parameters\"}}",
+                                name));
+      for (auto it = b.begin(); it != b.end(); ++it)
+        if (it.key() != "kind" && it.key() != "side" && it.key() != "channels" && it.key() != "parameters")
+          fail_at(at, fmt::format("definition '{}': a block has unknown field {}; remove it (the fields are kind, side, "
+                                  "channels, parameters)",
+                                  name, detail::quote_cell(it.key())));
+      Block blk;
+      auto text_field = [&](const char* field) {
+        const auto f = b.find(field);
+        if (f == b.end() || !f->is_string())
+          fail_at(at, fmt::format("definition '{}': a block needs '{}'; give it as a string", name, field));
+        return f->get<std::string>();
+      };
+      auto names_field = [&](const char* field, bool required) {
+        std::vector<std::string> out;
+        const auto f = b.find(field);
+        if (f == b.end()) {
+          if (required) fail_at(at, fmt::format("definition '{}': a block needs '{}'; give an array of names", name, field));
+          return out;
+        }
+        if (!f->is_array())
+          fail_at(at, fmt::format("definition '{}': '{}' must be an array; give an array of names", name, field));
+        for (const json& x : *f) {
+          if (!x.is_string()) fail_at(at, fmt::format("definition '{}': '{}' holds {}, not a name; write names as strings", name, field,
+                                    detail::json_excerpt(x)));
+          out.push_back(x.get<std::string>());
+        }
+        return out;
+      };
+      try {
+        blk.kind = parse_block_kind(text_field("kind"));
+        blk.side = parse_block_side(text_field("side"));
+      } catch (const InputError& err) {
+        fail_at(at, fmt::format("definition '{}': {}", name, err.what()));
+      }
+      blk.channels = names_field("channels", false);
+      blk.parameters = names_field("parameters", true);
+      e.blocks.push_back(std::move(blk));
+    }
+    const auto params = v.find("parameters");
+    if (params == v.end() || !params->is_object())
+      fail_at(at, fmt::format("definition '{}' needs 'parameters'; give name -> {{value, unit, lower, upper, free}} (the "
+                              "defaults)",
+                              name));
+    for (auto it = params->begin(); it != params->end(); ++it) e.parameters.push_back(parameter(it.key(), it.value(), at));
+    return e;
+  }
+
  private:
-  PhysicalParameter parameter(const std::string& name, const json& v) const {
-    const size_t at = param(name);
+  PhysicalParameter parameter(const std::string& name, const json& v, size_t at_hint = std::string::npos) const {
+    const size_t at = at_hint != std::string::npos ? at_hint : param(name);
     if (!v.is_object())
       fail_at(at, fmt::format("parameter '{}' must be an object; write {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
                               name));
@@ -178,28 +296,87 @@ class Reader {
   const std::string& path_;
 };
 
+std::string parameter_json_text(const PhysicalParameter& p) {
+  return fmt::format("{{\"value\": {}, \"unit\": {}, \"lower\": {}, \"upper\": {}, \"free\": {}}}",
+                     json(p.value).dump(), json(p.unit).dump(), json(p.lower).dump(), json(p.upper).dump(),
+                     p.free ? "true" : "false");
+}
+
 }  // namespace
+
+nlohmann::ordered_json effect_definition_json(const EffectInfo& e) {
+  json blocks = json::array();
+  for (const Block& b : e.blocks)
+    blocks.push_back({{"kind", block_kind_name(b.kind)},
+                      {"side", block_side_name(b.side)},
+                      {"channels", b.channels},
+                      {"parameters", b.parameters}});
+  json params = json::object();
+  for (const PhysicalParameter& p : e.parameters) params[p.name] = json::parse(parameter_json_text(p));
+  return {{"description", e.description}, {"blocks", blocks}, {"parameters", params}};
+}
+
+std::string effect_definition_file(const EffectInfo& e) {
+  json j = effect_definition_json(e);
+  j["name"] = e.name;
+  return j.dump(2) + "\n";
+}
+
+EffectInfo parse_effect_definition(const std::string& text, const std::string& path) {
+  const json root = parse_ordered(path, text);
+  if (!root.is_object() || !root.contains("name") || !root["name"].is_string())
+    detail::fail_at(path, 1, 1, "an effect definition file is a JSON object with a 'name' (a string), 'description', "
+                                "'blocks' and 'parameters' (docs/formats.md; lpvid diagnose --out-effect writes one)");
+  const std::string name = root["name"].get<std::string>();
+  return Reader(text, path).effect_definition(name, root, 0);
+}
+
+EffectInfo read_effect_definition(const std::string& path) {
+  return parse_effect_definition(detail::read_json_text(path, "an effect definition file"), path);
+}
 
 PhysicalModel parse_physical_model(const std::string& text, const std::string& path) {
   return Reader(text, path).read();
+}
+
+bool is_physical_model_file(const std::string& path) {
+  // Only a regular file is probed: a pipe or stdin would be consumed by the probe.
+  std::error_code ec;
+  if (path == "-" || !std::filesystem::is_regular_file(path, ec)) return false;
+  try {
+    const std::string text = detail::read_json_text(path, "a physical model file");
+    const nlohmann::json j = detail::parse_json(path, text);
+    return j.is_object() && j.contains("format") && j["format"] == kPhysicalModelFormat;
+  } catch (const InputError&) {
+    return false;  // not readable JSON: the caller's other reader says why
+  }
 }
 
 PhysicalModel read_physical_model(const std::string& path) {
   return parse_physical_model(detail::read_json_text(path, "a physical model file"), path);
 }
 
-std::string physical_model_to_json(const PhysicalModel& model, const json& fit_section) {
+std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::json& fit_section) {
   model.validate();
   if (!fit_section.is_null() && !fit_section.is_object())
     throw InputError("the fit section of a model file must be a JSON object");
-  std::string out = fmt::format("{{\n  \"format\": \"{}\",\n  \"version\": 1,\n  \"base\": {},\n  \"effects\": {},\n",
-                                kPhysicalModelFormat, json(model.base).dump(), json(model.effects).dump());
+  std::string out = fmt::format("{{\n  \"format\": \"{}\",\n  \"version\": {},\n  \"base\": {},\n  \"effects\": {},\n",
+                                kPhysicalModelFormat, kPhysicalModelVersion, json(model.base).dump(),
+                                json(model.effects).dump());
+  if (!model.definitions.empty()) {
+    out += "  \"definitions\": {\n";
+    for (std::size_t k = 0; k < model.definitions.size(); ++k) {
+      std::string d = effect_definition_json(model.definitions[k]).dump(2);
+      for (size_t pos = d.find('\n'); pos != std::string::npos; pos = d.find('\n', pos + 1)) d.insert(pos + 1, "    ");
+      out += fmt::format("    {}: {}{}\n", json(model.definitions[k].name).dump(), d,
+                         k + 1 < model.definitions.size() ? "," : "");
+    }
+    out += "  },\n";
+  }
   out += "  \"parameters\": {\n";
   for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-    const auto& p = model.parameters[i];
-    out += fmt::format("    {}: {{\"value\": {}, \"unit\": {}, \"lower\": {}, \"upper\": {}, \"free\": {}}}{}\n",
-                       json(p.name).dump(), json(p.value).dump(), json(p.unit).dump(), json(p.lower).dump(),
-                       json(p.upper).dump(), p.free ? "true" : "false", i + 1 < model.parameters.size() ? "," : "");
+    out += fmt::format("    {}: {}{}\n", json(model.parameters[i].name).dump(), parameter_json_text(model.parameters[i]),
+                       i + 1 < model.parameters.size() ? "," : "");
   }
   out += "  }";
   if (fit_section.is_object() && !fit_section.empty()) {
@@ -212,7 +389,7 @@ std::string physical_model_to_json(const PhysicalModel& model, const json& fit_s
   return out;
 }
 
-void write_physical_model(const std::string& path, const PhysicalModel& model, const json& fit_section) {
+void write_physical_model(const std::string& path, const PhysicalModel& model, const nlohmann::json& fit_section) {
   write_file_atomic(path, physical_model_to_json(model, fit_section));
 }
 

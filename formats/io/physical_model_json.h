@@ -2,9 +2,10 @@
 //
 //   {
 //     "format": "lpvid-physical-model",
-//     "version": 1,
+//     "version": 2,
 //     "base": "platform",
-//     "effects": ["rod_twist", "com_offset", "beam_gravity"],
+//     "effects": ["beam_gravity", "theta_mount"],
+//     "definitions": {"theta_mount": {"description": ..., "blocks": [...], "parameters": {...}}},
 //     "parameters": {
 //       "J_psi_kgm2": {"value": 0.05, "unit": "kg·m²", "lower": 0.0001, "upper": 10, "free": true},
 //       ...
@@ -29,6 +30,25 @@
 namespace lpvid {
 
 inline constexpr const char* kPhysicalModelFormat = "lpvid-physical-model";
+inline constexpr int kPhysicalModelVersion = 2;
+
+// A user-defined effect as JSON {"description", "blocks": [{"kind", "side",
+// "channels", "parameters"}], "parameters": {name: {value, unit, lower, upper, free}}}
+// (the "definitions" entries of a model file).
+nlohmann::ordered_json effect_definition_json(const EffectInfo& effect);
+// The same with its "name", as a file of its own (lpvid diagnose --out-effect,
+// lpvid model define --from).
+std::string effect_definition_file(const EffectInfo& effect);
+// Reads an effect definition file.  @throws InputError "path:line:column: ..." for
+// invalid JSON, a missing name, unknown fields, kinds or sides, wrong types.  The
+// rules that need a base (channels, units) are checked when the effect is defined
+// in a model (PhysicalModel::define_effect).
+EffectInfo read_effect_definition(const std::string& path);
+EffectInfo parse_effect_definition(const std::string& text, const std::string& path);
+
+// True when path is a readable JSON file whose "format" is kPhysicalModelFormat
+// (no validation beyond that; errors are left to read_physical_model).
+bool is_physical_model_file(const std::string& path);
 
 // Reads and validates a model file ("-" reads stdin).
 PhysicalModel read_physical_model(const std::string& path);

@@ -43,7 +43,11 @@ cv::Mat render_history(const std::vector<HistoryBar>& bars, const std::string& t
         b.max_percent < b.mean_percent)
       throw InputError(fmt::format("history plot: fit {} has mean {} % and max {} %; both finite, > 0, max >= mean",
                                    k + 1, b.mean_percent, b.max_percent));
+    if (!std::isnan(b.floor_percent) && !(std::isfinite(b.floor_percent) && b.floor_percent > 0))
+      throw InputError(fmt::format("history plot: fit {} has a noise floor of {} %; finite and > 0, or none", k + 1,
+                                   b.floor_percent));
     lo = std::min(lo, b.mean_percent);
+    if (std::isfinite(b.floor_percent)) lo = std::min(lo, b.floor_percent);
     hi = std::max(hi, b.max_percent);
   }
   lo = std::pow(10.0, std::floor(std::log10(lo) - 1e-9));
@@ -75,6 +79,7 @@ cv::Mat render_history(const std::vector<HistoryBar>& bars, const std::string& t
   plot::draw_grid_y(image, a, y, tv, plot::kGridMajor);
   const double half = 0.3 * (x.to_px(2) - x.to_px(1));
   std::vector<cv::Point2d> trend;
+  bool any_floor = false;
   for (std::size_t k = 0; k < bars.size(); ++k) {
     const double px = x.to_px(static_cast<double>(k + 1));
     cv::rectangle(image, cv::Point2d(px - half, y.to_px(bars[k].mean_percent)), cv::Point2d(px + half, a.br().y - 1),
@@ -82,6 +87,12 @@ cv::Mat render_history(const std::vector<HistoryBar>& bars, const std::string& t
     plot::draw_marker(image, {px, y.to_px(bars[k].max_percent)}, plot::Marker::kSquare, plot::series_color(1),
                       kMarkerSize, a);
     trend.emplace_back(px, y.to_px(bars[k].max_percent));
+    if (std::isfinite(bars[k].floor_percent)) {
+      const double fy = y.to_px(bars[k].floor_percent);
+      plot::draw_polyline(image, {{px - 1.4 * half, fy}, {px + 1.4 * half, fy}}, plot::series_color(2), 2,
+                          plot::LineStyle::kSolid, a);
+      any_floor = true;
+    }
     plot::put_text(image, fmt::format("{:.3g}%", bars[k].mean_percent), {px, y.to_px(bars[k].mean_percent) - 4},
                    plot::tick_text(), HAlign::kCenter, VAlign::kBottom);
     plot::put_text_vertical(image, labels[k], {px, a.br().y + 12.0 + plot::text_size(labels[k], lt).width / 2.0}, lt);
@@ -90,9 +101,11 @@ cv::Mat render_history(const std::vector<HistoryBar>& bars, const std::string& t
   plot::draw_frame(image, a);
   plot::draw_y_tick_labels(image, a, y, ticks);
   plot::put_text_vertical(image, "model error [%] (log)", {kMargin + kYLabelWidth / 2.0, a.y + a.height / 2.0}, lt);
-  const std::vector<plot::LegendEntry> legend = {
-      {"mean weighted error (bar)", plot::series_color(0), plot::LineStyle::kNone, plot::Marker::kSquare},
-      {"largest error", plot::series_color(1), plot::LineStyle::kDashed, plot::Marker::kSquare}};
+  std::vector<plot::LegendEntry> legend = {
+      {"model error (bar)", plot::series_color(0), plot::LineStyle::kNone, plot::Marker::kSquare},
+      {"largest channel error", plot::series_color(1), plot::LineStyle::kDashed, plot::Marker::kSquare}};
+  if (any_floor)
+    legend.push_back({"noise floor of the data", plot::series_color(2), plot::LineStyle::kSolid, plot::Marker::kNone});
   const cv::Size ls = plot::legend_size(legend, width - 2 * kMargin);
   plot::draw_legend(image, legend, {(width - ls.width) / 2, height - kMargin - ls.height}, width - 2 * kMargin);
   return image;

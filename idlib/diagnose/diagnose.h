@@ -1,33 +1,44 @@
-// lpvid — which physical effect is missing?  For a physical model and measured
-// responses at several beam positions: refit the model as it is (the
-// baseline), then for every candidate effect of the library that the model
-// lacks, add it with its library defaults, refit everything (global start +
-// Levenberg–Marquardt, idlib/fit) and rank the candidates by the Bayesian
-// information criterion (docs/math.md, "Diagnose").
+// lpvid — which physical effect is missing?  For a physical model (any base) and
+// measured responses at several scheduling values: refit the model as it is (the
+// baseline), then for every candidate effect the model lacks (the library's and the
+// file's user-defined ones), add it with its defaults, refit everything (global
+// start + Levenberg–Marquardt, idlib/fit) and judge it against the measurement's
+// NOISE FLOOR (docs/math.md, "Diagnose").
 //
-// Why BIC.  Adding an effect never raises the least-squares cost, so the cost
-// alone always prefers the larger model.  BIC = N ln(cost/N) + p ln N charges
-// ln N per extra parameter (N = the number of real residuals, thousands here),
-// against AIC's 2: with this much data AIC lets an effect with 1–3 parameters in
-// whenever it lowers the cost by ~0.1–0.3 %, which noise alone does about one
-// time in six; BIC is consistent (the probability of choosing a superfluous
-// effect falls to zero as N grows) and its difference approximates twice the log
-// Bayes factor, for which Kass & Raftery (JASA 1995) call a difference above 10
-// "very strong" evidence.  A candidate is SIGNIFICANT when
-//     ΔBIC = BIC(candidate) − BIC(baseline) < −significance_delta_bic  (10).
-// The significance test assumes the residuals are independent with a common
-// variance after the fit's weighting (coherence weights for H1 data); smooth
-// systematic errors (e.g. a plant recovered from an identified state-space model
-// rather than measured per frequency) break that assumption and make ΔBIC
-// overconfident — diagnose is meant for measured FRDs (analyzer data, lpvid frf).
+// Why not an information criterion alone.  BIC = N ln(cost/N) + p ln N assumes the
+// model class contains the truth.  When the base is not exact, any parameter that
+// absorbs a little of the mismatch gets a huge negative ΔBIC (N ≈ 10⁴ residuals),
+// and "significant" stops meaning "this effect is what is missing".  So a candidate
+// is SIGNIFICANT only when, beyond ΔBIC < −significance_delta_bic:
+//   - there is something to explain: the baseline error e0 > explained_ratio × f,
+//     f = the effective noise floor (the error figure of the noise, σ_eff of
+//     idlib/validate/model_error.h: the measurement's noise, never below lpvid's
+//     resolution);
+//   - it explains at least min_excess_share of the EXCESS error:
+//       share = (e0² − e²) / (e0² − f²)     (errors add in quadrature);
+//   - it removes at least min_band_share of the points in failing bands (the
+//     frequencies beyond the noise);
+//   - none of its own parameters ends on a bound (a "lightly damped mode" with its
+//     damping pinned at the 0.7 bound, a lag at its largest time constant, is the
+//     fit using the effect as a patch, not finding it).
+// Candidates are ranked: significant ones first, then by the error after refitting.
+// The diagnosis is EXPLAINED when the winner is significant and its error e ≤
+// explained_ratio × f: what remains is noise.  Otherwise the winner (if any)
+// explains part ("explains 85 % of the excess; still failing: ...").
 //
-// Error figure.  "error" below is the root mean square over the nine channels of
-// the fit's per-channel relative rms error (FitResult::channels, pooled over the
-// data sets): sqrt(mean_ij e_ij²), e_ij = sqrt(mean_k |T_ij − T̂_ij|² / s_ij²).
+// Where it fails.  The baseline's model-error model against each data set gives
+// the failing bands; they are grouped into PHENOMENA (bands whose largest error sits
+// at nearly the same frequency, in whatever channel and data set), so that distinct
+// phenomena are each shown.
 //
-// Where it fails.  The baseline's model-error model against each data set
-// (idlib/validate/model_error.h) gives the failing bands (channel, band, size,
-// signature); the same for the winning candidate shows what remains.
+// When nothing in the library explains it: the residual is DESCRIBED by generic
+// low-order error models fitted on top of the model (its own parameters held): a
+// second-order resonance (pole and zero pair) or a first-order lag on one output row
+// or one input column; the best is said in plain words ("a resonance near 850 rad/s,
+// ζ ≈ 0.05, in the theta output row only — a sensor or its mount") with the
+// user-defined effect that models it (docs/effects.md, "User-defined effects").
+//
+// Error figure and noise floor: idlib/fit/fit.h (FitResult::error, noise_floor).
 #pragma once
 
 #include <string>
@@ -40,18 +51,30 @@
 namespace lpvid {
 
 struct DiagnoseOptions {
-  FitOptions fit;                       // target, controller, Ts, global start: as for fit
-  ModelErrorOptions model_error;        // significance of the residual per frequency
-  std::vector<std::string> candidates;  // effects to try; empty: every library effect the model lacks
-  double significance_delta_bic = 10.0; // > 0, see above
+  FitOptions fit;                        // target, controller, Ts, band, noise, global start: as for fit
+  ModelErrorOptions model_error;         // significance of the residual per frequency
+  std::vector<std::string> candidates;   // effects to try; empty: every effect the model lacks
+  double significance_delta_bic = 10.0;  // > 0
+  double min_excess_share = 0.5;         // in (0, 1]
+  double min_band_share = 0.5;           // in [0, 1]
+  double explained_ratio = 1.5;          // >= 1
+  bool describe = true;                  // describe an unexplained residual with generic error models
   // Every refit stops when the cost changes by less than this relative amount (or
-  // fit.function_tolerance, if larger).  ΔBIC needs the cost only to ~1e-9: its
-  // error is then N·1e-9 ≈ 3e-5 for N ≈ 3·10⁴ residuals, against the threshold of 10;
-  // Levenberg–Marquardt spends most of its time creeping from 1e-9 to fit's 1e-12
-  // (the benchmark runs 3.3× faster).  In (0, 1).
-  double refit_function_tolerance = 1e-9;
+  // fit.function_tolerance, if larger): the criteria above need the cost to ~1e-4
+  // (ΔBIC of 10 on N ≈ 10⁴ residuals is a relative cost change of ~1e-3; the shares
+  // are compared with 0.5), so 1e-6 leaves a margin of 100.
+  double refit_function_tolerance = 1e-6;
+  // Levenberg–Marquardt iterations per refit: a candidate the data cannot separate
+  // from the base (a gain beside free masses) crawls; 60 is far beyond the ~5–20 a
+  // separable one needs.
+  int refit_max_iterations = 60;
+  // Global starts of a candidate's refit (its own parameters only, beside the starts
+  // read off the failing bands): fewer than a first fit needs, the base is fitted.
+  int candidate_global_starts = 4;
 
-  // @throws InputError  a field out of range; fit or model_error options invalid.
+  // @throws InputError  a field out of range; fit or model_error options invalid;
+  //   the noise of the data unknown (checked by diagnose: data without variance,
+  //   coherence or averages and no noise level given).
   void validate() const;
 };
 
@@ -63,33 +86,62 @@ struct CandidateOutcome {
   double error = 0.0;          // error figure after the refit
   double delta_bic = 0.0;      // BIC(candidate) − BIC(baseline); < 0 is better
   double delta_aic = 0.0;      // for reference
-  bool significant = false;    // delta_bic < −significance_delta_bic
+  double excess_share = 0.0;   // share of the baseline's excess error it explains (can be < 0)
+  double band_share = 0.0;     // share of the failing-band points it removes (can be < 0)
+  Index band_points = 0;       // failing-band points left with it
+  bool own_parameter_at_bound = false;
+  bool significant = false;
+  std::string verdict;         // "significant", "not significant: ...", "at bound: ...", "refit failed"
   std::vector<ParameterEstimate> effect_parameters;  // the effect's own estimates (free ones)
+};
+
+// A generic error model fitted to the residual (header comment).
+struct ResidualDescription {
+  std::string kind;        // "resonance" or "lag"
+  std::string side;        // "output" (a row) or "input" (a column)
+  std::string channel;     // e.g. "theta"
+  double error = 0.0;      // error figure with it
+  double excess_share = 0.0;
+  bool pinned = false;     // one of its parameters ended on a bound
+  std::string text;        // plain words
+  EffectInfo effect;       // the user-defined effect that models it, with the fitted values as defaults
 };
 
 struct Diagnosis {
   FitResult baseline;
   double baseline_error = 0.0;
+  double noise_floor = 0.0;       // the measurement's (FitResult::noise_floor; NaN when unknown)
+  double effective_floor = 0.0;   // with lpvid's resolution (what "within the noise" is measured against)
+  std::string noise_source;
+  Index baseline_band_points = 0;
   // Per data set: the baseline's failing bands (after mark_differences_between_data).
   std::vector<std::vector<FailingBand>> baseline_failures;
-  std::vector<CandidateOutcome> ranked;  // fitted ones by ΔBIC ascending, then the failed ones
-  bool explained = false;                // the first ranked candidate is significant
-  // With explained: the winner's failing bands (what is still wrong after adding it).
+  std::vector<Phenomenon> phenomena;       // the baseline's, distinct, strongest first
+  std::vector<CandidateOutcome> ranked;    // significant first, then by error; failed refits last
+  bool explained = false;                  // the winner is significant and leaves only noise
+  std::string missing;                     // the winner when significant, else ""
+  // With a significant winner: its failing bands and phenomena (what is still wrong).
   std::vector<std::vector<FailingBand>> remaining_failures;
-  std::vector<std::string> summary;      // plain-words lines (what is missing, where, before/after)
+  std::vector<Phenomenon> remaining_phenomena;
+  std::vector<ResidualDescription> descriptions;  // best first (empty: nothing to describe)
+  std::vector<std::string> summary;               // plain-words lines
 };
 
-// The error figure of a fit (see the header comment).
-double fit_error(const FitResult& fit);
-
 // @throws InputError  as fit_physical_model; options invalid; a candidate unknown
-//   or already in the model.
+//   or already in the model; the data's noise unknown.
 // @throws NumericalError  the baseline refit failed.
 Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& data, const DiagnoseOptions& options);
 
-// The same model without effect `name` (its parameters dropped, everything else
-// kept with its value, bounds and free flag).
-// @throws InputError  the model does not have the effect.
-PhysicalModel without_effect(const PhysicalModel& model, const std::string& name);
+// The model-error models (per data set) of a model against the data, with the noise
+// of the fit's noise model; the failing bands per set (marked across sets).
+struct ModelErrorSet {
+  std::vector<ModelErrorModel> models;
+  std::vector<std::vector<FailingBand>> failures;
+  Index band_points = 0;           // significant points inside failing bands, over all sets
+  double effective_floor = 0.0;    // error figure of σ_eff
+};
+// @throws InputError  as target_response and model_error.
+ModelErrorSet model_errors(const PhysicalModel& model, const std::vector<FitDataset>& data, const FitOptions& fit,
+                           const ModelErrorOptions& options);
 
 }  // namespace lpvid

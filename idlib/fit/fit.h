@@ -1,47 +1,62 @@
-// lpvid — fitting the free parameters of a physical model (idlib/physical)
-// jointly to frequency responses measured at several beam positions x_b
-// (docs/math.md, "Physical fit").
+// lpvid — fitting the free parameters of a physical model (idlib/physical, any
+// base) jointly to frequency responses measured at several values of the base's
+// scheduling variable (the platform: beam positions x_b) (docs/math.md, "Physical
+// fit").
 //
-// Error.  For data set d at x_b(d), used frequency ω_k and channel (i, j):
-//   r = w_ij(ω_k) · (T_ij(θ; x_b, ω_k) − T̂_ij(ω_k)) / s_ij(ω_k),
-// complex, split into real and imaginary residuals, where
-//   T = P (target plant), G = P (I + C P)⁻¹ (closed loop v → q) or
-//       S = (I + C P)⁻¹ (input sensitivity v → u), C the known controller at
-//       the same λ (jω, or e^{jωTs} for a discrete controller);
-//   P = the model's ZOH response P(e^{jωTs}) when sample_period_s > 0, else P(jω);
-//   s_ij(ω) = sqrt(|T̂_ii(ω)| |T̂_jj(ω)|), floored at scale_floor × its largest
-//       value over the data set: a relative error per frequency, so that every
-//       decade and every channel weighs comparably, and off-diagonal channels
-//       are measured against the size of the diagonal ones (they may be ~0);
-//   w_ij(ω) = sqrt(γ² / max(1 − γ², 1e-4)) with γ² the coherence when the data
-//       carry one (the FRF's variance is ∝ (1 − γ²)/γ²), else 1; flagged
-//       frequencies are left out.
-// Cost = Σ r².
+// Noise model.  Every measured entry Ĥ_ij(ω_k) gets a standard deviation σ per real
+// part, from the data themselves (FitOptions::noise says how):
+//   1. the data's variance (FrequencyResponse::variance, E|Ĥ − H|²):  σ² = var/2;
+//   2. else coherence γ² with n_d independent averages (the data's `averages`, or
+//      FitOptions::noise.averages when the data do not state it) — the random
+//      error of an H1 estimate (Bendat & Piersol, eqs 9.52/9.90):
+//          σ² = |Ĥ|² (1 − γ²) / (2 n_d γ²);
+//   3. else a relative noise level given by the user: E|Ĥ − H|² = (level · s_ij)²;
+//   4. else unknown: σ = s_ij/√2 for the weights only (noise_known = false).
+// σ is never taken below sigma_floor · s_ij (round-off of exported numbers).
+// s_ij(ω) = sqrt(|Ĥ_ii(ω)| |Ĥ_jj(ω)|) (square responses; else the largest |Ĥ| of
+// row i), floored at scale_floor × its largest value over the data set: the scale
+// that makes channels of different units and sizes comparable.
 //
-// Parameters: the model's free parameters; one with lower bound > 0 is fitted
-// as its logarithm (scale-free steps, positivity kept), the others as they are.
+// Error.  For data set d, used frequency ω_k and channel (i, j):
+//   r = (T_ij(θ; s_d, ω_k) − Ĥ_ij(ω_k)) / σ_ij(ω_k),
+// complex, split into real and imaginary residuals, where T = P (target plant),
+// G = P (I + C P)⁻¹ (closed loop v → q) or S = (I + C P)⁻¹ (input sensitivity
+// v → u), C the known controller at the same λ (jω, or e^{jωTs}); P the model's
+// exactly sampled response when sample_period_s > 0 (fractional delays included,
+// idlib/physical/evaluate.h), else P(jω).  Cost = Σ r² (a χ² when the noise is known).
+// Frequencies flagged in the data or outside [band_min, band_max] are left out.
 //
-// Method.  (1) Global start (optional): NLopt LN_BOBYQA from the start and from
-// global_starts − 1 seeded random points in the search box (the bounds
-// intersected with [start / global_search_factor, start · global_search_factor]
-// for log parameters, start ± (upper − lower) / (2 · global_search_factor) for
-// the others), each on a subsample of global_subsample log-spaced used
-// frequencies per data set; the best end point wins.  (2) Ceres
-// Levenberg–Marquardt with bounds on all data, exact Jacobian (forward-mode
-// ceres::Jet through the model matrices and the ZOH exponential, then the
-// resolvent identities dP = Y dA X + Y dB + dC X + dD per frequency).
+// The error figure (one number per model; fit, diagnose and history all use it):
+//   error = sqrt(mean_ij e_ij²),  e_ij = sqrt(mean_k |T_ij − Ĥ_ij|² / s_ij²)
+// over every used frequency of every data set, and the NOISE FLOOR the same figure
+// for the noise alone, floor = sqrt(mean_ij mean_k 2σ_ij²/s_ij²): what an exact model
+// would score.  A model within about 1.5× the floor fits within the noise.
 //
-// Uncertainty: J the Jacobian of the residuals in natural units at the
-// estimate, σ² = cost / (N − p), covariance = σ² (JᵀJ)⁺, standard errors its
-// diagonal's roots, correlation its normalisation.  Identifiability: the
-// singular values of J with columns scaled by the parameter size (|θ|, or a
-// hundredth of the bound range for θ = 0) and then normalised; a singular value
-// below singular_value_flag × the largest names the parameter combination (its
-// right singular vector); pairs with |corr| > correlation_flag are flagged.
+// Parameters: the model's free parameters; one with lower bound > 0 is fitted as
+// its logarithm (scale-free steps, positivity kept), the others as they are.
+//
+// Method.  (1) Global start (optional): NLopt LN_BOBYQA from the start, from each
+// of `extra_starts` (e.g. a resonance frequency read off the failing bands) and
+// from global_starts − 1 seeded random points in the search box (the bounds
+// intersected with [start / factor, start · factor] for log parameters, start ±
+// (upper − lower)/(2 · factor) for the others), each on a subsample of
+// global_subsample log-spaced frequencies per data set; the best end point wins.
+// (2) Ceres Levenberg–Marquardt with bounds on all data, exact Jacobian (forward-mode
+// ceres::Jet through the model matrices, the ZOH exponentials and the fractional
+// delay, then the resolvent identities per frequency).
+//
+// Uncertainty: J the Jacobian of the residuals in natural units at the estimate,
+// σ² = cost/(N − p), covariance = σ² (JᵀJ)⁺ (so that a misjudged noise level scales
+// out), standard errors its diagonal's roots.  Identifiability: the singular values
+// of J with columns scaled by the parameter size, normalised; a singular value below
+// singular_value_flag × the largest names the combination the data cannot separate;
+// pairs with |corr| > correlation_flag are flagged; every estimate on a bound is
+// flagged ("at bound": the data want it beyond its physical range).
 // AIC = N ln(cost/N) + 2p, BIC = N ln(cost/N) + p ln N, N the real residual count.
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,20 +74,33 @@ std::string target_name(FitTarget target);
 // @throws InputError  text is none of "plant", "G", "S".
 FitTarget parse_target(const std::string& text);
 
-// One measured response at one beam position.
+// One measured response at one value of the scheduling variable.
 struct FitDataset {
-  double beam_position_m = 0.0;
-  FrequencyResponse response;  // 3×3 (inputs T_psi T_theta F_z or v, outputs psi theta z or u)
-  std::string label;           // e.g. the file name, for messages and reports
+  double beam_position_m = 0.0;  // the scheduling value (x_b for the platform)
+  FrequencyResponse response;    // n_out × n_in of the base (or of S: n_in × n_in)
+  std::string label;             // e.g. the file name, for messages and reports
+};
+
+// How the noise of the data is known (header comment, "Noise model").
+struct NoiseOptions {
+  double averages = 0;     // n_d behind coherence when the data do not state it; 0 = none given
+  double noise_level = 0;  // relative rms error of an entry (E|Ĥ−H|² = (level s_ij)²) for data
+                           // with neither variance nor coherence; 0 = none given
+  double sigma_floor = 1e-5;  // σ >= sigma_floor · s_ij; in [0, 1)
+  // @throws InputError naming the field.
+  void validate() const;
 };
 
 struct FitOptions {
   FitTarget target = FitTarget::kPlant;
   // The known controller (e = −q → u_c), needed for G and S.
   std::optional<StateSpace> controller;
-  // > 0: the model's ZOH response at this period (data identified from sampled
-  // data); 0: the continuous response.
+  // > 0: the model's sampled response at this period (data identified from
+  // sampled data); 0: the continuous response.
   double sample_period_s = 0.0;
+  // Frequencies used (rad/s); the rest of the data is left out.
+  double band_min_rad_s = 0.0, band_max_rad_s = std::numeric_limits<double>::infinity();
+  NoiseOptions noise;
 
   bool global_start = true;
   int global_starts = 8;              // >= 1 (the start itself is the first)
@@ -80,6 +108,13 @@ struct FitOptions {
   int global_subsample = 30;          // frequencies per data set, >= 2
   int global_max_evaluations = 300;   // per start, >= 10
   unsigned seed = 1;
+  // Further starting points of the global start: each a list of (parameter name,
+  // value) overriding the start model (unknown names are an error).
+  std::vector<std::vector<std::pair<std::string, double>>> extra_starts;
+  // The free parameters the global start searches over (the others stay at the
+  // start during it; Levenberg–Marquardt then moves all of them).  Empty: all.
+  // diagnose searches an added effect's own parameters this way: the rest was fitted.
+  std::vector<std::string> global_parameters;
 
   int max_iterations = 200;              // Ceres LM, >= 1
   double function_tolerance = 1e-12;     // Ceres: relative cost change to stop
@@ -95,28 +130,35 @@ struct ParameterEstimate {
   std::string name, unit;
   double start = 0.0, estimate = 0.0;
   double std_error = 0.0;  // NaN when the data cannot determine it
-  bool at_bound = false;   // estimate at (within 1e-9 relative of) a bound
-  std::vector<std::string> flags;  // e.g. "corr -0.999 with k_torque_low_Nm_per_rad"
+  double lower = 0.0, upper = 0.0;
+  bool at_bound = false;   // estimate at (within 1e-6 of the span of) a bound
+  std::vector<std::string> flags;  // e.g. "at upper bound 2", "corr -0.999 with ..."
 };
 
-// Relative rms error (same scaling as the cost, without coherence weights):
-// sqrt(mean_k |T_ij − T̂_ij|² / s_ij²) over the used frequencies.
+// Relative rms error per channel (same scaling as the error figure).
 struct ChannelFit {
   Index output = 0, input = 0;
-  double relative_rms_error = 0.0;                 // pooled over the data sets
-  std::vector<double> per_dataset;                 // one per data set, in order
+  double relative_rms_error = 0.0;   // pooled over the data sets
+  double noise_floor = 0.0;          // the same for the noise (NaN when unknown)
+  std::vector<double> per_dataset;   // one per data set, in order
 };
 
 struct FitResult {
-  PhysicalModel model;                       // start with the free values replaced by the estimates
+  PhysicalModel model;                        // start with the free values replaced by the estimates
   std::vector<ParameterEstimate> parameters;  // the free ones, in model order
   Eigen::MatrixXd covariance;                 // p × p, natural units
   Eigen::MatrixXd correlation;                // p × p
   Eigen::VectorXd singular_values;            // scaled, normalised Jacobian; relative to the largest
   std::vector<std::string> identifiability;   // one line per problem found (empty: none)
-  std::vector<ChannelFit> channels;           // 9 entries, row-major (output, input)
+  std::vector<ChannelFit> channels;           // n_out·n_in entries, row-major (output, input)
+  std::vector<std::string> output_names, input_names;  // the data's channel names (else the base's)
+  double error = 0.0;        // the error figure (header comment)
+  double noise_floor = 0.0;  // its value for the noise alone; NaN when the noise is unknown
+  bool noise_known = false;
+  std::string noise_source;  // "variance", "coherence (16 averages)", "noise level 1 %" or "unknown"
   double cost_start = 0.0, cost_global = 0.0, cost_final = 0.0;  // Σ r²
   Index residual_count = 0;                   // N (real residuals)
+  Index frequencies_used = 0;                 // over all data sets
   double sigma2 = 0.0, aic = 0.0, bic = 0.0;
   int iterations = 0;
   double seconds = 0.0;
@@ -124,14 +166,33 @@ struct FitResult {
 };
 
 // Fits start's free parameters to data.
-// @throws InputError  options invalid; start invalid; no free parameter; more
-//   than 32 free parameters; data empty, not 3×3, frequencies not > 0 and
-//   finite, x_b outside the stroke; G or S without a 3×3 controller; fewer
-//   residuals than free parameters after removing flagged frequencies.
-// @throws NumericalError  the model cannot be evaluated at the start (M not
+// @throws InputError  options invalid; start invalid; no free parameter; more than
+//   48 free parameters; data empty, of the wrong shape, frequencies not > 0 and
+//   finite, a scheduling value outside the base's range; G or S without a
+//   controller of the right shape; no frequency left in the band; fewer residuals
+//   than free parameters.
+// @throws NumericalError  the model cannot be evaluated at the start (mass matrix not
 //   positive definite) or the solver found no usable point.
 FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDataset>& data,
                              const FitOptions& options);
+
+// The error figure, its noise floor and per-channel errors of `model` on data,
+// without fitting (the same definitions as FitResult).
+struct ModelScore {
+  double error = 0.0, noise_floor = 0.0;
+  bool noise_known = false;
+  std::vector<ChannelFit> channels;
+  double cost = 0.0;
+  Index residual_count = 0;
+};
+// @throws as fit_physical_model (except the free-parameter rules).
+ModelScore score_model(const PhysicalModel& model, const std::vector<FitDataset>& data, const FitOptions& options);
+
+// The noise of one data set as the fit sees it: σ per real part (3 cases of the
+// header), per used frequency; unused frequencies get +inf.  `source` receives the
+// case ("variance", ...).  @throws InputError as fit_physical_model for one set.
+std::vector<Eigen::MatrixXd> data_sigma(const FrequencyResponse& data, const NoiseOptions& noise,
+                                        std::string* source = nullptr, bool* known = nullptr);
 
 // Response of model (target as options.target) with delta-method bands:
 //   σ_|T|ij = sqrt(g ᵀ Σ g),  g_k = Re(conj(T_ij) ∂T_ij/∂θ_k) / |T_ij|,
@@ -139,10 +200,10 @@ FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDa
 // Σ = covariance over the model's free parameters (in model order).
 struct ResponseBand {
   FrequencyResponse response;                        // nominal
-  std::vector<Eigen::MatrixXd> magnitude_sigma;      // per frequency, 3×3, units of |T|
-  std::vector<Eigen::MatrixXd> phase_sigma_rad;      // per frequency, 3×3
+  std::vector<Eigen::MatrixXd> magnitude_sigma;      // per frequency, units of |T|
+  std::vector<Eigen::MatrixXd> phase_sigma_rad;      // per frequency
 };
-// @throws InputError  covariance not p × p; as fit_physical_model for x_b and options.
+// @throws InputError  covariance not p × p; as fit_physical_model for the schedule and options.
 ResponseBand response_band(const PhysicalModel& model, const Eigen::MatrixXd& covariance, double beam_position_m,
                            const Eigen::VectorXd& omega_rad_s, const FitOptions& options);
 

@@ -110,11 +110,12 @@ Eigen::Matrix3d stiffness_matrix(const PlatformParameters& params) {
   K(0, 0) += gravity_term;
   K(1, 1) += gravity_term;
   K(2, 2) = params.k_linear_N_per_m;
-  return K;
+  return K + params.stiffness_extra;
 }
 
 Eigen::Matrix3d damping_matrix(const PlatformParameters& params) {
   params.validate();
+  if ((params.damping_override.diagonal().array() > 0.0).all()) return params.damping_override;
   const double d = params.coil_damping_Ns_per_m;
   const double r = params.coil_arm_m;
   return Eigen::Vector3d(6.0 * r * r * d, 6.0 * r * r * d, 9.0 * d).asDiagonal();

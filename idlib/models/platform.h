@@ -77,6 +77,12 @@ struct PlatformParameters {
   double com_x_m = 0.0;  // platform centre of mass (without beam) in x; couples theta–z
   double com_y_m = 0.0;  // platform centre of mass (without beam) in y; couples psi–z
   double gravity_m_per_s2 = 9.81;
+  // Generalisations used by physical models (idlib/physical, docs/effects.md): a
+  // symmetric stiffness added to eq 4's K (N·m/rad, N·m/m, N/m; zero by default),
+  // and a symmetric damping matrix replacing eq 5's diag(6 r² d, 6 r² d, 9 d) when
+  // its diagonal is > 0 (N·m·s/rad on the tilts, N·s/m on z; zero: eq 5).
+  Eigen::Matrix3d stiffness_extra = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d damping_override = Eigen::Matrix3d::Zero();
 
   // The documented defaults (docs/assumptions.md); same as a default-constructed value.
   static PlatformParameters defaults();

@@ -10,69 +10,106 @@
 namespace lpvid {
 namespace {
 
-Index at(const PhysicalModel& m, const char* name) { return m.index_of(name); }
+Index channel_of(const std::vector<std::string>& names, const std::string& name) {
+  const auto it = std::find(names.begin(), names.end(), name);
+  LPVID_ASSERT(it != names.end());  // validate() checked the channel names
+  return it - names.begin();
+}
 
 }  // namespace
 
 ModelLayout::ModelLayout(const PhysicalModel& model) {
   model.validate();
-  J_psi = at(model, "J_psi_kgm2");
-  J_theta = at(model, "J_theta_kgm2");
-  m_p = at(model, "platform_mass_kg");
-  m_b = at(model, "beam_mass_kg");
-  z_b = at(model, "beam_height_m");
-  stroke = at(model, "beam_stroke_m");
-  r_vc = at(model, "coil_arm_m");
-  d = at(model, "coil_damping_Ns_per_m");
-  k_lin = at(model, "k_linear_N_per_m");
-  k_low = at(model, "k_torque_low_Nm_per_rad");
-  rod[0] = at(model, "rod_axis_angle_1_rad");
-  rod[1] = at(model, "rod_axis_angle_2_rad");
-  rod[2] = at(model, "rod_axis_angle_3_rad");
-  k_high = at(model, "k_torque_high_Nm_per_rad");
-  com_x = at(model, "com_x_m");
-  com_y = at(model, "com_y_m");
-  J_pt = at(model, "J_psitheta_kgm2");
-  g = at(model, "gravity_m_per_s2");
-  mode_w = at(model, "mode_frequency_rad_s");
-  mode_zeta = at(model, "mode_damping");
-  phi[0] = at(model, "mode_shape_psi");
-  phi[1] = at(model, "mode_shape_theta");
-  phi[2] = at(model, "mode_shape_z");
-  delay = at(model, "input_delay_s");
-  lag = at(model, "actuator_time_constant_s");
-  gain[0] = at(model, "gain_psi");
-  gain[1] = at(model, "gain_theta");
-  gain[2] = at(model, "gain_z");
+  const BaseInfo& b = base_info(model.base);
+  base = b.name;
+  n_in = static_cast<Index>(b.input_names.size());
+  n_out = static_cast<Index>(b.output_names.size());
+  n_dof = static_cast<Index>(b.dof_names.size());
+  if (base == "platform") platform.emplace(model);
+  delays.assign(static_cast<std::size_t>(n_in), {});
+  for (const std::string& name : model.effects) {
+    const EffectInfo* e = model.effect_info(name);
+    for (const Block& blk : e->blocks) {
+      CompiledBlock c{blk.kind, blk.side, {}, {}};
+      const auto& names = blk.side == BlockSide::kOutput ? b.output_names : b.input_names;
+      for (const std::string& ch : blk.channels) c.channels.push_back(channel_of(names, ch));
+      const bool per_channel = blk.kind != BlockKind::kCoupling && blk.kind != BlockKind::kMode;
+      if (per_channel && c.channels.empty())
+        for (Index k = 0; k < static_cast<Index>(names.size()); ++k) c.channels.push_back(k);
+      for (const std::string& q : blk.parameters) c.params.push_back(model.index_of(q));
+      switch (blk.side) {
+        case BlockSide::kBody: modes.push_back(std::move(c)); break;
+        case BlockSide::kOutput: output_blocks.push_back(std::move(c)); break;
+        case BlockSide::kInput:
+          if (blk.kind == BlockKind::kDelay) {
+            for (Index ch : c.channels) delays[static_cast<std::size_t>(ch)].push_back(c.params[0]);
+          } else {
+            input_blocks.push_back(std::move(c));
+          }
+          break;
+      }
+    }
+  }
 }
 
-void check_beam_position(const PhysicalModel& model, double beam_position_m) {
-  const double stroke = model.parameter("beam_stroke_m").value;
-  if (!std::isfinite(beam_position_m) || std::abs(beam_position_m) > stroke)
-    throw InputError(fmt::format(
-        "beam position x_b = {} m is outside the stroke |x_b| <= beam_stroke_m = {} m; give x_b in metres "
-        "(e.g. -0.1, 0, 0.1) or raise beam_stroke_m",
-        beam_position_m, stroke));
+namespace {
+Index chain_states(const std::vector<ModelLayout::CompiledBlock>& blocks) {
+  Index n = 0;
+  for (const auto& b : blocks) {
+    if (b.kind == BlockKind::kFirstOrder) n += static_cast<Index>(b.channels.size());
+    if (b.kind == BlockKind::kSecondOrder || b.kind == BlockKind::kResonance)
+      n += 2 * static_cast<Index>(b.channels.size());
+  }
+  return n;
+}
+}  // namespace
+
+Index ModelLayout::input_states() const { return chain_states(input_blocks); }
+Index ModelLayout::output_states() const { return chain_states(output_blocks); }
+bool ModelLayout::has_delay() const {
+  for (const auto& d : delays)
+    if (!d.empty()) return true;
+  return false;
 }
 
-PhysicalStateSpace physical_state_space(const PhysicalModel& model, double beam_position_m, double sample_period_s) {
-  const ModelLayout layout(model);
-  check_beam_position(model, beam_position_m);
+void check_schedule(const PhysicalModel& model, double schedule) {
+  if (model.base == "platform") {
+    check_platform_beam_position(model, schedule);
+    return;
+  }
+  if (!std::isfinite(schedule)) throw InputError(fmt::format("operating point {} is not finite", schedule));
+}
+
+namespace {
+
+void check_period(double sample_period_s) {
   if (!std::isfinite(sample_period_s) || sample_period_s < 0.0)
     throw InputError(fmt::format("sample period {} s: it must be 0 (continuous) or a positive number of seconds",
                                  sample_period_s));
+}
+
+[[noreturn]] void not_positive_definite(const PhysicalModel& model, double schedule) {
+  throw InputError(fmt::format(
+      "the mass matrix of base '{}' at {} {} is not positive definite; the centre-of-mass offsets or J_psitheta are "
+      "too large for the inertias — check their values and units",
+      model.base, schedule, base_info(model.base).schedule_unit));
+}
+
+}  // namespace
+
+PhysicalStateSpace physical_state_space(const PhysicalModel& model, double schedule, double sample_period_s) {
+  const ModelLayout L(model);
+  check_schedule(model, schedule);
+  check_period(sample_period_s);
+  const BaseInfo& b = base_info(model.base);
   const Eigen::VectorXd p = model.values();
   Eigen::MatrixXd A, B, C, D;
-  if (!build_continuous<double>(layout, p.data(), beam_position_m, A, B, C, D))
-    throw InputError(fmt::format(
-        "the mass matrix at x_b = {} m is not positive definite; the centre-of-mass offsets or J_psitheta are too "
-        "large for the inertias — check their values and units",
-        beam_position_m));
+  if (!build_continuous<double>(L, p.data(), schedule, A, B, C, D)) not_positive_definite(model, schedule);
   PhysicalStateSpace out;
-  out.input_delay_s = layout.delay >= 0 ? p(layout.delay) : 0.0;
+  out.input_delay_s = input_delays<double>(L, p.data());
   StateSpace& s = out.system;
-  s.input_names = {"T_psi", "T_theta", "F_z"};
-  s.output_names = {"psi", "theta", "z"};
+  s.input_names = b.input_names;
+  s.output_names = b.output_names;
   if (sample_period_s == 0.0) {
     s.A = A;
     s.B = B;
@@ -80,61 +117,82 @@ PhysicalStateSpace physical_state_space(const PhysicalModel& model, double beam_
     s.D = D;
     return out;
   }
-  Eigen::MatrixXd Ad, Bd;
-  zoh_discretize<double>(A, B, sample_period_s, Ad, Bd);
-  const Index n = A.rows();
-  const Index d = static_cast<Index>(std::llround(out.input_delay_s / sample_period_s));
-  out.delay_samples = d;
-  const Index nd = 3 * d;
-  // Shift register per input: s_1[k+1] = u[k], s_i[k+1] = s_{i-1}[k]; the plant
-  // is driven by s_d.  State order [x; s_1; ...; s_d] (each s_i 3 entries).
-  s.A = Eigen::MatrixXd::Zero(n + nd, n + nd);
-  s.B = Eigen::MatrixXd::Zero(n + nd, 3);
-  s.C = Eigen::MatrixXd::Zero(3, n + nd);
-  s.D = D;
-  s.A.topLeftCorner(n, n) = Ad;
+  const SampledModel<double> sm = sample_model<double>(A, B, C, D, out.input_delay_s, sample_period_s);
+  const Index n = A.rows(), m = B.cols();
+  Index L_reg = 0;  // registers: b_i = u[k − i], i = 1..L_reg
+  for (Index j = 0; j < m; ++j) {
+    L_reg = std::max(L_reg, sm.shift[static_cast<std::size_t>(j)] + (sm.fractional[static_cast<std::size_t>(j)] ? 1 : 0));
+    out.delay_samples = std::max(out.delay_samples, sm.shift[static_cast<std::size_t>(j)]);
+  }
+  const Index N = n + L_reg * m;
+  s.A = Eigen::MatrixXd::Zero(N, N);
+  s.B = Eigen::MatrixXd::Zero(N, m);
+  s.C = Eigen::MatrixXd::Zero(C.rows(), N);
+  s.D = Eigen::MatrixXd::Zero(C.rows(), m);
+  s.A.topLeftCorner(n, n) = sm.Ad;
   s.C.leftCols(n) = C;
-  if (d == 0) {
-    s.B.topRows(n) = Bd;
-  } else {
-    s.A.block(0, n + nd - 3, n, 3) = Bd;
-    s.B.block(n, 0, 3, 3).setIdentity();
-    for (Index i = 1; i < d; ++i) s.A.block(n + 3 * i, n + 3 * (i - 1), 3, 3).setIdentity();
+  // x[k+1] += G u[k − lag] (lag 0: the input itself); y[k] += D_j u[k − lag_D]
+  auto add_state_term = [&](Index j, Index lag, const Eigen::VectorXd& g) {
+    if (lag == 0)
+      s.B.block(0, j, n, 1) += g;
+    else
+      s.A.block(0, n + (lag - 1) * m + j, n, 1) += g;
+  };
+  for (Index j = 0; j < m; ++j) {
+    const Index k = sm.shift[static_cast<std::size_t>(j)];
+    const bool frac = sm.fractional[static_cast<std::size_t>(j)];
+    add_state_term(j, k, sm.B_new.col(j));
+    if (frac) add_state_term(j, k + 1, sm.B_old.col(j));
+    const Index lag_d = k + (frac ? 1 : 0);
+    if (lag_d == 0)
+      s.D.col(j) = D.col(j);
+    else
+      s.C.block(0, n + (lag_d - 1) * m + j, C.rows(), 1) += D.col(j);
+  }
+  if (L_reg > 0) {
+    s.B.block(n, 0, m, m).setIdentity();
+    for (Index i = 1; i < L_reg; ++i) s.A.block(n + i * m, n + (i - 1) * m, m, m).setIdentity();
   }
   s.sample_period_s = sample_period_s;
   return out;
 }
 
-std::vector<Eigen::MatrixXcd> physical_response(const PhysicalModel& model, double beam_position_m,
+std::vector<Eigen::MatrixXcd> physical_response(const PhysicalModel& model, double schedule,
                                                 const Eigen::VectorXd& omega_rad_s, double sample_period_s) {
-  const ModelLayout layout(model);
-  check_beam_position(model, beam_position_m);
-  if (!std::isfinite(sample_period_s) || sample_period_s < 0.0)
-    throw InputError(fmt::format("sample period {} s: it must be 0 (continuous) or a positive number of seconds",
-                                 sample_period_s));
+  const ModelLayout L(model);
+  check_schedule(model, schedule);
+  check_period(sample_period_s);
   const Eigen::VectorXd p = model.values();
   Eigen::MatrixXd A, B, C, D;
-  if (!build_continuous<double>(layout, p.data(), beam_position_m, A, B, C, D))
-    throw InputError(fmt::format("the mass matrix at x_b = {} m is not positive definite; check the centre-of-mass "
-                                 "offsets, J_psitheta and their units",
-                                 beam_position_m));
-  if (sample_period_s > 0.0) {
-    Eigen::MatrixXd Ad, Bd;
-    zoh_discretize<double>(A, B, sample_period_s, Ad, Bd);
-    A = Ad;
-    B = Bd;
-  }
-  const double tau = layout.delay >= 0 ? p(layout.delay) : 0.0;
+  if (!build_continuous<double>(L, p.data(), schedule, A, B, C, D)) not_positive_definite(model, schedule);
+  const std::vector<double> tau = input_delays<double>(L, p.data());
+  const Index m = B.cols();
+  std::optional<SampledModel<double>> sm;
+  if (sample_period_s > 0.0) sm = sample_model<double>(A, B, C, D, tau, sample_period_s);
   std::vector<Eigen::MatrixXcd> out;
   out.reserve(static_cast<std::size_t>(omega_rad_s.size()));
   for (Index k = 0; k < omega_rad_s.size(); ++k) {
     const double w = omega_rad_s(k);
     if (!std::isfinite(w)) throw InputError(fmt::format("frequency {} rad/s is not finite", w));
-    const Complex lambda = sample_period_s > 0.0 ? std::exp(Complex(0.0, w * sample_period_s)) : Complex(0.0, w);
-    Eigen::MatrixXcd Z = -A.cast<Complex>();
-    Z.diagonal().array() += lambda;
-    const Eigen::MatrixXcd X = Z.partialPivLu().solve(B.cast<Complex>());
-    out.push_back((C.cast<Complex>() * X + D.cast<Complex>()) * std::exp(Complex(0.0, -w * tau)));
+    Eigen::MatrixXcd P;
+    if (sm) {
+      const Complex z = std::exp(Complex(0.0, w * sample_period_s));
+      Eigen::MatrixXcd Z = -sm->Ad.cast<Complex>();
+      Z.diagonal().array() += z;
+      const Eigen::MatrixXcd Bz = sm->B_new.cast<Complex>() + sm->B_old.cast<Complex>() / z;
+      P = C.cast<Complex>() * Z.partialPivLu().solve(Bz);
+      for (Index j = 0; j < m; ++j) {
+        const bool frac = sm->fractional[static_cast<std::size_t>(j)];
+        P.col(j) += D.col(j).cast<Complex>() * (frac ? 1.0 / z : Complex(1.0));
+        P.col(j) *= std::exp(Complex(0.0, -w * sample_period_s * static_cast<double>(sm->shift[static_cast<std::size_t>(j)])));
+      }
+    } else {
+      Eigen::MatrixXcd Z = -A.cast<Complex>();
+      Z.diagonal().array() += Complex(0.0, w);
+      P = C.cast<Complex>() * Z.partialPivLu().solve(B.cast<Complex>()) + D.cast<Complex>();
+      for (Index j = 0; j < m; ++j) P.col(j) *= std::exp(Complex(0.0, -w * tau[static_cast<std::size_t>(j)]));
+    }
+    out.push_back(std::move(P));
   }
   return out;
 }

@@ -2,132 +2,423 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
+#include <mutex>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
 namespace {
 
-PhysicalParameter p(const char* name, const char* unit, double value, double lower, double upper, bool free) {
-  return PhysicalParameter{name, unit, value, lower, upper, free};
+PhysicalParameter par(std::string name, std::string unit, double value, double lower, double upper, bool free) {
+  return PhysicalParameter{std::move(name), std::move(unit), value, lower, upper, free};
 }
 
-std::vector<PhysicalParameter> make_base() {
-  const PlatformParameters d = PlatformParameters::defaults();
-  // Bounds: wide physical ranges around the documented defaults
-  // (docs/assumptions.md), so that a start 2x off and the global start's
-  // search box both lie inside; positive quantities have positive lower bounds
-  // (the fit works on their logarithm).
-  return {
-      p("J_psi_kgm2", "kg·m²", d.J_psi_kgm2, 1e-4, 10.0, true),
-      p("J_theta_kgm2", "kg·m²", d.J_theta_kgm2, 1e-4, 10.0, true),
-      p("platform_mass_kg", "kg", d.platform_mass_kg, 0.1, 100.0, true),
-      p("beam_mass_kg", "kg", d.beam_mass_kg, 0.01, 20.0, true),
-      p("beam_height_m", "m", d.beam_height_m, -0.5, 0.5, false),
-      p("beam_stroke_m", "m", d.beam_stroke_m, 1e-3, 1.0, false),
-      p("coil_arm_m", "m", d.coil_arm_m, 1e-3, 1.0, false),
-      p("coil_damping_Ns_per_m", "N·s/m", d.coil_damping_Ns_per_m, 1e-3, 1e4, true),
-      p("k_linear_N_per_m", "N/m", d.k_linear_N_per_m, 1.0, 1e7, true),
-      p("k_torque_low_Nm_per_rad", "N·m/rad", d.k_torque_low_Nm_per_rad, 0.0, 1e5, false),
-      p("rod_axis_angle_1_rad", "rad", d.rod_axis_angles_rad[0], -7.0, 7.0, false),
-      p("rod_axis_angle_2_rad", "rad", d.rod_axis_angles_rad[1], -7.0, 7.0, false),
-      p("rod_axis_angle_3_rad", "rad", d.rod_axis_angles_rad[2], -7.0, 7.0, false),
-  };
+std::string join(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;
+  return out;
 }
 
-std::vector<EffectInfo> make_library() {
-  const PlatformParameters d = PlatformParameters::defaults();
-  return {
-      {"structural_mode", "an extra lightly damped (non-rigid) mode above ~400 rad/s",
-       "adds phi phiᵀ / (s² + 2 zeta w s + w²) to P (collocated, driven by the same wrench); 2 states",
-       "a narrow peak/notch pair in several channels at one frequency, above the rigid-body band",
-       {p("mode_frequency_rad_s", "rad/s", 600.0, 300.0, 6000.0, true),
-        p("mode_damping", "1", 0.02, 1e-4, 0.7, true),
-        p("mode_shape_psi", "1/(kg^0.5·m)", 1.0, -100.0, 100.0, true),
-        p("mode_shape_theta", "1/(kg^0.5·m)", 1.0, -100.0, 100.0, true),
-        p("mode_shape_z", "1/kg^0.5", 0.3, -100.0, 100.0, true)}},
-      {"input_delay", "pure delay tau on all inputs (computation + ZOH half-sample)",
-       "multiplies P by exp(-j w tau): magnitude unchanged, phase -w tau",
-       "a phase lag growing linearly with frequency in every channel, magnitude fits",
-       {p("input_delay_s", "s", 5e-4, 0.0, 0.02, true)}},
-      {"actuator_lag", "first-order coil current lag 1/(tau_a s + 1), tau_a = L/R (seed 001 eqs 10–13)",
-       "inserts 1/(tau_a s + 1) on each of the three inputs; 3 states",
-       "magnitude roll-off and phase lag near and above 1/tau_a in every channel",
-       {p("actuator_time_constant_s", "s", 5e-4, 1e-6, 0.1, true)}},
-      {"gain_error", "per-DOF actuator gain (e.g. the 1.5 of eq 9's printed z row)",
-       "multiplies input j of P by g_j: P -> P diag(g_psi, g_theta, g_z)",
-       "a frequency-independent magnitude ratio in the columns of one input",
-       {p("gain_psi", "1", 1.0, 0.05, 20.0, true), p("gain_theta", "1", 1.0, 0.05, 20.0, true),
-        p("gain_z", "1", 1.0, 0.05, 20.0, true)}},
-      {"rod_twist", "torsional stiffness of the suspension rods (k_torque_high, Fig. 7)",
-       "adds k_torque_high s_j s_jᵀ per rod to the tilt block of K",
-       "a low-frequency gain error and a too-low resonance in the tilt channels",
-       {p("k_torque_high_Nm_per_rad", "N·m/rad", d.k_torque_high_Nm_per_rad, 1e-3, 1e5, true)}},
-      {"com_offset", "platform centre-of-mass offsets and product of inertia",
-       "M(0,2) = m_p c_y, M(1,2) += m_p c_x, M(0,1) = J_psitheta",
-       "off-diagonal (coupling) error between the tilts and z, or between the two tilts",
-       {p("com_x_m", "m", d.com_x_m, -0.05, 0.05, true), p("com_y_m", "m", d.com_y_m, -0.05, 0.05, true),
-        p("J_psitheta_kgm2", "kg·m²", d.J_psitheta_kgm2, -0.05, 0.05, true)}},
-      {"beam_gravity", "gravity stiffness -z_b m_b g of the raised beam",
-       "adds -z_b m_b g to the two tilt diagonals of K",
-       "a small low-frequency tilt gain error (softer tilts)",
-       {p("gravity_m_per_s2", "m/s²", d.gravity_m_per_s2, 0.0, 20.0, false)}},
-  };
+// The shape unit of a collocated mode for a DOF measured in `unit`: the modal
+// coordinate is in kg^0.5·m, so phi maps it to the DOF's unit.
+std::string shape_unit(const std::string& dof_unit) { return dof_unit == "m" ? "1/kg^0.5" : "1/(kg^0.5·m)"; }
+
+// Ratio unit "to/from" for a static coupling, "1" when equal.
+std::string ratio_unit(const std::string& to, const std::string& from) {
+  if (to == from) return "1";
+  return to + "/" + from;
 }
 
-std::string library_names() {
-  std::string names;
-  for (const auto& e : effect_library()) names += (names.empty() ? "" : ", ") + e.name;
-  return names;
+// The block effects every base shares, with the base's channel names.
+std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
+  std::vector<EffectInfo> out;
+  const std::size_t n = b.dof_names.size();
+  {
+    EffectInfo e{"structural_mode", "an extra lightly damped (non-rigid) mode above the rigid-body band",
+                 "adds phi phiᵀ / (s² + 2 zeta w s + w²) to P (collocated: driven by the same wrench it is seen in); "
+                 "2 states",
+                 "a narrow peak/notch pair in several channels at one frequency, above the rigid-body band",
+                 {par("mode_frequency_rad_s", "rad/s", 600.0, 300.0, 6000.0, true),
+                  par("mode_damping", "1", 0.02, 1e-4, 0.7, true)},
+                 {},
+                 false};
+    Block blk{BlockKind::kMode, BlockSide::kBody, {}, {"mode_frequency_rad_s", "mode_damping"}};
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::string name = "mode_shape_" + b.dof_names[i];
+      // a tilt-like shape of 1/sqrt(J)-size and a translation of 0.3/sqrt(m)-size
+      e.parameters.push_back(par(name, shape_unit(b.output_units[i]), b.output_units[i] == "m" ? 0.3 : 1.0, -100.0,
+                                 100.0, true));
+      blk.parameters.push_back(name);
+    }
+    e.blocks.push_back(blk);
+    out.push_back(e);
+  }
+  out.push_back({"input_delay", "pure delay tau on all inputs (computation time + the ZOH's half sample)",
+                 "multiplies P by exp(-s tau); in sampled form exact for fractional samples (the input switches tau "
+                 "after each sample)",
+                 "a phase lag growing linearly with frequency in every channel, magnitude fits",
+                 {par("input_delay_s", "s", 5e-4, 0.0, 0.02, true)},
+                 {{BlockKind::kDelay, BlockSide::kInput, {}, {"input_delay_s"}}},
+                 false});
+  out.push_back({"actuator_lag", "first-order actuator (coil current) lag 1/(tau_a s + 1), tau_a = L/R (seed 001 eqs "
+                 "10–13)",
+                 "inserts 1/(tau_a s + 1) on every input; one state per input",
+                 "magnitude roll-off and phase lag near and above 1/tau_a in every channel",
+                 {par("actuator_time_constant_s", "s", 5e-4, 1e-6, 0.1, true)},
+                 {{BlockKind::kFirstOrder, BlockSide::kInput, {}, {"actuator_time_constant_s"}}},
+                 false});
+  {
+    EffectInfo e{"gain_error", "per-input actuator gain (e.g. the 1.5 of eq 9's printed z row, a coil constant)",
+                 "multiplies input j of P by g_j: P -> P diag(g)",
+                 "a frequency-independent magnitude ratio in the columns of one input",
+                 {},
+                 {},
+                 false};
+    Block blk{BlockKind::kGain, BlockSide::kInput, b.input_names, {}};
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::string name = "gain_" + b.dof_names[j];
+      e.parameters.push_back(par(name, "1", 1.0, 0.05, 20.0, true));
+      blk.parameters.push_back(name);
+    }
+    e.blocks.push_back(blk);
+    out.push_back(e);
+  }
+  {
+    EffectInfo e{"sensor_gain", "per-output sensor gain (a sensor's sensitivity, the measurement transformation T)",
+                 "multiplies output i of P by g_i: P -> diag(g) P",
+                 "a frequency-independent magnitude ratio in the rows of one output",
+                 {},
+                 {},
+                 false};
+    Block blk{BlockKind::kGain, BlockSide::kOutput, b.output_names, {}};
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::string name = "sensor_gain_" + b.dof_names[i];
+      e.parameters.push_back(par(name, "1", 1.0, 0.05, 20.0, true));
+      blk.parameters.push_back(name);
+    }
+    e.blocks.push_back(blk);
+    out.push_back(e);
+  }
+  {
+    EffectInfo e{"sensor_crosstalk", "static cross-talk between the measured outputs (sensor or transformation)",
+                 "y_to += c y_from for every ordered pair of outputs: P -> (I + X) P",
+                 "off-diagonal errors that follow the shape of another output's row",
+                 {},
+                 {},
+                 false};
+    for (std::size_t a = 0; a < n; ++a)
+      for (std::size_t t = 0; t < n; ++t) {
+        if (a == t) continue;
+        const std::string name = "crosstalk_" + b.dof_names[a] + "_to_" + b.dof_names[t];
+        const std::string unit = ratio_unit(b.output_units[t], b.output_units[a]);
+        // ±0.5 of the ratio of units: far beyond any plausible cross-talk
+        e.parameters.push_back(par(name, unit, 0.0, -0.5, 0.5, true));
+        e.blocks.push_back({BlockKind::kCoupling, BlockSide::kOutput, {b.output_names[a], b.output_names[t]}, {name}});
+      }
+    out.push_back(e);
+  }
+  return out;
+}
+
+struct Registry {
+  std::vector<BaseInfo> bases;
+  std::map<std::string, std::vector<EffectInfo>> libraries;
+};
+
+const Registry& registry() {
+  static const Registry r = [] {
+    Registry reg;
+    reg.bases.push_back(make_platform_base());
+    for (const BaseInfo& b : reg.bases) {
+      std::vector<EffectInfo> lib = b.physics_effects;
+      for (EffectInfo& e : shared_block_effects(b)) lib.push_back(std::move(e));
+      reg.libraries[b.name] = std::move(lib);
+    }
+    return reg;
+  }();
+  return r;
+}
+
+std::string base_names() {
+  std::vector<std::string> names;
+  for (const BaseInfo& b : base_library()) names.push_back("\"" + b.name + "\"");
+  return join(names);
+}
+
+Index channel_index(const std::vector<std::string>& names, const std::string& name) {
+  const auto it = std::find(names.begin(), names.end(), name);
+  return it == names.end() ? -1 : it - names.begin();
 }
 
 }  // namespace
 
-const std::vector<PhysicalParameter>& platform_base_parameters() {
-  static const std::vector<PhysicalParameter> base = make_base();
-  return base;
+std::string block_kind_name(BlockKind kind) {
+  switch (kind) {
+    case BlockKind::kDelay: return "delay";
+    case BlockKind::kFirstOrder: return "first_order";
+    case BlockKind::kSecondOrder: return "second_order";
+    case BlockKind::kResonance: return "resonance";
+    case BlockKind::kGain: return "gain";
+    case BlockKind::kCoupling: return "coupling";
+    case BlockKind::kMode: return "mode";
+  }
+  return "?";
 }
 
-const std::vector<EffectInfo>& effect_library() {
-  static const std::vector<EffectInfo> library = make_library();
-  return library;
+std::string block_side_name(BlockSide side) {
+  switch (side) {
+    case BlockSide::kInput: return "input";
+    case BlockSide::kOutput: return "output";
+    case BlockSide::kBody: return "body";
+  }
+  return "?";
 }
 
-const EffectInfo* find_effect(const std::string& name) {
-  for (const auto& e : effect_library())
+BlockKind parse_block_kind(const std::string& text) {
+  for (BlockKind k : {BlockKind::kDelay, BlockKind::kFirstOrder, BlockKind::kSecondOrder, BlockKind::kResonance,
+                      BlockKind::kGain, BlockKind::kCoupling, BlockKind::kMode})
+    if (block_kind_name(k) == text) return k;
+  throw InputError(fmt::format("block kind '{}' is unknown; use delay, first_order, second_order, resonance, gain, "
+                               "coupling or mode",
+                               text));
+}
+
+BlockSide parse_block_side(const std::string& text) {
+  for (BlockSide s : {BlockSide::kInput, BlockSide::kOutput, BlockSide::kBody})
+    if (block_side_name(s) == text) return s;
+  throw InputError(fmt::format("block side '{}' is unknown; use input, output or body (modes)", text));
+}
+
+std::vector<std::string> block_parameter_units(const BaseInfo& b, const Block& blk) {
+  const std::string kind = block_kind_name(blk.kind);
+  const bool input = blk.side == BlockSide::kInput, output = blk.side == BlockSide::kOutput;
+  const auto& names = input ? b.input_names : b.output_names;
+  const auto& units = input ? b.input_units : b.output_units;
+  auto check_side = [&](bool ok, const char* allowed) {
+    if (!ok)
+      throw InputError(fmt::format("a {} block cannot sit on the {} side; it belongs on the {} side", kind,
+                                   block_side_name(blk.side), allowed));
+  };
+  auto check_channels = [&]() {
+    for (const std::string& c : blk.channels)
+      if (channel_index(names, c) < 0)
+        throw InputError(fmt::format("{} block: channel '{}' is not an {} of base '{}'; its {}s are {}", kind, c,
+                                     block_side_name(blk.side), b.name, block_side_name(blk.side), join(names)));
+    for (std::size_t a = 0; a < blk.channels.size(); ++a)
+      for (std::size_t c = a + 1; c < blk.channels.size(); ++c)
+        if (blk.channels[a] == blk.channels[c])
+          throw InputError(fmt::format("{} block: channel '{}' is listed twice; list each channel once", kind,
+                                       blk.channels[a]));
+  };
+  switch (blk.kind) {
+    case BlockKind::kDelay:
+      check_side(input, "input");
+      check_channels();
+      return {"s"};
+    case BlockKind::kFirstOrder:
+      check_side(input || output, "input or output");
+      check_channels();
+      return {"s"};
+    case BlockKind::kSecondOrder:
+      check_side(input || output, "input or output");
+      check_channels();
+      return {"rad/s", "1"};
+    case BlockKind::kResonance:
+      check_side(input || output, "input or output");
+      check_channels();
+      return {"rad/s", "1", "rad/s", "1"};
+    case BlockKind::kGain: {
+      check_side(input || output, "input or output");
+      check_channels();
+      if (blk.channels.empty())
+        throw InputError("gain block: list its channels (one gain parameter per channel, in the same order)");
+      return std::vector<std::string>(blk.channels.size(), "1");
+    }
+    case BlockKind::kCoupling: {
+      check_side(input || output, "input or output");
+      check_channels();
+      if (blk.channels.size() != 2)
+        throw InputError(fmt::format("coupling block: give two channels [from, to], got {}", blk.channels.size()));
+      return {ratio_unit(units[static_cast<std::size_t>(channel_index(names, blk.channels[1]))],
+                         units[static_cast<std::size_t>(channel_index(names, blk.channels[0]))])};
+    }
+    case BlockKind::kMode: {
+      check_side(blk.side == BlockSide::kBody, "body");
+      if (!blk.channels.empty()) throw InputError("mode block: a mode has no channels (its shape has one entry per DOF)");
+      std::vector<std::string> u{"rad/s", "1"};
+      for (const std::string& unit : b.output_units) u.push_back(shape_unit(unit));
+      return u;
+    }
+  }
+  return {};
+}
+
+const std::vector<BaseInfo>& base_library() { return registry().bases; }
+
+const BaseInfo* find_base(const std::string& name) {
+  for (const BaseInfo& b : base_library())
+    if (b.name == name) return &b;
+  return nullptr;
+}
+
+const BaseInfo& base_info(const std::string& name) {
+  const BaseInfo* b = find_base(name);
+  if (b == nullptr) throw InputError(fmt::format("unknown base model '{}'; the bases are {}", name, base_names()));
+  return *b;
+}
+
+const std::vector<EffectInfo>& effect_library(const std::string& base) {
+  base_info(base);  // throws for an unknown base
+  return registry().libraries.at(base);
+}
+
+const EffectInfo* find_effect(const std::string& base, const std::string& name) {
+  if (find_base(base) == nullptr) return nullptr;
+  for (const EffectInfo& e : effect_library(base))
     if (e.name == name) return &e;
   return nullptr;
 }
 
-PhysicalModel PhysicalModel::bare_platform() {
+PhysicalModel PhysicalModel::bare(const std::string& base) {
   PhysicalModel m;
-  m.parameters = platform_base_parameters();
+  m.base = base;
+  m.parameters = base_info(base).parameters;
   return m;
 }
 
-PhysicalModel PhysicalModel::default_platform() {
-  PhysicalModel m = bare_platform();
-  m.add_effect("rod_twist");
-  m.add_effect("com_offset");
-  m.add_effect("beam_gravity");
+PhysicalModel PhysicalModel::initial(const std::string& base) {
+  PhysicalModel m = bare(base);
+  for (const std::string& e : base_info(base).default_effects) m.add_effect(e);
   return m;
+}
+
+const EffectInfo* PhysicalModel::effect_info(const std::string& name) const {
+  if (const EffectInfo* e = find_effect(base, name)) return e;
+  for (const EffectInfo& d : definitions)
+    if (d.name == name) return &d;
+  return nullptr;
+}
+
+std::vector<std::string> PhysicalModel::absent_effects() const {
+  std::vector<std::string> out;
+  for (const EffectInfo& e : effect_library(base))
+    if (!has_effect(e.name)) out.push_back(e.name);
+  for (const EffectInfo& d : definitions)
+    if (!has_effect(d.name)) out.push_back(d.name);
+  return out;
 }
 
 void PhysicalModel::add_effect(const std::string& name) {
-  const EffectInfo* e = find_effect(name);
-  if (e == nullptr)
-    throw InputError(fmt::format("unknown effect '{}'; the library has {}", name, library_names()));
+  const EffectInfo* e = effect_info(name);
+  if (e == nullptr) {
+    std::vector<std::string> names;
+    for (const EffectInfo& x : effect_library(base)) names.push_back(x.name);
+    for (const EffectInfo& d : definitions) names.push_back(d.name + " (user-defined)");
+    throw InputError(fmt::format("unknown effect '{}'; the library of base '{}' has {}", name, base, join(names)));
+  }
   if (has_effect(name))
     throw InputError(fmt::format("effect '{}' is already in the model; each effect can be added once", name));
+  for (const PhysicalParameter& q : e->parameters)
+    if (index_of(q.name) >= 0)
+      throw InputError(fmt::format("effect '{}' needs parameter '{}', which the model already has (from another "
+                                   "effect); rename the user-defined effect's parameters",
+                                   name, q.name));
   effects.push_back(name);
-  for (const auto& q : e->parameters) parameters.push_back(q);
+  for (const PhysicalParameter& q : e->parameters) parameters.push_back(q);
+  for (const std::string& h : e->holds)
+    for (const PhysicalParameter& design : base_info(base).parameters)
+      if (design.name == h) {
+        PhysicalParameter& q = parameter(h);
+        q.value = design.value;
+        q.free = false;
+      }
+}
+
+void PhysicalModel::remove_effect(const std::string& name) {
+  if (!has_effect(name))
+    throw InputError(fmt::format("the model has no effect '{}' to remove; it has {}", name,
+                                 effects.empty() ? std::string("none") : join(effects)));
+  const EffectInfo* e = effect_info(name);
+  LPVID_ASSERT(e != nullptr);
+  effects.erase(std::find(effects.begin(), effects.end(), name));
+  for (const PhysicalParameter& q : e->parameters) {
+    const Index i = index_of(q.name);
+    if (i >= 0) parameters.erase(parameters.begin() + i);
+  }
+  for (const std::string& h : e->holds)
+    if (index_of(h) >= 0) parameter(h).free = true;
+}
+
+void PhysicalModel::define_effect(const EffectInfo& def) {
+  const BaseInfo& b = base_info(base);
+  auto fail = [&](const std::string& what) {
+    throw InputError(fmt::format("user-defined effect '{}': {}", def.name, what));
+  };
+  if (def.name.empty() || def.name.find_first_of(" \t\r\n,\"") != std::string::npos)
+    throw InputError(fmt::format("user-defined effect name '{}': give a name without blanks, commas or quotes",
+                                 def.name));
+  if (find_effect(base, def.name) != nullptr)
+    fail("the library already has an effect of that name; choose another name");
+  for (const EffectInfo& d : definitions)
+    if (d.name == def.name) fail("it is defined twice; define each effect once");
+  if (def.blocks.empty()) fail("it has no blocks; give at least one building block (docs/effects.md)");
+  // parameters: unique, not clashing with the base's, finite, bounds ordered
+  for (std::size_t k = 0; k < def.parameters.size(); ++k) {
+    const PhysicalParameter& q = def.parameters[k];
+    if (q.name.empty()) fail("a parameter has an empty name");
+    for (std::size_t j = 0; j < k; ++j)
+      if (def.parameters[j].name == q.name) fail(fmt::format("parameter '{}' is declared twice", q.name));
+    for (const PhysicalParameter& bp : b.parameters)
+      if (bp.name == q.name) fail(fmt::format("parameter '{}' is a parameter of the base; choose another name", q.name));
+    if (!std::isfinite(q.value) || !std::isfinite(q.lower) || !std::isfinite(q.upper) || q.lower > q.upper ||
+        q.value < q.lower || q.value > q.upper)
+      fail(fmt::format("parameter '{}': value {} and bounds [{}, {}] must be finite with lower <= value <= upper",
+                       q.name, q.value, q.lower, q.upper));
+  }
+  std::vector<bool> used(def.parameters.size(), false);
+  for (const Block& blk : def.blocks) {
+    std::vector<std::string> units;
+    try {
+      units = block_parameter_units(b, blk);
+    } catch (const InputError& e) {
+      fail(e.what());
+    }
+    if (blk.parameters.size() != units.size())
+      fail(fmt::format("a {} block takes {} parameter(s) ({}), got {}", block_kind_name(blk.kind), units.size(),
+                       join(units), blk.parameters.size()));
+    for (std::size_t k = 0; k < blk.parameters.size(); ++k) {
+      const auto it = std::find_if(def.parameters.begin(), def.parameters.end(),
+                                   [&](const PhysicalParameter& q) { return q.name == blk.parameters[k]; });
+      if (it == def.parameters.end())
+        fail(fmt::format("its {} block uses parameter '{}', which the effect does not declare",
+                         block_kind_name(blk.kind), blk.parameters[k]));
+      if (it->unit != units[k])
+        fail(fmt::format("parameter '{}' has unit '{}' but its place in the {} block takes '{}'", it->name, it->unit,
+                         block_kind_name(blk.kind), units[k]));
+      used[static_cast<std::size_t>(it - def.parameters.begin())] = true;
+      const bool positive = units[k] == "s" || units[k] == "rad/s";
+      if (positive && it->lower <= 0 && !(blk.kind == BlockKind::kDelay && it->lower == 0))
+        fail(fmt::format("parameter '{}' ({}) must have a lower bound > 0", it->name, units[k]));
+      if (blk.kind == BlockKind::kDelay && it->lower < 0)
+        fail(fmt::format("delay '{}' must have a lower bound >= 0", it->name));
+      if (units[k] == "1" && (blk.kind == BlockKind::kSecondOrder || blk.kind == BlockKind::kResonance ||
+                              blk.kind == BlockKind::kMode) && (k == 1 || k == 3) && it->lower <= 0)
+        fail(fmt::format("damping '{}' must have a lower bound > 0", it->name));
+    }
+  }
+  for (std::size_t k = 0; k < used.size(); ++k)
+    if (!used[k]) fail(fmt::format("parameter '{}' is declared but no block uses it", def.parameters[k].name));
+  EffectInfo copy = def;
+  copy.user_defined = true;
+  definitions.push_back(std::move(copy));
 }
 
 bool PhysicalModel::has_effect(const std::string& name) const {
-  for (const auto& e : effects)
-    if (e == name) return true;
-  return false;
+  return std::find(effects.begin(), effects.end(), name) != effects.end();
 }
 
 Index PhysicalModel::index_of(const std::string& name) const {
@@ -139,9 +430,9 @@ Index PhysicalModel::index_of(const std::string& name) const {
 const PhysicalParameter& PhysicalModel::parameter(const std::string& name) const {
   const Index i = index_of(name);
   if (i < 0) {
-    std::string names;
-    for (const auto& q : parameters) names += (names.empty() ? "" : ", ") + q.name;
-    throw InputError(fmt::format("the model has no parameter '{}'; it has {}", name, names));
+    std::vector<std::string> names;
+    for (const auto& q : parameters) names.push_back(q.name);
+    throw InputError(fmt::format("the model has no parameter '{}'; give one of {}", name, join(names)));
   }
   return parameters[static_cast<std::size_t>(i)];
 }
@@ -164,15 +455,24 @@ std::vector<Index> PhysicalModel::free_indices() const {
 }
 
 void PhysicalModel::validate() const {
-  if (base != kPlatformBase)
-    throw InputError(fmt::format("unknown base model '{}'; the only base is \"platform\"", base));
-  // The expected parameter list: base, then each effect's.
+  const BaseInfo& b = base_info(base);
+  // Definitions: re-check each against the base (a copy defines them one by one).
+  {
+    PhysicalModel check;
+    check.base = base;
+    for (const EffectInfo& d : definitions) check.define_effect(d);
+  }
   std::vector<const PhysicalParameter*> expected;
-  for (const auto& q : platform_base_parameters()) expected.push_back(&q);
+  for (const auto& q : b.parameters) expected.push_back(&q);
   for (std::size_t k = 0; k < effects.size(); ++k) {
-    const EffectInfo* e = find_effect(effects[k]);
-    if (e == nullptr)
-      throw InputError(fmt::format("unknown effect '{}'; the library has {}", effects[k], library_names()));
+    const EffectInfo* e = effect_info(effects[k]);
+    if (e == nullptr) {
+      std::vector<std::string> names;
+      for (const EffectInfo& x : effect_library(base)) names.push_back(x.name);
+      throw InputError(fmt::format("unknown effect '{}'; the library of base '{}' has {}{}", effects[k], base,
+                                   join(names),
+                                   definitions.empty() ? std::string() : " (and the user-defined effects of the file)"));
+    }
     for (std::size_t j = 0; j < k; ++j)
       if (effects[j] == effects[k])
         throw InputError(fmt::format("effect '{}' is listed twice; list each effect once", effects[k]));
@@ -184,7 +484,10 @@ void PhysicalModel::validate() const {
       if (x->name == q.name) lib = x;
     if (lib == nullptr) {
       std::string owner;
-      for (const auto& e : effect_library())
+      for (const auto& e : effect_library(base))
+        for (const auto& x : e.parameters)
+          if (x.name == q.name) owner = e.name;
+      for (const auto& e : definitions)
         for (const auto& x : e.parameters)
           if (x.name == q.name) owner = e.name;
       throw InputError(owner.empty()
@@ -217,30 +520,6 @@ void PhysicalModel::validate() const {
                                    x->value));
     if (count > 1) throw InputError(fmt::format("parameter '{}' is given {} times; give it once", x->name, count));
   }
-}
-
-PlatformParameters to_platform_parameters(const PhysicalModel& model) {
-  model.validate();
-  auto v = [&](const char* name) { return model.parameter(name).value; };
-  PlatformParameters pp;
-  pp.J_psi_kgm2 = v("J_psi_kgm2");
-  pp.J_theta_kgm2 = v("J_theta_kgm2");
-  pp.platform_mass_kg = v("platform_mass_kg");
-  pp.beam_mass_kg = v("beam_mass_kg");
-  pp.beam_height_m = v("beam_height_m");
-  pp.beam_stroke_m = v("beam_stroke_m");
-  pp.coil_arm_m = v("coil_arm_m");
-  pp.coil_damping_Ns_per_m = v("coil_damping_Ns_per_m");
-  pp.k_linear_N_per_m = v("k_linear_N_per_m");
-  pp.k_torque_low_Nm_per_rad = v("k_torque_low_Nm_per_rad");
-  pp.rod_axis_angles_rad = {v("rod_axis_angle_1_rad"), v("rod_axis_angle_2_rad"), v("rod_axis_angle_3_rad")};
-  pp.k_torque_high_Nm_per_rad = model.has_effect("rod_twist") ? v("k_torque_high_Nm_per_rad") : 0.0;
-  const bool com = model.has_effect("com_offset");
-  pp.com_x_m = com ? v("com_x_m") : 0.0;
-  pp.com_y_m = com ? v("com_y_m") : 0.0;
-  pp.J_psitheta_kgm2 = com ? v("J_psitheta_kgm2") : 0.0;
-  pp.gravity_m_per_s2 = model.has_effect("beam_gravity") ? v("gravity_m_per_s2") : 0.0;
-  return pp;
 }
 
 }  // namespace lpvid

@@ -1,29 +1,39 @@
-// lpvid — physical (grey-box) models: a base model plus a list of effects, each
-// effect a small documented unit with named parameters (docs/effects.md).
+// lpvid — physical (grey-box) models: a BASE (the physics of one system, e.g. the
+// seed-000 platform) plus a list of EFFECTS, each a small documented unit with
+// named parameters (docs/effects.md).  One framework for every base: the
+// parameters (value, unit, bounds, free), the effects (library or user-defined),
+// their building blocks and the validation are here; each base's physics lives in
+// its own folder (idlib/physical/platform/).
 //
-// A PhysicalModel is a flat list of parameters, each {name, unit, value,
-// lower, upper, free}: first the base ("platform", seed 000 eqs 2–8), then the
-// parameters of each enabled effect in the order the effects were added.  The
-// names are globally unique (an effect never reuses a base name), so a
-// parameter is addressed by its name alone; its unit is part of its name
-// (STYLE.md item 2) and also stored as text for the model file.
+// A model is
 //
-// Base "platform" parameters (PlatformParameters fields of idlib/models/platform.h):
-//   J_psi_kgm2, J_theta_kgm2, platform_mass_kg, beam_mass_kg, beam_height_m,
-//   beam_stroke_m, coil_arm_m, coil_damping_Ns_per_m, k_linear_N_per_m,
-//   k_torque_low_Nm_per_rad, rod_axis_angle_1_rad .. rod_axis_angle_3_rad.
-// The terms of PlatformParameters that belong to an effect are zero while that
-// effect is off: k_torque_high (rod_twist), com_x, com_y, J_psitheta
-// (com_offset), the gravity stiffness -z_b m_b g (beam_gravity).
+//   u ──► [input blocks] ──► w ──► base (M(s) q = B_w w, plus modes) ──► q ──► [output blocks] ──► y
 //
-// Default free set (the parameters plant FRDs at several x_b can separate;
-// docs/effects.md, "Identifiability"): J_psi, J_theta, m_p, m_b, d, k_linear,
-// and each effect's own parameters except g.  Fixed: z_b (it enters M only as
-// J + m_b z_b² and K only as k - z_b m_b g, both inseparable from the inertias
-// and stiffnesses), r_vc (the coil pitch is geometry; with d free it is
-// separable only through the tilt/z damping ratio), the rod angles, the stroke,
-// k_torque_low (the designed leaf-spring bending stiffness; with three rods
-// 120° apart only k_torque_low + k_torque_high enters K) and g.
+// with u the base's inputs (the platform: T_psi T_theta F_z) and y its outputs (psi
+// theta z).  The base is a second-order rigid body M q'' + D q' + K q = w whose
+// M, D, K depend on the base's parameters, on its scheduling variable (the
+// platform: the beam position x_b) and on the PHYSICS effects of that base
+// (rod twist, centre-of-mass offsets, beam gravity).  All other effects are made
+// of BUILDING BLOCKS that any base shares:
+//
+// | block        | side          | parameters (in this order)             | transfer function / action |
+// |--------------|---------------|----------------------------------------|----------------------------|
+// | delay        | input         | tau_s                                  | e^{-s tau} on each listed input |
+// | first_order  | input, output | tau_s                                  | 1/(tau s + 1) on each listed channel |
+// | second_order | input, output | omega_rad_s, zeta                      | omega²/(s² + 2 zeta omega s + omega²) |
+// | resonance    | input, output | omega_p, zeta_p, omega_z, zeta_z       | (omega_p²/omega_z²)(s² + 2 zeta_z omega_z s + omega_z²)/(s² + 2 zeta_p omega_p s + omega_p²) (unit DC gain) |
+// | gain         | input, output | g (one per listed channel, in order)   | channel × g |
+// | coupling     | input, output | c                                      | channel[1] += c × channel[0] (static cross-talk) |
+// | mode         | body          | omega_rad_s, zeta, shape per DOF       | eta'' + 2 zeta omega eta' + omega² eta = phiᵀ w, q += phi eta (collocated) |
+//
+// "Listed channels" empty means every channel of that side.  A parameter may be
+// shared by several blocks (one lag time constant on every input).  Input delays
+// are applied exactly in discrete time, including fractional samples
+// (idlib/physical/evaluate.h).
+//
+// Parameters.  A model is a flat list of parameters: the base's, then those of
+// each enabled effect in the order the effects were added.  Names are unique in a
+// model and carry their unit (STYLE.md item 2); the unit is also stored as text.
 #pragma once
 
 #include <Eigen/Core>
@@ -31,12 +41,11 @@
 #include <vector>
 
 #include "idlib/core/types.h"
-#include "idlib/models/platform.h"
 
 namespace lpvid {
 
 struct PhysicalParameter {
-  std::string name;  // unique in a model, unit suffix included (e.g. "coil_damping_Ns_per_m")
+  std::string name;  // unique in a model, unit suffix included (e.g. "damping_z_Ns_per_m")
   std::string unit;  // as text, e.g. "N·s/m"; "1" for dimensionless
   double value = 0.0;
   double lower = 0.0;  // bounds, lower <= value <= upper, both finite
@@ -44,47 +53,105 @@ struct PhysicalParameter {
   bool free = false;  // estimated by fit, else held at value
 };
 
-// One entry of the effect library.
+enum class BlockKind { kDelay, kFirstOrder, kSecondOrder, kResonance, kGain, kCoupling, kMode };
+enum class BlockSide { kInput, kOutput, kBody };
+
+// "delay", "first_order", ... and "input", "output", "body".
+std::string block_kind_name(BlockKind kind);
+std::string block_side_name(BlockSide side);
+// @throws InputError  unknown text (the message lists the allowed names).
+BlockKind parse_block_kind(const std::string& text);
+BlockSide parse_block_side(const std::string& text);
+
+// One building block (table above).  channels are channel NAMES of the base
+// (inputs for side input, outputs for side output); parameters are parameter
+// names of the model, in the order the table gives for the kind.  A mode takes
+// 2 + (number of DOFs) parameters: omega, zeta, then the shape entry of each DOF.
+struct Block {
+  BlockKind kind = BlockKind::kGain;
+  BlockSide side = BlockSide::kInput;
+  std::vector<std::string> channels;
+  std::vector<std::string> parameters;
+};
+
+// A library or user-defined effect.
 struct EffectInfo {
   std::string name;         // e.g. "input_delay"
   std::string description;  // one line
   std::string changes;      // how it changes the model (one or two sentences)
   std::string signature;    // the residual signature it explains
   std::vector<PhysicalParameter> parameters;  // with their defaults and bounds
+  std::vector<Block> blocks;  // empty: a physics effect of its base (its terms enter M, D, K)
+  bool user_defined = false;  // declared in a model file, not in the library
+  // Base parameters the data cannot separate from this effect's own: adding the
+  // effect holds them at their design values (the base's defaults, not free), so
+  // that the effect carries what goes beyond the design (rod_twist: the tilt
+  // stiffness beyond the rods' designed bending).  Removing the effect frees them.
+  std::vector<std::string> holds;
 };
 
-// The name of the only base model there is so far.
-inline constexpr const char* kPlatformBase = "platform";
+// What a base is: its parameters and channels.  The physics is in the base's
+// folder (evaluate.h dispatches on the name).
+struct BaseInfo {
+  std::string name;         // "platform"
+  std::string description;  // one line
+  std::vector<PhysicalParameter> parameters;             // defaults, bounds, free flags
+  std::vector<std::string> input_names, input_units;     // e.g. T_psi N·m
+  std::vector<std::string> output_names, output_units;   // e.g. psi rad
+  std::vector<std::string> dof_names;                    // q, e.g. psi theta z (outputs are q)
+  std::string schedule_name;  // the scheduling variable, e.g. "beam position x_b"; "" = none
+  std::string schedule_unit;  // "m"
+  std::vector<std::string> default_effects;  // what `model init` adds
+  std::vector<EffectInfo> physics_effects;   // this base's physics effects
+};
 
-// The base parameters with their defaults (PlatformParameters::defaults(),
-// docs/assumptions.md), units, bounds and default free flags.
-const std::vector<PhysicalParameter>& platform_base_parameters();
+// The bases there are ("platform").
+const std::vector<BaseInfo>& base_library();
+// The base of that name, or nullptr.
+const BaseInfo* find_base(const std::string& name);
+// @throws InputError  unknown base (the message lists the bases).
+const BaseInfo& base_info(const std::string& name);
 
-// The effect library, in a fixed order: structural_mode, input_delay,
-// actuator_lag, gain_error, rod_twist, com_offset, beam_gravity.
-const std::vector<EffectInfo>& effect_library();
-
-// The library entry of name, or nullptr.
-const EffectInfo* find_effect(const std::string& name);
+// The effect library of a base: its physics effects, then the block effects every
+// base shares, instantiated with the base's channel names (structural_mode,
+// input_delay, actuator_lag, gain_error, sensor_gain, sensor_crosstalk).
+const std::vector<EffectInfo>& effect_library(const std::string& base);
+// The library entry of name for base, or nullptr.
+const EffectInfo* find_effect(const std::string& base, const std::string& name);
 
 struct PhysicalModel {
-  std::string base = kPlatformBase;
-  std::vector<PhysicalParameter> parameters;  // base first, then each effect's
+  std::string base = "platform";
+  std::vector<PhysicalParameter> parameters;  // base first, then each enabled effect's
   std::vector<std::string> effects;           // enabled effects, in order
+  // User-defined effects declared in the model file (enabled or not); their names
+  // differ from the library's.
+  std::vector<EffectInfo> definitions;
 
-  // The base model alone (no effect).
-  static PhysicalModel bare_platform();
-  // The base model with rod_twist, com_offset and beam_gravity: the same
-  // physics as platform_model(PlatformParameters::defaults(), x_b).
-  static PhysicalModel default_platform();
+  // The base alone (no effect).  @throws InputError unknown base.
+  static PhysicalModel bare(const std::string& base = "platform");
+  // The base with its default effects (`lpvid model init`).
+  static PhysicalModel initial(const std::string& base = "platform");
 
-  // Adds the effect with its library defaults.
-  // @throws InputError  unknown effect (the message lists the library); already enabled.
+  // The library entry or user definition of an effect name, or nullptr.
+  const EffectInfo* effect_info(const std::string& name) const;
+  // Every effect the model could add (library + definitions) that it lacks.
+  std::vector<std::string> absent_effects() const;
+
+  // Adds the effect (library or definition) with its default parameters, and holds
+  // the base parameters it names in `holds` at their design values.
+  // @throws InputError  unknown effect (the message lists what there is); already enabled.
   void add_effect(const std::string& name);
+  // Removes an enabled effect and its parameters (everything else kept as it is);
+  // the base parameters it held become free again.
+  // @throws InputError  the model does not have it.
+  void remove_effect(const std::string& name);
+  // Declares a user-defined effect (not enabled).  @throws InputError  as validate()
+  // for the definition: name clashes with the library, a block's channel or
+  // parameter unknown, parameter counts of a kind, units of its kind.
+  void define_effect(const EffectInfo& definition);
 
   bool has_effect(const std::string& name) const;
-  // Index into parameters, or -1.
-  Index index_of(const std::string& name) const;
+  Index index_of(const std::string& name) const;  // -1 when absent
   // @throws InputError  unknown parameter name (the message lists the model's names).
   const PhysicalParameter& parameter(const std::string& name) const;
   PhysicalParameter& parameter(const std::string& name);
@@ -92,17 +159,20 @@ struct PhysicalModel {
   Eigen::VectorXd values() const;
   std::vector<Index> free_indices() const;
 
-  // Every rule a model file can break, as InputError naming the parameter:
-  // base is "platform"; effects known and not repeated; the parameter list is
-  // exactly the base's plus each effect's (no unknown, none missing, none
-  // twice); unit equals the library unit; value and bounds finite;
-  // lower <= upper; lower <= value <= upper.
+  // Every rule a model can break, as InputError naming the parameter or effect:
+  // base known; effects known (library or definitions) and not repeated; the
+  // parameter list is exactly the base's plus each enabled effect's (no unknown,
+  // none missing, none twice); unit equals the library's (or the definition's);
+  // value and bounds finite; lower <= upper; lower <= value <= upper; each
+  // definition valid (define_effect).
   void validate() const;
 };
 
-// The PlatformParameters equivalent of model (effects off -> their terms 0).
-// Effects with no PlatformParameters counterpart (structural_mode, input_delay,
-// actuator_lag, gain_error) are ignored here.  @throws InputError as validate().
-PlatformParameters to_platform_parameters(const PhysicalModel& model);
+// The unit a building block gives each of its parameters for a base, e.g.
+// first_order -> {"s"}; gain on output "z" -> {"1"}; coupling from psi to z on the
+// output side -> {"m/rad"}; a mode -> {"rad/s", "1", shape units per DOF}.
+// @throws InputError  a channel unknown for that side, wrong channel count, side
+//   not allowed for the kind.
+std::vector<std::string> block_parameter_units(const BaseInfo& base, const Block& block);
 
 }  // namespace lpvid

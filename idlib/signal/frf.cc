@@ -73,6 +73,7 @@ struct Spectra {
   Eigen::MatrixXcd uu;  // bins x m(m+1)/2: entries (a, b), a <= b, row-major upper triangle
   Eigen::MatrixXcd yu;  // bins x p m: entry (i, j) in column i * m + j
   Eigen::MatrixXd yy;   // bins x p: S_yiyi
+  std::vector<Index> segments_per_experiment;  // segments averaged from each experiment of the group
   Spectra(Index bins, Index m, Index p)
       : uu(Eigen::MatrixXcd::Zero(bins, m * (m + 1) / 2)),
         yu(Eigen::MatrixXcd::Zero(bins, p * m)),
@@ -149,10 +150,6 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
         "experiment needs N >= segment_length: use a shorter segment",
         nseg, n_min));
   }
-  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
-  const Index bins = nseg / 2 + 1;
-  const Index F = nseg / 2;
-
   // Channel statistics (also the finiteness check) and classification.
   std::vector<std::vector<Channel>> vs(E), ys(E);
   std::vector<std::vector<Index>> excited(E);
@@ -184,6 +181,14 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   if (single_input)
     single_input = std::all_of(input_covered.begin(), input_covered.end(), [](bool b) { return b; });
   const Index num_groups = single_input ? m : 1;
+
+  // The H1 estimate with segments of nseg samples (response, coherence, flags,
+  // averages; no variance).  Called for the estimate and, for its leakage bias, with
+  // twice the segment length.
+  auto welch = [&](const Index nseg) {
+  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
+  const Index bins = nseg / 2 + 1;
+  const Index F = nseg / 2;
   std::vector<Spectra> groups(static_cast<size_t>(num_groups), Spectra(bins, m, p));
 
   // Window.
@@ -202,6 +207,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   for (Index e = 0; e < E; ++e) {
     Spectra& g = groups[static_cast<size_t>(single_input ? excited[e][0] : 0)];
     const Index n = experiments[e].excitation.rows();
+    g.segments_per_experiment.push_back(n >= nseg ? (n - nseg) / step + 1 : 0);
     for (Index s0 = 0; s0 + nseg <= n; s0 += step) {
       for (Index c = 0; c < m + p; ++c) {
         const Channel& ch = c < m ? vs[e][c] : ys[e][c - m];
@@ -220,6 +226,33 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   }
 
   FrequencyResponse out;
+  // Independent averages behind the coherence (Welch 1967, eq. for the variance of
+  // averaged overlapping periodograms): K segments whose windows overlap are worth
+  //   n_d = K / (1 + 2 Σ_{l=1}^{K−1} (1 − l/K) c(l)),  c(l) = (Σ_t w_t w_{t+l·step})² / (Σ_t w_t²)²
+  // independent ones (Hann at 50 %: c(1) ≈ 0.028, n_d ≈ 0.947 K for large K).  Summed
+  // over the experiments of a group; the smallest group counts (the noisiest column).
+  {
+    std::vector<double> c;
+    double w2 = 0.0;
+    for (Index t = 0; t < nseg; ++t) w2 += window[t] * window[t];
+    for (Index l = 1; l * step < nseg; ++l) {
+      double acc = 0.0;
+      for (Index t = 0; t + l * step < nseg; ++t) acc += window[t] * window[t + l * step];
+      c.push_back((acc * acc) / (w2 * w2));
+    }
+    double smallest = INFINITY;
+    for (const Spectra& g : groups) {
+      double nd = 0.0;
+      for (Index K : g.segments_per_experiment) {
+        double denom = 1.0;
+        for (Index l = 1; l < K && l <= static_cast<Index>(c.size()); ++l)
+          denom += 2.0 * (1.0 - static_cast<double>(l) / static_cast<double>(K)) * c[static_cast<size_t>(l - 1)];
+        nd += static_cast<double>(K) / denom;
+      }
+      smallest = std::min(smallest, nd);
+    }
+    out.averages = std::isfinite(smallest) && smallest >= 1.0 ? smallest : 0.0;
+  }
   out.omega_rad_s.resize(F);
   out.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(p, m));
   out.coherence.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(p, m));
@@ -279,6 +312,82 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
         const double explained = (H.row(i) * Syu.row(i).adjoint())(0, 0).real();
         coh.row(i).setConstant(Syy(i) > 0.0 ? std::clamp(explained / Syy(i), 0.0, 1.0) : 0.0);
       }
+    }
+  }
+  return out;
+  };
+
+  FrequencyResponse out = welch(nseg);
+  const Index F = nseg / 2;
+  // Variance: the mean-square error of each entry (docs/math.md, "FRF variance"):
+  //   random part   |Ĥ|² (1 − γ²)/(n_d γ²)            (H1 with n_d averages, single-input
+  //                                                     design; the multiple coherence else)
+  //   leakage bias  b ≈ Ĥ''/6 per bin²                 (Hann: the power spectral window's
+  //                  second moment is 1/3 bin², so H1 = H smoothed gives H + H''/6; a
+  //                  rectangular window is meant for periodic data whose period divides
+  //                  the segment, which do not leak: no bias term)
+  // with Ĥ'' the second difference over neighbouring unflagged bins (one-sided at the
+  // ends), and |b|² reduced by the random part's share in that difference (so that an
+  // unbiased line is not inflated).  Measured on an independent closed loop (60 s at
+  // 1 kHz): without the bias term the error beyond 10–100 rad/s is 2.4–2.7x the
+  // coherence's prediction, with it 1.1–1.3x; above 100 rad/s 0.9–1.0x either way.
+  const double second_moment = options.window == FrfOptions::Window::kHann ? 1.0 / 3.0 : 0.0;
+  // a line without coherence carries no information: a finite stand-in for ∞ (its
+  // weight in a fit is then zero)
+  constexpr double kNoInformation = 1e300;
+  const double nd = out.averages;
+  if (nd > 0) {
+    out.variance.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(p, m));
+    std::vector<Index> used;
+    for (Index k = 0; k < F; ++k)
+      if (!out.flagged[static_cast<size_t>(k)]) used.push_back(k);
+    auto random_var = [&](Index k, Index i, Index j) {
+      const double g2 = out.coherence[static_cast<size_t>(k)](i, j);
+      const double h2 = std::norm(out.response[static_cast<size_t>(k)](i, j));
+      return g2 > 0 ? h2 * (1.0 - g2) / (nd * g2) : INFINITY;
+    };
+    // The same estimate with segments twice as long, when every experiment holds at
+    // least kFineSegments of them: its bias is a quarter of ours (∝ 1/nseg² while the
+    // peaks are resolved), so Ĥ − Ĥ₂ ≈ (3/4) b (Richardson).  It catches what the
+    // curvature misses at peaks narrower than a few bins (the smoothed Ĥ'' is then far
+    // below the true one).
+    constexpr Index kFineSegments = 3;
+    const Index step_fine = std::max<Index>(1, 2 * nseg - static_cast<Index>(std::lround(options.overlap * 2 * nseg)));
+    const bool have_fine = second_moment > 0 && n_min >= 2 * nseg + (kFineSegments - 1) * step_fine;
+    FrequencyResponse fine;
+    if (have_fine) fine = welch(2 * nseg);
+    const double nd_fine = have_fine ? fine.averages : 0.0;
+    for (std::size_t u = 0; u < used.size(); ++u) {
+      const Index k = used[u];
+      for (Index i = 0; i < p; ++i)
+        for (Index j = 0; j < m; ++j) {
+          double var = random_var(k, i, j);
+          double richardson_bias2 = 0.0;
+          if (have_fine && nd_fine > 0 && std::isfinite(var) && !fine.flagged[static_cast<size_t>(2 * k + 1)]) {
+            const auto kf = static_cast<size_t>(2 * k + 1);  // bin k+1 of ours is bin 2(k+1) of the fine grid
+            const double g2 = fine.coherence[kf](i, j);
+            const double h2 = std::norm(fine.response[kf](i, j));
+            const double var_fine = g2 > 0 ? h2 * (1.0 - g2) / (nd_fine * g2) : INFINITY;
+            const double d2 = std::norm(out.response[static_cast<size_t>(k)](i, j) - fine.response[kf](i, j));
+            if (std::isfinite(var_fine)) richardson_bias2 = std::max(0.0, (16.0 / 9.0) * (d2 - var - var_fine));
+          }
+          double curvature_bias2 = 0.0;
+          if (used.size() >= 3 && std::isfinite(var)) {
+            // three neighbouring lines around k (shifted inward at the ends)
+            const std::size_t c = std::clamp<std::size_t>(u, 1, used.size() - 2);
+            const Index a = used[c - 1], b = used[c], e = used[c + 1];
+            const auto& R = out.response;
+            const Complex d2 = R[static_cast<size_t>(e)](i, j) - 2.0 * R[static_cast<size_t>(b)](i, j) +
+                               R[static_cast<size_t>(a)](i, j);
+            const double bias = std::abs(d2) * second_moment / 2.0;
+            const double noise_in_d2 =
+                (random_var(a, i, j) + 4.0 * random_var(b, i, j) + random_var(e, i, j)) * (second_moment / 2.0) *
+                (second_moment / 2.0);
+            if (std::isfinite(noise_in_d2)) curvature_bias2 = std::max(0.0, bias * bias - noise_in_d2);
+          }
+          var += std::max(curvature_bias2, richardson_bias2);
+          out.variance[static_cast<size_t>(k)](i, j) = std::isfinite(var) ? var : kNoInformation;
+        }
     }
   }
   return out;

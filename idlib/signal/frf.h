@@ -33,7 +33,15 @@
 // | response[k]     | p x m complex, units of y per unit of v |
 // | coherence[k]    | p x m, in [0, 1] (meaning below) |
 // | flagged[k]      | F entries |
+// | averages        | independent averages behind the coherence (below) |
+// | variance[k]     | p x m, mean-square error of each entry: random (coherence) + leakage bias² (frf.cc) |
 // | names           | empty (ExperimentView carries none) |
+//
+// averages: the K segments of a column's experiments overlap, so they are worth
+// n_d = K / (1 + 2 Σ_l (1 − l/K) c(l)) independent averages (Welch 1967; c(l) the
+// squared correlation of the window with itself shifted by l steps; Hann at 50 %
+// overlap: n_d ≈ 0.947 K); the smallest over the columns is returned, so that the
+// H1 noise E|Ĥ − H|² = |Ĥ|² (1 − γ²)/(n_d γ²) holds for every entry.
 //
 // What coherence(i, j) means (decided from the excitation pattern, see
 // "experiment classification" below):

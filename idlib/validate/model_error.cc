@@ -31,18 +31,11 @@ std::string signed_db(double v) { return fmt::format("{}{:.1f} dB", v >= 0 ? "+"
 }  // namespace
 
 void ModelErrorOptions::validate() const {
-  if (!std::isfinite(averages) || averages < 1)
-    throw InputError(fmt::format("model error: {} averages; the H1 estimate needs at least 1 (use --averages N)",
-                                 averages));
   if (!(confidence > 0 && confidence < 1))
     throw InputError(fmt::format("model error: confidence {}; must lie strictly between 0 and 1 (e.g. 0.99)",
                                  confidence));
-  if (!std::isfinite(default_relative_sigma) || default_relative_sigma <= 0)
-    throw InputError(fmt::format("model error: default relative noise {}; must be finite and > 0 (e.g. 0.02)",
-                                 default_relative_sigma));
-  if (!std::isfinite(relative_sigma_floor) || relative_sigma_floor < 0)
-    throw InputError(fmt::format("model error: relative noise floor {}; must be finite and >= 0",
-                                 relative_sigma_floor));
+  if (!std::isfinite(resolution) || resolution < 0)
+    throw InputError(fmt::format("model error: resolution {}; must be finite and >= 0 (e.g. 0.001)", resolution));
   if (min_band_points < 1)
     throw InputError(fmt::format("model error: minimum band of {} points; must be >= 1", min_band_points));
   if (max_gap_points < 0)
@@ -57,16 +50,15 @@ double confidence_radius(double confidence) {
 }
 
 ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eigen::MatrixXcd>& model,
-                            const ModelErrorOptions& options) {
+                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options) {
   options.validate();
   const std::size_t F = data.response.size();
   if (F == 0) throw InputError("model error: the data hold no frequencies");
-  if (static_cast<std::size_t>(data.omega_rad_s.size()) != F || model.size() != F)
-    throw InputError(fmt::format("model error: {} data responses, {} frequencies and {} model responses; they must match",
-                                 F, data.omega_rad_s.size(), model.size()));
+  if (static_cast<std::size_t>(data.omega_rad_s.size()) != F || model.size() != F || sigma.size() != F)
+    throw InputError(fmt::format("model error: {} data responses, {} frequencies, {} model responses and {} noise "
+                                 "levels; they must match",
+                                 F, data.omega_rad_s.size(), model.size(), sigma.size()));
   const Index p = data.num_outputs(), m = data.num_inputs();
-  if (!data.coherence.empty() && data.coherence.size() != F)
-    throw InputError("model error: the data's coherence must have one entry per frequency");
   if (!data.flagged.empty() && data.flagged.size() != F)
     throw InputError("model error: the data's flags must have one entry per frequency");
   ModelErrorModel r;
@@ -74,40 +66,38 @@ ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eig
   r.data = data.response;
   r.model = model;
   r.k = confidence_radius(options.confidence);
-  r.coherence_used = !data.coherence.empty();
   r.skipped.assign(F, false);
   for (std::size_t f = 0; f < F; ++f) {
     if (data.response[f].rows() != p || data.response[f].cols() != m || model[f].rows() != p ||
-        model[f].cols() != m)
-      throw InputError(fmt::format("model error: at {:.6g} rad/s the data are {}x{} and the model {}x{}; they must match",
+        model[f].cols() != m || sigma[f].rows() != p || sigma[f].cols() != m)
+      throw InputError(fmt::format("model error: at {:.6g} rad/s the data are {}x{}, the model {}x{} and the noise "
+                                   "{}x{}; they must match",
                                    data.omega_rad_s(f), data.response[f].rows(), data.response[f].cols(),
-                                   model[f].rows(), model[f].cols()));
+                                   model[f].rows(), model[f].cols(), sigma[f].rows(), sigma[f].cols()));
     r.skipped[f] = !data.flagged.empty() && data.flagged[f];
     Eigen::MatrixXcd e = data.response[f] - model[f];
-    Eigen::MatrixXd s(p, m), rad(p, m);
+    Eigen::MatrixXd s(p, m), sc(p, m), rad(p, m);
     BoolMatrix sig = BoolMatrix::Constant(p, m, false);
     for (Index i = 0; i < p; ++i) {
-      // Without coherence the noise of output i is shared by its whole row.
       const double row_max = data.response[f].row(i).cwiseAbs().maxCoeff();
       for (Index j = 0; j < m; ++j) {
         if (!r.skipped[f] && (!finite(data.response[f](i, j)) || !finite(model[f](i, j))))
           throw InputError(fmt::format("model error: non-finite response of output {}, input {} at {:.6g} rad/s",
                                        i + 1, j + 1, data.omega_rad_s(f)));
-        const double mag = std::abs(data.response[f](i, j));
-        if (r.coherence_used) {
-          const double g2 = data.coherence[f](i, j);
-          double rel = g2 > 0 ? std::sqrt(std::max(0.0, 1.0 - g2) / (2.0 * options.averages * g2)) : kInf;
-          rel = std::max(rel, options.relative_sigma_floor);
-          s(i, j) = std::isinf(rel) ? kInf : rel * mag;
-        } else {
-          s(i, j) = std::max(options.default_relative_sigma * row_max, options.relative_sigma_floor * mag);
-        }
+        sc(i, j) = p == m ? std::sqrt(std::abs(data.response[f](i, i)) * std::abs(data.response[f](j, j))) : row_max;
+        const double sg = sigma[f](i, j);
+        if (!(sg > 0) && !(sg == 0 && options.resolution > 0))
+          throw InputError(fmt::format("model error: noise level {} of output {}, input {} at {:.6g} rad/s; it must "
+                                       "be > 0",
+                                       sg, i + 1, j + 1, data.omega_rad_s(f)));
+        s(i, j) = std::max(sg, options.resolution * sc(i, j));
         rad(i, j) = r.k * s(i, j);
         sig(i, j) = !r.skipped[f] && std::abs(e(i, j)) > rad(i, j);
       }
     }
     r.error.push_back(std::move(e));
     r.sigma.push_back(std::move(s));
+    r.scale.push_back(std::move(sc));
     r.radius.push_back(std::move(rad));
     r.significant.push_back(std::move(sig));
   }
@@ -217,10 +207,12 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
     }
   if (gain_dominates && b.first == first_used) {
     b.signature = "low_frequency_gain";
-    b.hint = fmt::format("low-frequency gain error ({}): static gain or stiffness", signed_db(b.gain_db_mean));
+    b.hint = fmt::format("low-frequency gain error ({} at {:.4g} rad/s): static gain or stiffness", signed_db(gain[peak]),
+                         w[peak]);
   } else if (gain_dominates && b.last == last_used) {
     b.signature = "high_frequency_gain";
-    b.hint = fmt::format("high-frequency gain error ({}): mass or inertia", signed_db(b.gain_db_mean));
+    b.hint = fmt::format("high-frequency gain error ({} at {:.4g} rad/s): mass or inertia", signed_db(gain[peak]),
+                         w[peak]);
   } else if (gain_dominates) {
     b.signature = "gain";
     b.hint = fmt::format("gain error ({} at {:.4g} rad/s)", signed_db(gain[peak]), w[peak]);
@@ -280,6 +272,76 @@ std::vector<FailingBand> failing_bands(const ModelErrorModel& mem, const ModelEr
         out.push_back(std::move(b));
       }
     }
+  return out;
+}
+
+std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBand>>& failures,
+                                        const std::vector<std::string>& output_names,
+                                        const std::vector<std::string>& input_names, double phenomenon_decades) {
+  std::vector<FailingBand> all;
+  for (const auto& set : failures)
+    for (const FailingBand& b : set) all.push_back(b);
+  // furthest beyond the noise first: each phenomenon is seeded by its strongest band
+  std::stable_sort(all.begin(), all.end(),
+                   [](const FailingBand& a, const FailingBand& b) { return a.max_sigma_ratio > b.max_sigma_ratio; });
+  std::vector<Phenomenon> out;
+  auto peak_of = [](const FailingBand& b) {
+    // a band's location: where its error is largest (bands that span decades are
+    // located by their peak, not their extent)
+    return b.omega_at_max_rad_s > 0 ? b.omega_at_max_rad_s : std::sqrt(b.lo_rad_s * b.hi_rad_s);
+  };
+  for (const FailingBand& b : all) {
+    Phenomenon* home = nullptr;
+    for (Phenomenon& ph : out)
+      if (std::abs(std::log10(peak_of(b) / ph.omega_rad_s)) <= phenomenon_decades) {
+        home = &ph;
+        break;
+      }
+    if (home == nullptr) {
+      out.push_back({});
+      home = &out.back();
+      home->omega_rad_s = peak_of(b);
+      home->max_sigma_ratio = b.max_sigma_ratio;
+    }
+    home->bands.push_back(b);
+    auto add = [](std::vector<Index>& v, Index x) {
+      if (std::find(v.begin(), v.end(), x) == v.end()) v.push_back(x);
+    };
+    add(home->outputs, b.output);
+    add(home->inputs, b.input);
+    add(home->data_sets, b.data_index);
+  }
+  auto oname = [&](Index i) {
+    return i < static_cast<Index>(output_names.size()) ? output_names[static_cast<std::size_t>(i)]
+                                                        : fmt::format("output {}", i + 1);
+  };
+  auto iname = [&](Index j) {
+    return j < static_cast<Index>(input_names.size()) ? input_names[static_cast<std::size_t>(j)]
+                                                       : fmt::format("input {}", j + 1);
+  };
+  for (Phenomenon& ph : out) {
+    std::sort(ph.outputs.begin(), ph.outputs.end());
+    std::sort(ph.inputs.begin(), ph.inputs.end());
+    std::sort(ph.data_sets.begin(), ph.data_sets.end());
+    std::vector<std::string> channels;
+    bool diagonal = true;
+    for (const FailingBand& b : ph.bands) {
+      const std::string c = oname(b.output) + " <- " + iname(b.input);
+      if (std::find(channels.begin(), channels.end(), c) == channels.end()) channels.push_back(c);
+      diagonal = diagonal && b.output == b.input;
+    }
+    const std::string list = fmt::format("{}", fmt::join(channels, ", "));
+    if (channels.size() == 1)
+      ph.where = list;
+    else if (ph.outputs.size() == 1)
+      ph.where = fmt::format("the {} output row only ({})", oname(ph.outputs[0]), list);
+    else if (ph.inputs.size() == 1)
+      ph.where = fmt::format("the {} input column only ({})", iname(ph.inputs[0]), list);
+    else if (diagonal)
+      ph.where = fmt::format("the diagonal ({})", list);
+    else
+      ph.where = list;
+  }
   return out;
 }
 

@@ -6,34 +6,23 @@
 // grouped into failing bands with their size and a plain-words signature.
 // Layout: idlib/core/types.h (responses indexed (output, input, frequency)).
 //
-// Noise of an H1 estimate (Bendat & Piersol, Random Data, 4th ed., §9.2.4,
-// eqs 9.52 and 9.90 — normalized random error of the gain and standard deviation
-// of the phase of Ĥ with n_d independent averages and coherence γ²):
-//
-//   ε[|Ĥ|] = σ[φ̂] = sqrt(1 − γ²) / (|γ| sqrt(2 n_d))
-//
-// i.e. the complex error Ĥ − H is (to first order, for large n_d) circular with a
-// standard deviation of  σ_c = |Ĥ| sqrt((1 − γ²) / (2 n_d γ²))  in each of its real
-// and imaginary parts (the radial part is the gain error, the tangential part
-// |Ĥ|·σ[φ̂]).  Then |Ĥ − H| / σ_c is Rayleigh distributed:
+// Noise.  The caller gives σ_c per real part of every entry (the measurement's
+// own noise: idlib/fit's data_sigma() reads it from the data's variance, or from
+// coherence with its number of averages, or a stated noise level).  The complex
+// error Ĥ − H is then (to first order) circular with standard deviation σ_c in each
+// of its real and imaginary parts, |Ĥ − H| / σ_c is Rayleigh distributed:
 //
 //   P(|Ĥ − H| > k σ_c) = exp(−k² / 2),   so   k = sqrt(−2 ln(1 − confidence))
 //
 // (k = 3.035 for 99 %).  A frequency of channel (i, j) is SIGNIFICANT when
-// |E_ij| > k σ_c,ij: the model differs from the measurement by more than the
-// measurement's own noise explains at that confidence.  σ_c uses
-//   - coherence γ²_ij of the data when it has any (FrequencyResponse::coherence),
-//     with n_d = ModelErrorOptions::averages;
-//   - else default_relative_sigma · max_l |Ĥ_il| (no coherence: a documented
-//     default noise level, reported as such by ModelErrorModel::coherence_used =
-//     false; the largest entry of row i because the noise of output i is shared by
-//     its row — a weak cross-coupling is not measured more precisely than the
-//     row's largest entry, and a channel that is zero in the data and the model
-//     is not "significant" for tiny differences);
-//   - never below relative_sigma_floor · |Ĥ_ij| (coherence 1 does not make a
-//     measurement exact: leakage and the coherence bias ~1/n_d remain).
-// γ² = 0 gives σ_c = ∞ (nothing can be significant there).  Frequencies flagged in
-// the data are skipped (never significant, not counted).
+// |E_ij| > k σ_eff,ij, σ_eff = max(σ_c, resolution · s_ij): the model differs from
+// the measurement by more than its noise explains, and by more than lpvid resolves
+// (`resolution`, 0.01 % of the channel's scale s_ij = sqrt(|Ĥ_ii| |Ĥ_jj|), or the
+// row's largest |Ĥ| for non-square data: round-off of exported numbers, a
+// coherence of exactly 1 and the last digits of a fit would otherwise make every
+// difference on noise-free data significant; 0.01 % stays below the noise of real
+// analyzer data, ~0.05–0.2 %).  σ_c = ∞ (coherence 0) makes
+// nothing significant there.  Frequencies flagged in the data are skipped.
 //
 // Failing bands.  Per channel, over the unflagged frequencies in order: a band
 // starts and ends at a significant frequency, bridges at most max_gap_points
@@ -85,19 +74,10 @@
 namespace lpvid {
 
 struct ModelErrorOptions {
-  // n_d: independent averages of the H1 estimate.  lpvid frf's automatic
-  // segments give ~31 Hann segments at 50 % overlap per experiment, about 29
-  // independent ones; 16 (kFrfAutoSegments) is the conservative default (a band
-  // sqrt(29/16) = 1.35 times wider).  Must be >= 1.
-  double averages = 16;
   // Confidence of the band, in (0, 1): 0.99 gives k = 3.035.
   double confidence = 0.99;
-  // σ_c per real part, as a fraction of the largest |P_data| of the channel's row,
-  // when the data carry no coherence (2 %: the random error of an H1 estimate with
-  // γ² = 0.99 and 16 averages is 1.8 %).  > 0.
-  double default_relative_sigma = 0.02;
-  // σ_c / |P_data| is never taken below this (0.1 %).  >= 0.
-  double relative_sigma_floor = 1e-3;
+  // σ_eff >= resolution · s_ij (0.01 %; see above).  >= 0.
+  double resolution = 1e-4;
   // A failing band holds at least this many significant frequencies (>= 1).
   Index min_band_points = 3;
   // Non-significant frequencies in a row bridged inside a band (>= 0).
@@ -122,11 +102,11 @@ struct ModelErrorModel {
   std::vector<Eigen::MatrixXcd> data;      // P_data
   std::vector<Eigen::MatrixXcd> model;     // P_model on the same grid
   std::vector<Eigen::MatrixXcd> error;     // E = P_data − P_model
-  std::vector<Eigen::MatrixXd> sigma;      // σ_c (per real part; +inf where γ² = 0)
-  std::vector<Eigen::MatrixXd> radius;     // k σ_c: the confidence radius
-  std::vector<BoolMatrix> significant;     // |E| > k σ_c (false where skipped)
+  std::vector<Eigen::MatrixXd> sigma;      // σ_eff (per real part; +inf where unknown)
+  std::vector<Eigen::MatrixXd> scale;      // s_ij
+  std::vector<Eigen::MatrixXd> radius;     // k σ_eff: the confidence radius
+  std::vector<BoolMatrix> significant;     // |E| > k σ_eff (false where skipped)
   std::vector<bool> skipped;               // flagged in the data
-  bool coherence_used = false;             // false: default_relative_sigma was used
   double k = 0;                            // confidence_radius(options.confidence)
 };
 
@@ -146,21 +126,44 @@ struct FailingBand {
   bool differs_between_data = false; // set by mark_differences_between_data
 };
 
-// E, σ_c and significance for one data set.
+// E, σ_eff and significance for one data set.
 //
 // | argument | shape |
 // |----------|-------|
-// | data     | F frequencies of p x m, coherence empty or F x (p x m), flagged empty or F |
+// | data     | F frequencies of p x m, flagged empty or F |
 // | model    | F matrices p x m: the model evaluated on data.omega_rad_s |
-// @throws InputError  bad options; no frequencies; model count or shapes differ from
-//                     the data's; a non-finite entry.
+// | sigma    | F matrices p x m: σ_c per real part (> 0, +inf allowed) |
+// @throws InputError  bad options; no frequencies; model or sigma count or shapes
+//                     differ from the data's; a non-finite entry.
 ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eigen::MatrixXcd>& model,
-                            const ModelErrorOptions& options);
+                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options);
 
 // The failing bands of every channel, ordered by channel (output, then input) and
 // frequency; data_index is copied into each.
 std::vector<FailingBand> failing_bands(const ModelErrorModel& mem, const ModelErrorOptions& options,
                                        Index data_index = 0);
+
+// A PHENOMENON: failing bands (of any channel and data set) that are one thing,
+// because their largest error sits at nearly the same frequency (within
+// phenomenon_decades, 0.1 decade).  Listed so that distinct phenomena are each
+// shown, not five bands of one.  `where` says which channels in words: "the theta
+// output row only", "the T_psi input column only", "the diagonal", or the list.
+struct Phenomenon {
+  std::vector<FailingBand> bands;  // members, furthest beyond the noise first
+  double omega_rad_s = 0;          // where the representative's error is largest
+  double max_sigma_ratio = 0;      // of the representative (bands.front())
+  std::vector<Index> outputs, inputs;  // distinct channels involved (0-based)
+  std::vector<Index> data_sets;        // distinct data sets involved
+  std::string where;               // e.g. "the theta output row only (theta <- T_psi, theta <- F_z)"
+};
+
+// Groups the failing bands of every data set into phenomena, the furthest beyond
+// the noise first.  output_names / input_names label the channels (empty: 1-based
+// numbers).
+std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBand>>& failures,
+                                        const std::vector<std::string>& output_names,
+                                        const std::vector<std::string>& input_names,
+                                        double phenomenon_decades = 0.1);
 
 // failures[d] are the bands of data set d.  A band whose channel has no
 // overlapping band in some other data set gets differs_between_data = true and

@@ -309,7 +309,7 @@ TEST_F(BadInput, AllZeroStageLog_IsNotFittedToItsStartValues) {
 
 TEST_F(BadInput, UnknownSubcommand_IsNamedWithTheKnownOnes) {
   refused("frobnicate", "unknown subcommand 'frobnicate'; the subcommands are simulate, markov");
-  refused("model frob", "unknown subcommand 'frob'; the subcommands are init, add, export, effects");
+  refused("model frob", "unknown subcommand 'frob'; the subcommands are init, add, remove, define, export, effects");
 }
 
 TEST_F(BadInput, EmptyValue_IsNotTakenForAFlagLeftOut) {
@@ -321,6 +321,81 @@ TEST_F(BadInput, LogGivenTwiceOrStdinTwice_IsRefused) {
   refused("markov --excitation v1 --output q1 --out g.csv " + data("exp_T_psi.csv") + " " + data("exp_T_psi.csv"),
           "is given twice");
   refused("markov --excitation v1 --output q1 --out g.csv - -", "standard input ('-') is given for two inputs");
+}
+
+// ---- the model-error loop (issue 10's commands): every output, flag and reader --
+
+constexpr const char* kMountEffect = R"({"name": "theta_mount", "description": "theta sensor mount",
+ "blocks": [{"kind": "resonance", "side": "output", "channels": ["theta"],
+             "parameters": ["wp_rad_s", "zp", "wz_rad_s", "zz"]}],
+ "parameters": {"wp_rad_s": {"value": 800, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
+                "zp": {"value": 0.05, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true},
+                "wz_rad_s": {"value": 900, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
+                "zz": {"value": 0.1, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true}}})";
+
+TEST_F(BadInput, ModelErrorLoopOutputs_NeverOverwriteAnInputOrEachOther) {
+  const std::string start = at("start.json");
+  write_text(work("data.json"), "{\"format\": \"lpvid-datasets\", \"datasets\": [{\"beam_position_m\": 0, \"files\": [\"" +
+                                    at("G.json") + "\"]}]}");
+  refused("diagnose --model " + start + " --datasets data.json --out-effect data.json", "refusing to overwrite input");
+  refused("diagnose --model " + start + " --datasets data.json --out-effect " + at("G.json"),
+          "refusing to overwrite input");
+  refused("diagnose --model " + start + " --datasets data.json --out d.json --out-effect d.json", "name the same file");
+  refused("diagnose --model " + start + " --datasets data.json --png d.png --out-effect d.png", "name the same file");
+  refused("fit --model " + start + " --datasets data.json --out data.json", "refusing to overwrite input");
+  refused("fit --model " + start + " --datasets data.json --out f.json --bands " + at("G.json"),
+          "refusing to overwrite input");
+  refused("compare --model " + start + " --datasets data.json --out-png data.json", "refusing to overwrite input");
+  refused("compare --model " + start + " --datasets data.json --out c.json --out-png c.json", "name the same file");
+  write_text(work("mount.json"), kMountEffect);
+  refused("model define --model " + start + " --from mount.json --add --out mount.json", "refusing to overwrite input");
+  refused("model add input_delay --model " + start + " --out " + start + ".history.jsonl",
+          "refusing to overwrite input");
+  // --out naming the model under another spelling is not "in place": refused, not rewritten
+  refused("model remove beam_gravity --model " + start + " --out " + fs::relative(start, work_->path()).string(),
+          "refusing to overwrite input");
+  refused("model add input_delay --model -", "cannot be rewritten in place; give --out FILE");
+}
+
+TEST_F(BadInput, ModelErrorLoopFlags_HaveRangesThatSayWhatToGive) {
+  const std::string fit = "fit --model " + at("start.json") + " --data " + at("G.json") + "@0 --out f.json ";
+  refused(fit + "--noise-level 2", "--noise-level: '2' is out of range");
+  refused(fit + "--averages 0", "--averages: '0' is out of range");
+  refused(fit + "--band-min -1", "--band-min: '-1' is out of range");
+  refused(fit + "--band-min 100 --band-max 10", "--band-min 100 is not below --band-max 10");
+  refused("diagnose --model " + at("start.json") + " --data " + at("G.json") + "@0 --delta-bic -1",
+          "--delta-bic: '-1' is out of range");
+  refused("compare --model " + at("start.json") + " --data " + at("G.json") + "@0 --confidence 1.5",
+          "--confidence: '1.5' is out of range");
+  refused("compare --model " + at("start.json") + " --data " + at("G.json") + "@0 --rate-hz 0",
+          "--rate-hz: '0' is out of range");
+  refused("model export --model " + at("start.json") + " --xb 1e9 --out x.json", "--xb: '1e9' is out of range");
+}
+
+TEST_F(BadInput, ManifestEffectAndHistoryFiles_AreReadWithTheBoundedJsonReader) {
+  const std::string files = "\"datasets\": [{\"beam_position_m\": 0, \"files\": [\"" + at("G.json") + "\"]}]";
+  write_text(work("big.json"), "{\"format\": \"lpvid-datasets\",\n \"rate_hz\": 1e400, " + files + "}");
+  refused("fit --model " + at("start.json") + " --datasets big.json --out f.json",
+          "big.json:2:13: number '1e400' is out of range");
+  write_text(work("zero.json"), "{\"format\": \"lpvid-datasets\", \"rate_hz\": 0, " + files + "}");
+  refused("fit --model " + at("start.json") + " --datasets zero.json --out f.json", "rate_hz 0: give the sample rate");
+  write_text(work("deep.json"), std::string(100000, '[') + std::string(100000, ']'));
+  refused("fit --model " + at("start.json") + " --datasets deep.json --out f.json", "deep.json:1:65: arrays and objects");
+  refused("model define --model " + at("start.json") + " --from deep.json", "deep.json:1:65: arrays and objects");
+  write_text(work("unknown.json"), "{\"format\": \"lpvid-datasets\", \"raet_hz\": 1, " + files + "}");
+  refused("fit --model " + at("start.json") + " --datasets unknown.json --out f.json",
+          "unknown key 'raet_hz'; remove it");
+  std::string effect = kMountEffect;
+  effect.replace(effect.find("800"), 3, "1e400");
+  write_text(work("effect.json"), effect);
+  refused("model define --model " + at("start.json") + " --from effect.json", "number '1e400' is out of range");
+  const std::string record =
+      "{\"timestamp\":\"2026-11-23T12:00:00Z\",\"model\":\"m\",\"effects\":[],\"free_parameters\":0,\"cost\":0,"
+      "\"error_mean\":0,\"error_max\":0,";
+  write_text(work("h.json.history.jsonl"), record + "\"error\":1e400}\n");
+  refused("history --model h.json", "h.json.history.jsonl:1:");
+  write_text(work("h.json.history.jsonl"), record + "\"noise_floor\":-0.5}\n");
+  refused("history --model h.json", "noise_floor");
 }
 
 // ---- 9. leftovers of a killed run ----------------------------------------------

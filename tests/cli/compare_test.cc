@@ -34,12 +34,16 @@ class CompareCli : public ::testing::Test {
     FrequencyResponse clean = frequency_response(plant, omega);
     for (Index f = 0; f < omega.size(); ++f)
       clean.coherence.push_back(Eigen::MatrixXd::Constant(3, 3, kCoherence));
+    clean.averages = 16;  // stated in the files ('# averages: 16')
     FrequencyResponse delayed = clean;
     for (Index f = 0; f < omega.size(); ++f) delayed.response[f] *= std::polar(1.0, -omega(f) * kDelay_s);
     write_frd_csv(dir / "clean.csv", clean, "P");
     write_frd_csv(dir / "delayed.csv", delayed, "P");
     delayed.coherence.clear();
+    delayed.averages = 0;
     write_frd_csv(dir / "no_coherence.csv", delayed, "P");
+    clean.averages = 0;
+    write_frd_csv(dir / "unstated.csv", clean, "P");
   }
   TempDir dir{"compare"};
 };
@@ -62,7 +66,7 @@ TEST_F(CompareCli, DelayedDataFailsWithADelaySignatureAndAFigure) {
     EXPECT_THAT(f["hint"].get<std::string>(), HasSubstr("phase lag growing with frequency"));
   }
   EXPECT_EQ(diagonal, 3);
-  EXPECT_TRUE(j["data"][0]["coherence_used"].get<bool>());
+  EXPECT_EQ(j["data"][0]["noise"], "coherence (16 averages)");
   const std::string png = slurp(dir / "cmp.png");
   ASSERT_GT(png.size(), 8u);
   EXPECT_EQ(png.substr(1, 3), "PNG");
@@ -74,10 +78,22 @@ TEST_F(CompareCli, DataEqualToTheModelHasNoFailingBand) {
   EXPECT_THAT(r.out, HasSubstr("no failing band"));
 }
 
-TEST_F(CompareCli, WithoutCoherenceTheDefaultNoiseLevelIsSaid) {
-  const auto r = run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "no_coherence.csv"));
+// No silent default: data without noise information need the user to say it.
+TEST_F(CompareCli, WithoutNoiseInformationTheUserMustStateItAndThenItIsSaid) {
+  auto r = run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "no_coherence.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("the noise of the data is not known (unknown); give --averages N"));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  r = run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "unstated.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("coherence without the number of averages"));
+  r = run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "no_coherence.csv") +
+                " --noise-level 0.02");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_THAT(r.out, HasSubstr("no coherence in the data: default noise level 2 %"));
+  EXPECT_THAT(r.out, HasSubstr("noise from noise level 2 %"));
+  r = run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "unstated.csv") + " --averages 16");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("noise from coherence (16 averages, given)"));
 }
 
 TEST_F(CompareCli, AFailureInOnlyOneDataSetIsMarked) {

@@ -101,9 +101,9 @@ TEST_F(DiagnoseLoop, BadInputsGiveOneLineAndExitTwoAndWriteNothing) {
                 " --out " + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("missing @x_b tag"));
-  r = run_lpvid("diagnose --model " + (d / "start.json") + data_args() + " --candidates rod_twist --out " + out);
+  r = run_lpvid("diagnose --model " + (d / "start.json") + data_args() + " --candidates beam_gravity --out " + out);
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_THAT(r.err, HasSubstr("already has effect 'rod_twist'"));
+  EXPECT_THAT(r.err, HasSubstr("already has effect 'beam_gravity'"));
   r = run_lpvid("diagnose --model " + (d / "start.json") + data_args() + " --out " + (d / "start.json"));
   EXPECT_EQ(r.exit_code, 2);  // the output would overwrite the input
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;

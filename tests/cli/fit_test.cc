@@ -13,6 +13,7 @@
 #include "idlib/lti/frequency_response.h"
 #include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/physical/platform/platform_base.h"
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
@@ -26,7 +27,7 @@ using lpvid::testing::TempDir;
 constexpr double kRecovery = 0.01;  // the issue's 1 % on noise-free data
 
 PhysicalModel truth_model() {
-  PhysicalModel m = PhysicalModel::default_platform();
+  PhysicalModel m = platform_defaults_model();
   m.parameter("com_x_m").value = 0.006;
   m.parameter("com_y_m").value = -0.004;
   return m;
@@ -87,7 +88,7 @@ TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
   FitOptions o;
   o.target = FitTarget::kInputSensitivity;
   o.sample_period_s = 1e-3;
-  o.controller = discrete_pi_controller(default_pi_gains(to_platform_parameters(truth)), 1e-3);
+  o.controller = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3);
   write_state_space(dir / "C.json", *o.controller);
   const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 100);
   std::string data;
@@ -112,7 +113,7 @@ TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
 
 TEST(FitCli, MissingXbTagIsExit2WithOneLineAndNoOutput) {
   TempDir dir("fit_bad");
-  write_physical_model(dir / "start.json", PhysicalModel::default_platform());
+  write_physical_model(dir / "start.json", platform_defaults_model());
   const auto r = run_lpvid(fmt::format("fit --model {} --data P.csv --out {}", dir / "start.json", dir / "out.json"));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("missing @x_b tag"));
@@ -122,11 +123,11 @@ TEST(FitCli, MissingXbTagIsExit2WithOneLineAndNoOutput) {
 
 TEST(FitCli, BadModelFilesAreExit2WithFileLineColumn) {
   TempDir dir("fit_badmodel");
-  const std::string good = physical_model_to_json(PhysicalModel::default_platform());
+  const std::string good = physical_model_to_json(platform_defaults_model());
   const std::string data = write_plant_frds(dir, truth_model());
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"\"coil_damping_Ns_per_m\"", "\"coil_damping\""},                      // unknown parameter
-      {"\"lower\": 0.001, \"upper\": 10000.0", "\"lower\": 10000, \"upper\": 0.001"},  // bounds reversed
+      {"\"damping_z_Ns_per_m\"", "\"damping_z\""},                            // unknown parameter
+      {"\"lower\": 0.001, \"upper\": 1000000.0", "\"lower\": 1000000, \"upper\": 0.001"},  // bounds reversed
       {"\"value\": 1500.0,", "\"value\": 1e9,"},                               // value outside bounds
   };
   for (const auto& [from, to] : cases) {
@@ -146,7 +147,7 @@ TEST(FitCli, BadModelFilesAreExit2WithFileLineColumn) {
 
 TEST(FitCli, TargetSWithoutControllerIsExit2) {
   TempDir dir("fit_noc");
-  write_physical_model(dir / "start.json", PhysicalModel::default_platform());
+  write_physical_model(dir / "start.json", platform_defaults_model());
   const auto r = run_lpvid(fmt::format("fit --model {} --target S --data S.csv@0 --out {}", dir / "start.json",
                                        dir / "out.json"));
   EXPECT_EQ(r.exit_code, 2);
@@ -169,13 +170,107 @@ TEST(ModelCli, InitAddEffectsAndExport) {
                                          dir / "ss.json"));
   ASSERT_EQ(exp.exit_code, 0) << exp.err;
   const StateSpace ss = read_state_space(dir / "ss.json");
-  // Default delay 0.5 ms at 1 kHz rounds to 1 sample (llround(0.5) = 1): 6 + 3 states.
+  // Default delay 0.5 ms at 1 kHz: half a sample, the input switching mid-sample: one
+  // register per input (u[k-1]) beside the 6 rigid-body states.
   EXPECT_EQ(ss.order(), 9);
   EXPECT_EQ(ss.sample_period_s, 1e-3);
   const auto out_of_stroke =
       run_lpvid(fmt::format("model export --model {} --xb 0.5 --out {}", dir / "m.json", dir / "x.json"));
   EXPECT_EQ(out_of_stroke.exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir / "x.json"));
+}
+
+TEST(ModelCli, AddAndRemoveToANewFileKeepTheLineageAndInitTakesDesignValues) {
+  TempDir dir("model_lineage");
+  ASSERT_EQ(run_lpvid(fmt::format("model init --out {} --set k_torque_low_Nm_per_rad=45 --set beam_height_m=0.06",
+                                  dir / "m.json"))
+                .exit_code,
+            0);
+  const PhysicalModel m = read_physical_model(dir / "m.json");
+  EXPECT_EQ(m.parameter("k_torque_low_Nm_per_rad").value, 45.0);
+  EXPECT_EQ(m.parameter("beam_height_m").value, 0.06);
+  // a fitted model with a history, then add to a new file: the history continues
+  const std::string history =
+      "{\"timestamp\":\"2026-11-23T12:00:00Z\",\"model\":\"m.json\",\"effects\":[],\"free_parameters\":3,"
+      "\"cost\":1,\"error_mean\":0.01,\"error_max\":0.02}\n";
+  { std::ofstream(dir / "m.json.history.jsonl") << history; }
+  const auto add = run_lpvid(fmt::format("model add input_delay --model {} --out {}", dir / "m.json", dir / "m2.json"));
+  ASSERT_EQ(add.exit_code, 0) << add.err;
+  EXPECT_FALSE(read_physical_model(dir / "m.json").has_effect("input_delay"));  // the source is unchanged
+  EXPECT_TRUE(read_physical_model(dir / "m2.json").has_effect("input_delay"));
+  EXPECT_EQ(lpvid::testing::slurp(dir / "m2.json.history.jsonl"), history);
+  const auto rem = run_lpvid(fmt::format("model remove input_delay --model {}", dir / "m2.json"));
+  ASSERT_EQ(rem.exit_code, 0) << rem.err;
+  EXPECT_FALSE(read_physical_model(dir / "m2.json").has_effect("input_delay"));
+  const auto again = run_lpvid(fmt::format("model remove input_delay --model {}", dir / "m2.json"));
+  EXPECT_EQ(again.exit_code, 2);
+  EXPECT_THAT(again.err, HasSubstr("no effect 'input_delay' to remove"));
+  const auto bad_set = run_lpvid(fmt::format("model init --out {} --set beam_height_m=9", dir / "x.json"));
+  EXPECT_EQ(bad_set.exit_code, 2);
+  EXPECT_THAT(bad_set.err, HasSubstr("outside the bounds"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.json"));
+}
+
+TEST(ModelCli, DefineAddsAUserDefinedEffectFromAFile) {
+  TempDir dir("model_define");
+  ASSERT_EQ(run_lpvid(fmt::format("model init --out {}", dir / "m.json")).exit_code, 0);
+  {
+    std::ofstream(dir / "mount.json") << R"({"name": "theta_mount", "description": "theta sensor mount",
+ "blocks": [{"kind": "resonance", "side": "output", "channels": ["theta"],
+             "parameters": ["wp_rad_s", "zp", "wz_rad_s", "zz"]}],
+ "parameters": {"wp_rad_s": {"value": 800, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
+                "zp": {"value": 0.05, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true},
+                "wz_rad_s": {"value": 900, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
+                "zz": {"value": 0.1, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true}}})";
+  }
+  const auto def = run_lpvid(fmt::format("model define --model {} --from {} --add", dir / "m.json", dir / "mount.json"));
+  ASSERT_EQ(def.exit_code, 0) << def.err;
+  const PhysicalModel m = read_physical_model(dir / "m.json");
+  EXPECT_TRUE(m.has_effect("theta_mount"));
+  EXPECT_EQ(m.parameter("wp_rad_s").value, 800);
+  // a definition on a channel the base lacks: exit 2, the file unchanged
+  const std::string before = lpvid::testing::slurp(dir / "m.json");
+  {
+    std::string text = lpvid::testing::slurp(dir / "mount.json");
+    text.replace(text.find("\"theta\""), 7, "\"phi\"");
+    text.replace(text.find("theta_mount"), 11, "phi_mount");
+    std::ofstream(dir / "bad.json") << text;
+  }
+  const auto bad = run_lpvid(fmt::format("model define --model {} --from {}", dir / "m.json", dir / "bad.json"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_THAT(bad.err, HasSubstr("channel 'phi' is not an output"));
+  EXPECT_EQ(lpvid::testing::slurp(dir / "m.json"), before);
+}
+
+TEST(FitCli, DatasetManifestGivesTheDataOnceAndItsErrorsArePositioned) {
+  TempDir dir("fit_manifest");
+  const PhysicalModel truth = truth_model();
+  write_plant_frds(dir, truth);
+  write_physical_model(dir / "start.json", two_times_off(truth));
+  {
+    std::ofstream(dir / "data.json") << R"({"format": "lpvid-datasets", "rate_hz": 1000, "noise_level": 0.001,
+ "datasets": [{"beam_position_m": -0.1, "files": ["P_left.csv"]},
+              {"beam_position_m": 0, "files": ["P_mid.csv"]},
+              {"beam_position_m": 0.1, "files": ["P_right.csv"]}]})";
+  }
+  const auto r = run_lpvid(fmt::format("fit --model {} --datasets {} --out {} --json", dir / "start.json",
+                                       dir / "data.json", dir / "fitted.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr(R"("noise_source": "noise level 0.1 %")"));
+  const PhysicalModel fitted = read_physical_model(dir / "fitted.json");
+  EXPECT_NEAR(fitted.parameter("J_psi_kgm2").value, truth.parameter("J_psi_kgm2").value, 1e-3 * 0.05);
+  {
+    std::ofstream(dir / "bad.json") << "{\"format\": \"lpvid-datasets\",\n \"datasets\": [{\"files\": [\"P_mid.csv\"]}]}";
+  }
+  const auto bad = run_lpvid(fmt::format("fit --model {} --datasets {} --out {}", dir / "start.json", dir / "bad.json",
+                                         dir / "o.json"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_THAT(bad.err, HasSubstr(dir / "bad.json:2:2: each data set is"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "o.json"));
+  const auto both = run_lpvid(fmt::format("fit --model {} --datasets {} --data {}@0 --out {}", dir / "start.json",
+                                          dir / "data.json", dir / "P_mid.csv", dir / "o.json"));
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_THAT(both.err, HasSubstr("not both"));
 }
 
 }  // namespace

@@ -55,6 +55,31 @@ TEST_F(HistoryCli, ListsTheFitsWithTheErrorFallingAndDrawsIt) {
   EXPECT_THAT(t.out, HasSubstr("rigid body, suspension, delay"));
 }
 
+TEST(HistoryFigure, RecordsWithTheErrorFigureShowItBesideTheNoiseFloor) {
+  TempDir dir{"history_figure"};
+  const std::string h = history_path_for(dir / "m.json");
+  HistoryRecord a = fit({"beam_gravity"}, 14, 0.03);  // channel mean 3 %, figure 5.23 %
+  a.error = 0.0523;
+  a.noise_floor = 0.0007;
+  HistoryRecord b = fit({"beam_gravity", "input_delay"}, 15, 0.001);
+  b.error = 0.000714;
+  b.noise_floor = 0.0007;
+  append_history(h, a);
+  append_history(h, b);
+  const auto r = run_lpvid("history --model " + (dir / "m.json") + " --png " + (dir / "h.png") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_DOUBLE_EQ(j["fits"][0]["error"].get<double>(), 0.0523);
+  EXPECT_DOUBLE_EQ(j["fits"][1]["noise_floor"].get<double>(), 0.0007);
+  // the change is of the error figure, not of the channel mean: (0.000714 − 0.0523) / 0.0523
+  EXPECT_NEAR(j["fits"][1]["change_percent"].get<double>(), 100 * (0.000714 - 0.0523) / 0.0523, 1e-9);
+  EXPECT_EQ(slurp(dir / "h.png").substr(1, 3), "PNG");
+  const auto t = run_lpvid("history --model " + (dir / "m.json"));
+  ASSERT_EQ(t.exit_code, 0) << t.err;
+  EXPECT_THAT(t.out, HasSubstr("  5.230 %    0.070 %"));  // error, then floor
+  EXPECT_THAT(t.out, HasSubstr("  0.071 %    0.070 %"));
+}
+
 TEST_F(HistoryCli, BadLineIsFileLineErrorExitCode2AndNoPng) {
   std::ofstream(history_path_for(dir / "plant.json"), std::ios::app) << "{\"timestamp\": 3}\n";
   const auto r = run_lpvid("history --model " + (dir / "plant.json") + " --png " + (dir / "h.png"));

@@ -5,7 +5,9 @@
 //
 //   indep_sim --out DIR [--seed N] [--hidden none|mode|delay|coil_lag|com_offset|rod_twist|sensor_resonance]
 //             [--rate-hz 1000] [--duration-s 60] [--noise-scale X] [--no-logs] [--no-analyzer]
-//             [--averages 16] [--no-averages-line] [--integration-s 4] [--points 200]
+//             [--averages 16] [--no-averages-line] [--integration-s 4] [--points 300] [--f-max-hz 400]
+//             [--ratio-min 0.3] [--ratio-max 3] [--cl-damping-min 0.02] [--noise-min 0.1] [--noise-max 10]
+//             [--no-zero-noise]   (the draw's ranges, DrawOptions)
 //
 // Writes DIR/{left,middle,right}/ (x_b = -0.1, 0, +0.1 m): controller.json,
 // exp_v1.csv exp_v2.csv exp_v3.csv (white noise on one input each), S_v1..3.csv
@@ -17,6 +19,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 
 #include "tests/support/independent_draw.h"
@@ -26,7 +29,9 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 1;
   double rate = 1000, duration = 60, noise_override = -1, integration_s = 4;
   bool logs = true, analyzer = true, averages_line = true;
-  int averages = 16, points = 200;
+  int averages = 16, points = 300;
+  indep::DrawOptions dopt;  // the draw's ranges (tests/support/independent_draw.h)
+  double f_max_hz = 400.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -48,6 +53,13 @@ int main(int argc, char** argv) {
     else if (a == "--no-averages-line") averages_line = false;
     else if (a == "--integration-s") integration_s = std::stod(next());
     else if (a == "--points") points = std::stoi(next());
+    else if (a == "--f-max-hz") f_max_hz = std::stod(next());
+    else if (a == "--ratio-min") dopt.min_ratio = std::stod(next());
+    else if (a == "--ratio-max") dopt.max_ratio = std::stod(next());
+    else if (a == "--cl-damping-min") dopt.min_cl_damping = std::stod(next());
+    else if (a == "--noise-min") dopt.min_noise_scale = std::stod(next());
+    else if (a == "--noise-max") dopt.max_noise_scale = std::stod(next());
+    else if (a == "--no-zero-noise") dopt.allow_zero_noise = false;
     else {
       std::fprintf(stderr, "indep_sim: unknown option %s\n", a.c_str());
       return 2;
@@ -68,9 +80,17 @@ int main(int argc, char** argv) {
     return 2;
   }
   const double Ts = 1.0 / rate;
-  indep::DrawOptions dopt;
-  indep::Draw d = indep::draw_plant(seed, dopt);
-  indep::add_hidden_effect(d, effect, seed, Ts);
+  const double xb[3] = {-0.1, 0.0, 0.1};
+  int redraws = 0;
+  indep::Draw d;
+  try {
+    d = indep::draw_stable(seed, effect, dopt, Ts, {xb[0], xb[1], xb[2]}, &redraws);
+  } catch (const std::runtime_error&) {
+    std::fprintf(stderr, "indep_sim: the drawn PID loop of seed %llu is unstable (no experiment exists); use another seed\n",
+                 static_cast<unsigned long long>(seed));
+    return 1;
+  }
+  if (redraws > 0) d.description += "hidden_effect_redraws = " + std::to_string(redraws) + "  # earlier draws destabilised the loop\n";
   if (noise_override >= 0) d.noise_scale = noise_override;
   indep::Noise noise;
   noise.sensor_std_m = 0.3e-6 * d.noise_scale;
@@ -83,7 +103,6 @@ int main(int argc, char** argv) {
   }
   const indep::Discrete C = indep::pid_controller(d.plant, d.pid, Ts);
   const char* names[3] = {"left", "middle", "right"};
-  const double xb[3] = {-0.1, 0.0, 0.1};
   for (int pos = 0; pos < 3; ++pos) {
     const std::string dir = out + "/" + names[pos];
     std::filesystem::create_directories(dir);
@@ -100,7 +119,7 @@ int main(int argc, char** argv) {
     }
     if (analyzer) {
       Eigen::VectorXd w(points);
-      for (int k = 0; k < points; ++k) w(k) = 2 * M_PI * 0.15 * std::pow(65.0 / 0.15, k / (points - 1.0));
+      for (int k = 0; k < points; ++k) w(k) = 2 * M_PI * 0.15 * std::pow(f_max_hz / 0.15, k / (points - 1.0));
       const double amp[3] = {0.05, 0.05, 1.0};
       const auto Nb = static_cast<Eigen::Index>(std::llround(integration_s * rate / averages));
       const indep::AnalyzerData a =

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <stdexcept>
 
 namespace indep {
 namespace {
@@ -119,22 +120,23 @@ void add_hidden_effect(Draw& d, HiddenEffect e, std::uint64_t seed, double Ts) {
       break;
     }
     case HiddenEffect::kRodTwist: {
-      // rods along the tangents 120 deg apart: twist adds the same to both axes per
-      // unit k_twist; make it anisotropic with an extra per-axis share.
-      const Eigen::Matrix3d K0 = stiffness_matrix(p);
+      // the rods twist: each tilt gains f times its clean stiffness (gravity aside),
+      // f in [2, 5] drawn per axis — "tilt stiffness 2–5× the rods' bending,
+      // differently on psi and theta" (rods 120° apart add the same twist to both
+      // axes; the difference is an extra per-axis share)
+      Plant clean = p;
+      clean.beam_gravity = false;
+      const Eigen::Matrix3d K0 = stiffness_matrix(clean);
       const double fpsi = r.uniform(2, 5), fth = r.uniform(2, 5);
-      // bending part of the tilt stiffness (without the vertical springs' lever)
-      double bend = 0;
-      for (const Rod& rod : p.rods) bend += rod.k_bend_Nm_per_rad;
-      bend *= 0.5;  // per axis: sum of k_bend sin^2 or cos^2 over three rods 120 deg apart = 1.5 k / 3 per ... = k_sum / 2
-      const double common = std::min(fpsi, fth) * bend;
-      for (Rod& rod : p.rods) rod.k_twist_Nm_per_rad = 2.0 * common / 3.0;  // sum_j twist per axis = 1.5 k_twist
-      p.extra_k_psi_Nm_per_rad += (fpsi * bend - common);
-      p.extra_k_theta_Nm_per_rad += (fth * bend - common);
+      const double add_psi = fpsi * K0(0, 0), add_th = fth * K0(1, 1);
+      const double common = std::min(add_psi, add_th);
+      for (Rod& rod : p.rods) rod.k_twist_Nm_per_rad = common / 1.5;  // three rods 120° apart: 1.5 k per axis
+      p.extra_k_psi_Nm_per_rad += add_psi - common;
+      p.extra_k_theta_Nm_per_rad += add_th - common;
       const Eigen::Matrix3d K1 = stiffness_matrix(p);
       d.description += fmt_line("twist_factor_psi", fpsi) + fmt_line("twist_factor_theta", fth) +
-                       fmt_line("K_psipsi_before", K0(0, 0)) + fmt_line("K_psipsi_after", K1(0, 0)) +
-                       fmt_line("K_thth_before", K0(1, 1)) + fmt_line("K_thth_after", K1(1, 1));
+                       fmt_line("K_psipsi_clean", K0(0, 0)) + fmt_line("K_psipsi_with_twist", K1(0, 0)) +
+                       fmt_line("K_thth_clean", K0(1, 1)) + fmt_line("K_thth_with_twist", K1(1, 1));
       break;
     }
     case HiddenEffect::kSensorResonance: {
@@ -159,6 +161,23 @@ void add_hidden_effect(Draw& d, HiddenEffect e, std::uint64_t seed, double Ts) {
       break;
     }
   }
+}
+
+Draw draw_stable(std::uint64_t seed, HiddenEffect effect, const DrawOptions& options, double Ts,
+                 const std::vector<double>& beam_positions_m, int* redraws) {
+  const Draw clean = draw_plant(seed, options);
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    Draw d = clean;
+    add_hidden_effect(d, effect, seed + 1000003ULL * static_cast<std::uint64_t>(attempt), Ts);
+    const Discrete C = pid_controller(d.plant, d.pid, Ts);
+    bool stable = true;
+    for (double xb : beam_positions_m) stable = stable && closed_loop_spectral_radius(sampled_plant(d.plant, xb, Ts), C) < 1.0;
+    if (stable) {
+      if (redraws) *redraws = attempt;
+      return d;
+    }
+  }
+  throw std::runtime_error("indep::draw_stable: the loop is unstable in 20 draws of the hidden effect");
 }
 
 }  // namespace indep

@@ -20,12 +20,13 @@
 // | kDelay       | input delay 0.5 – 3 samples (fractional)                                    |
 // | kCoilLag     | first-order coil current lag, corner 50 – 200 Hz                           |
 // | kComOffset   | centre of mass c_x, c_y 3 – 12 mm (random signs), J_pt ±0.5–2 % of J, and the rods' vertical springs moved so the stiffness centre is 3 – 12 mm off |
-// | kRodTwist    | twist stiffness per rod so that the tilt stiffness rises 2 – 5 × the bending, differently on psi and theta |
+// | kRodTwist    | twist stiffness so that each tilt gains 2 – 5 × its clean stiffness, drawn per axis |
 // | kSensorResonance | OUT OF LIBRARY: a second-order resonance (400 – 900 rad/s, ζ 0.02 – 0.08, +6..+12 dB peak) in the theta OUTPUT only, with a matching zero pair (a sensor mount) |
 #pragma once
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "tests/support/independent_platform.h"
 
@@ -54,5 +55,13 @@ Draw draw_plant(std::uint64_t seed, const DrawOptions& options = {});
 
 // Adds the hidden effect to the plant (its parameters drawn from seed), describing it.
 void add_hidden_effect(Draw& draw, HiddenEffect effect, std::uint64_t seed, double Ts);
+
+// draw_plant + add_hidden_effect, redrawing the hidden effect (not the plant) until
+// the PID loop is stable at every beam position: an experiment exists only on a
+// stable loop (a lightly damped mode can destabilise it).  The effect's draws are
+// seed, then seed + 1000003, seed + 2·1000003, ...; `redraws` says how many were
+// rejected.  Throws std::runtime_error after 20 unstable draws.
+Draw draw_stable(std::uint64_t seed, HiddenEffect effect, const DrawOptions& options, double Ts,
+                 const std::vector<double>& beam_positions_m, int* redraws = nullptr);
 
 }  // namespace indep

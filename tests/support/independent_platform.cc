@@ -328,6 +328,13 @@ Eigen::Matrix3d q_noise_covariance(const Plant& p, const Noise& noise) {
 }
 }  // namespace
 
+double closed_loop_spectral_radius(const Discrete& P, const Discrete& C) {
+  const Index np = P.order(), nc = C.order();
+  MatrixXd A(np + nc, np + nc);
+  A << P.A - P.B * C.D * P.C, P.B * C.C, -C.B * P.C, C.A;
+  return A.eigenvalues().cwiseAbs().maxCoeff();
+}
+
 Eigen::MatrixXd simulate_log(const Discrete& P, const Discrete& C, const Plant& physical, const Noise& noise,
                              const double excitation_std[3], int excited, Index N, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

@@ -118,6 +118,10 @@ struct PidDesign {
 // Discrete PID per axis (3 inputs e = -q, 3 outputs u_c), Tustin at Ts.
 Discrete pid_controller(const Plant& plant, const PidDesign& design, double Ts);
 
+// Largest |eigenvalue| of the loop u = C(-q) + v around the strictly proper plant
+// (< 1: the loop is stable and an experiment on it exists).
+double closed_loop_spectral_radius(const Discrete& plant, const Discrete& controller);
+
 struct Noise {
   double sensor_std_m = 0.3e-6;        // per inductive sensor (9 of them), white
   double force_std[3] = {0, 0, 0};     // white process noise on the wrench (N·m, N·m, N)

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
 namespace {
@@ -36,9 +37,9 @@ int line_of(const std::string& text, const std::string& needle) {
 }
 
 TEST(PhysicalModelJson, RoundTripIsExact) {
-  PhysicalModel m = PhysicalModel::default_platform();
+  PhysicalModel m = platform_defaults_model();
   m.add_effect("input_delay");
-  m.parameter("coil_damping_Ns_per_m").value = 0.1 + 0.2;  // a double with 17 significant digits
+  m.parameter("damping_psi_Nms_per_rad").value = 0.1 + 0.2;  // a double with 17 significant digits
   const std::string text = physical_model_to_json(m, {{"cost", 1.5}});
   const PhysicalModel back = parse_physical_model(text, "m.json");
   ASSERT_EQ(back.parameters.size(), m.parameters.size());
@@ -54,20 +55,20 @@ TEST(PhysicalModelJson, RoundTripIsExact) {
 }
 
 TEST(PhysicalModelJson, BadFilesNameFileLineColumnAndTheRule) {
-  const std::string good = physical_model_to_json(PhysicalModel::default_platform());
-  const int damping_line = line_of(good, "\"coil_damping_Ns_per_m\"");
+  const std::string good = physical_model_to_json(platform_defaults_model());
+  const int damping_line = line_of(good, "\"damping_z_Ns_per_m\"");
   const std::string at_damping = fmt::format("m.json:{}:5: ", damping_line);
 
-  std::string e = error_of(edit(good, "\"coil_damping_Ns_per_m\"", "\"coil_dampin_Ns_per_m\""));
+  std::string e = error_of(edit(good, "\"damping_z_Ns_per_m\"", "\"dampin_z_Ns_per_m\""));
   EXPECT_THAT(e, StartsWith(at_damping));
-  EXPECT_THAT(e, HasSubstr("unknown parameter 'coil_dampin_Ns_per_m'"));
+  EXPECT_THAT(e, HasSubstr("unknown parameter 'dampin_z_Ns_per_m'"));
 
-  e = error_of(edit(good, "\"value\": 30.0, \"unit\": \"N·s/m\", \"lower\": 0.001, \"upper\": 10000.0",
-                    "\"value\": 30.0, \"unit\": \"N·s/m\", \"lower\": 10000.0, \"upper\": 0.001"));
+  e = error_of(edit(good, "\"value\": 270.0, \"unit\": \"N·s/m\", \"lower\": 0.001, \"upper\": 1000000.0",
+                    "\"value\": 270.0, \"unit\": \"N·s/m\", \"lower\": 1000000.0, \"upper\": 0.001"));
   EXPECT_THAT(e, StartsWith(at_damping));
   EXPECT_THAT(e, HasSubstr("bounds reversed"));
 
-  e = error_of(edit(good, "\"value\": 30.0, \"unit\": \"N·s/m\"", "\"value\": 3e5, \"unit\": \"N·s/m\""));
+  e = error_of(edit(good, "\"value\": 270.0, \"unit\": \"N·s/m\"", "\"value\": 3e7, \"unit\": \"N·s/m\""));
   EXPECT_THAT(e, StartsWith(at_damping));
   EXPECT_THAT(e, HasSubstr("outside its bounds"));
 
@@ -75,7 +76,7 @@ TEST(PhysicalModelJson, BadFilesNameFileLineColumnAndTheRule) {
   EXPECT_THAT(e, StartsWith(at_damping));
   EXPECT_THAT(e, HasSubstr("its unit is 'N·s/m'"));
 
-  e = error_of(edit(good, "\"value\": 30.0, \"unit\": \"N·s/m\", ", "\"unit\": \"N·s/m\", "));
+  e = error_of(edit(good, "\"value\": 270.0, \"unit\": \"N·s/m\", ", "\"unit\": \"N·s/m\", "));
   EXPECT_THAT(e, StartsWith(at_damping));
   EXPECT_THAT(e, HasSubstr("no field 'value'"));
 
@@ -93,12 +94,51 @@ TEST(PhysicalModelJson, BadFilesNameFileLineColumnAndTheRule) {
 }
 
 TEST(PhysicalModelJson, MissingParameterIsNamed) {
-  const std::string good = physical_model_to_json(PhysicalModel::default_platform());
+  const std::string good = physical_model_to_json(platform_defaults_model());
   const size_t a = good.find("    \"com_x_m\"");
   const size_t b = good.find('\n', a);
   std::string text = good;
   text.erase(a, b - a + 1);
   EXPECT_THAT(error_of(text), HasSubstr("missing parameter 'com_x_m'"));
+}
+
+TEST(PhysicalModelJson, UserDefinedEffectsRoundTripAndTheirRulesArePositioned) {
+  PhysicalModel m = PhysicalModel::initial();
+  EffectInfo e;
+  e.name = "theta_mount";
+  e.description = "a resonance of the theta sensor's mount";
+  e.parameters = {{"mount_wp_rad_s", "rad/s", 800, 300, 3000, true}, {"mount_zp", "1", 0.05, 1e-3, 0.7, true},
+                  {"mount_wz_rad_s", "rad/s", 900, 300, 3000, true}, {"mount_zz", "1", 0.1, 1e-3, 0.7, true}};
+  e.blocks = {{BlockKind::kResonance, BlockSide::kOutput, {"theta"},
+               {"mount_wp_rad_s", "mount_zp", "mount_wz_rad_s", "mount_zz"}}};
+  m.define_effect(e);
+  m.add_effect("theta_mount");
+  m.parameter("mount_wp_rad_s").value = 812.5;
+  const std::string text = physical_model_to_json(m);
+  const PhysicalModel back = parse_physical_model(text, "m.json");
+  ASSERT_EQ(back.definitions.size(), 1u);
+  EXPECT_EQ(back.definitions[0].name, "theta_mount");
+  EXPECT_EQ(back.definitions[0].description, e.description);
+  EXPECT_EQ(back.parameter("mount_wp_rad_s").value, 812.5);
+  EXPECT_EQ(back.definitions[0].parameters[0].value, 800);  // the definition keeps its default
+  EXPECT_EQ(physical_model_to_json(back), text);
+  // a block channel the base does not have: positioned at the definition
+  const std::string bad = edit(text, "\"theta\"", "\"phi\"");
+  const std::string err = error_of(bad);
+  EXPECT_THAT(err, StartsWith(fmt::format("m.json:{}:", line_of(bad, "\"theta_mount\": {"))));
+  EXPECT_THAT(err, HasSubstr("channel 'phi' is not an output of base 'platform'"));
+  // a definition file of its own reads back to the same effect
+  const EffectInfo again = parse_effect_definition(effect_definition_file(back.definitions[0]), "e.json");
+  EXPECT_EQ(again.name, "theta_mount");
+  EXPECT_EQ(again.blocks.size(), 1u);
+  EXPECT_EQ(again.parameters.size(), 4u);
+}
+
+TEST(PhysicalModelJson, AVersionOneFileIsRefusedWithWhatToDo) {
+  const std::string good = physical_model_to_json(PhysicalModel::initial());
+  const std::string e = error_of(edit(good, "\"version\": 2", "\"version\": 1"));
+  EXPECT_THAT(e, StartsWith("m.json:3:3: "));
+  EXPECT_THAT(e, HasSubstr("write a new one with 'lpvid model init'"));
 }
 
 }  // namespace

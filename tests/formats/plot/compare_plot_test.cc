@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "formats/plot/history_plot.h"
 #include "tests/formats/plot/plot_test_util.h"
@@ -74,6 +75,21 @@ TEST(RenderHistory, OneBarPerFitAndBadValuesAreRejected) {
   EXPECT_EQ(input_error([] { render_history({}, ""); }), "history plot: no fit to draw");
   EXPECT_EQ(input_error([] { render_history({{"x", 0, 1}}, ""); }),
             "history plot: fit 1 has mean 0 % and max 1 %; both finite, > 0, max >= mean");
+  EXPECT_EQ(input_error([] { render_history({{"x", 1, 2, -1.0}}, ""); }),
+            "history plot: fit 1 has a noise floor of -1 %; finite and > 0, or none");
+}
+
+TEST(RenderHistory, TheNoiseFloorIsAGreenLineAtItsValue) {
+  // the same bar with and without a floor: the drawing differs by the line and its
+  // legend entry (the figure keeps its size)
+  const cv::Mat with = render_history({{"1: fit", 10, 20, 0.1}}, "");
+  const cv::Mat without = render_history({{"1: fit", 10, 20}}, "");
+  ASSERT_EQ(with.size(), without.size());
+  cv::Mat diff;
+  cv::absdiff(with, without, diff);
+  cv::Mat gray;
+  cv::cvtColor(diff, gray, cv::COLOR_BGR2GRAY);
+  EXPECT_GT(cv::countNonZero(gray), 50);  // the line and its legend entry
 }
 
 }  // namespace

@@ -1,232 +1,219 @@
-// diagnose on plant FRDs with a hidden effect: for every effect of the library,
-// data simulated from a truth that has the effect (its parameters drawn from the
-// documented ranges below, three seeds each) and a start model without it; and
-// on data with nothing hidden.  The FRD noise model is that of an H1 estimate:
-// complex circular Gaussian error with standard deviation
-//   σ_ij = ε · s_ij,  s_ij = sqrt(|P_ii| |P_jj|)
-// per real part (the noise of column j comes from the output noise over the
-// excitation of input j, so off-diagonal channels carry noise at the scale of the
-// diagonal ones, not of their own small size), and the coherence that an H1
-// estimate with n_d averages would report for it,
-//   γ² = |P̂|² / (|P̂|² + 2 n_d σ²)   ⇔   σ = |P̂| sqrt((1 − γ²) / (2 n_d γ²))
-// (idlib/validate/model_error.h), so that significance uses the true noise level.
+// diagnose on the INDEPENDENT platform (tests/support/independent_*, written from
+// the physics apart from idlib/physical): the acceptance of issue 10, "the
+// model-error loop on a plant that is not lpvid's own simulator".  Plants are drawn
+// over tests/idlib/diagnose/independent_data.h's ranges (masses ±30 %, psi/theta
+// stiffness differing by up to ~30 %, per-coil damping ±10 %, coil pitch 8–13 cm,
+// a PID loop with closed-loop damping 0.1–0.5); one effect is hidden at a time with
+// its parameters drawn from tests/support/independent_draw.h; the data are what a
+// user gets — a stepped-sine analyzer's S with coherence and averages, or lpvid's
+// frf on 60 s white-noise logs; the start is `model init` with the design values a
+// user knows (the rods' tilt stiffness within ±25 %).
+//
+// Criteria (issue 10, "What must hold"): each hidden effect named first and the
+// error falls >= 10x or to within 1.5x the noise floor; a clean plant: nothing
+// significant; an effect no library contains (a sensor resonance in the theta row):
+// never explained, and described where and what it is.
 #include "idlib/diagnose/diagnose.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include <fmt/format.h>
 
-#include <random>
-
 #include "idlib/core/error.h"
-#include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
-#include "idlib/physical/evaluate.h"
+#include "tests/idlib/diagnose/independent_data.h"
 
 namespace lpvid {
 namespace {
 
-constexpr double kSamplePeriod = 1e-3;  // plant FRDs from 1 kHz experiments (ZOH model)
-constexpr double kNoise = 0.01;         // ε: 1 % relative noise per real part (issue 3's "about 1 %")
-constexpr double kAverages = 16;        // n_d of the H1 estimate (ModelErrorOptions default)
+using indep::HiddenEffect;
+using testing::LoopCase;
+using testing::Route;
 
-const Eigen::VectorXd& grid() {
-  // 2–2500 rad/s: the rigid-body band and the paper's peaks above 400 rad/s,
-  // below Nyquist (3142 rad/s at 1 kHz).
-  static const Eigen::VectorXd w = log_frequency_grid(2.0, 2500.0, 120);
-  return w;
+// "falls >= 10x or to within 1.5x the noise floor" (issue 10)
+constexpr double kFallFactor = 10.0;
+constexpr double kWithinFloor = 1.5;
+
+struct LoopRun {
+  LoopCase c;
+  Diagnosis d;
+};
+
+LoopRun diagnose_case(std::uint64_t seed, HiddenEffect hidden, Route route) {
+  LoopRun r{testing::make_loop_case(seed, hidden, route), {}};
+  DiagnoseOptions o;
+  o.fit = testing::loop_fit_options(r.c);
+  r.d = diagnose(r.c.start, r.c.data, o);
+  return r;
 }
 
-std::vector<FitDataset> noisy_data(const PhysicalModel& truth, const FitOptions& o, std::uint64_t seed,
-                                   double noise = kNoise) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> n01;
-  std::vector<FitDataset> out;
-  for (double xb : kPaperBeamPositions_m) {
-    FrequencyResponse r = target_response(truth, xb, grid(), o);
-    r.coherence.resize(r.response.size());
-    for (std::size_t k = 0; k < r.response.size(); ++k) {
-      Eigen::MatrixXcd& P = r.response[k];
-      const Eigen::MatrixXcd exact = P;
-      Eigen::MatrixXd coh(3, 3);
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-          const double s = std::sqrt(std::abs(exact(i, i)) * std::abs(exact(j, j)));
-          const double sigma = noise * s;
-          P(i, j) += std::complex<double>(sigma * n01(rng), sigma * n01(rng));
-          const double a2 = std::norm(P(i, j));
-          coh(i, j) = a2 / (a2 + 2.0 * kAverages * sigma * sigma);
-        }
-      r.coherence[k] = coh;
-    }
-    out.push_back({xb, r, fmt::format("x_b={}", xb)});
+std::string report(const Diagnosis& d) {
+  std::string s;
+  for (const auto& line : d.summary) s += line + "\n";
+  for (const auto& c : d.ranked)
+    s += fmt::format("  {:<18} error {:.4f} % share {:.2f} bands {:.2f}: {}\n", c.effect, 100 * c.error,
+                     c.excess_share, c.band_share, c.verdict);
+  return s;
+}
+
+const char* expected_name(HiddenEffect e) {
+  switch (e) {
+    case HiddenEffect::kMode: return "structural_mode";
+    case HiddenEffect::kDelay: return "input_delay";
+    case HiddenEffect::kCoilLag: return "actuator_lag";
+    case HiddenEffect::kComOffset: return "com_offset";
+    case HiddenEffect::kRodTwist: return "rod_twist";
+    default: return "";
+  }
+}
+
+struct HiddenCase {
+  HiddenEffect effect;
+  std::uint64_t seed;
+  Route route;
+};
+
+std::string case_name(const ::testing::TestParamInfo<HiddenCase>& info) {
+  return fmt::format("{}_seed{}_{}", indep::hidden_name(info.param.effect), info.param.seed,
+                     info.param.route == Route::kAnalyzer ? "analyzer" : "frf");
+}
+
+class HiddenEffectIsNamed : public ::testing::TestWithParam<HiddenCase> {};
+
+TEST_P(HiddenEffectIsNamed, FirstAndTheErrorFallsTenfoldOrToTheNoise) {
+  const HiddenCase& h = GetParam();
+  const LoopRun r = diagnose_case(h.seed, h.effect, h.route);
+  const Diagnosis& d = r.d;
+  const std::string why = report(d) + r.c.draw.description;
+  ASSERT_EQ(d.missing, expected_name(h.effect)) << why;
+  const double e1 = d.ranked.front().error;
+  std::printf("%s seed %llu %s: %s, error %.4f %% -> %.4f %% (%.1fx; floor %.4f %%)\n", indep::hidden_name(h.effect),
+              static_cast<unsigned long long>(h.seed), h.route == Route::kAnalyzer ? "analyzer" : "frf",
+              d.missing.c_str(), 100 * d.baseline_error, 100 * e1, d.baseline_error / e1, 100 * d.effective_floor);
+  EXPECT_TRUE(e1 * kFallFactor <= d.baseline_error || e1 <= kWithinFloor * d.effective_floor) << why;
+  EXPECT_TRUE(d.explained) << why;
+}
+
+std::vector<HiddenCase> hidden_cases() {
+  std::vector<HiddenCase> out;
+  for (HiddenEffect e : {HiddenEffect::kMode, HiddenEffect::kDelay, HiddenEffect::kCoilLag, HiddenEffect::kComOffset,
+                         HiddenEffect::kRodTwist}) {
+    for (std::uint64_t s : {201, 202, 203}) out.push_back({e, s, Route::kAnalyzer});
+    out.push_back({e, 211, Route::kFrfFromLogs});
   }
   return out;
 }
 
-DiagnoseOptions options() {
+INSTANTIATE_TEST_SUITE_P(IndependentPlant, HiddenEffectIsNamed, ::testing::ValuesIn(hidden_cases()), case_name);
+
+// A clean plant (nothing hidden): nothing significant in at least 9 of 10 seeds.
+TEST(IndependentPlantClean, NothingIsSignificantInAtLeastNineOfTenSeeds) {
+  constexpr int kSeeds = 10, kAllowedFalseAlarms = 1;
+  int alarms = 0;
+  std::string why;
+  for (int s = 0; s < kSeeds; ++s) {
+    const LoopRun r = diagnose_case(300 + static_cast<std::uint64_t>(s), HiddenEffect::kNone, Route::kAnalyzer);
+    bool any = false;
+    for (const auto& c : r.d.ranked) any = any || c.significant;
+    std::printf("clean seed %d: error %.4f %%, floor %.4f %%, %s\n", 300 + s, 100 * r.d.baseline_error,
+                100 * r.d.effective_floor, any ? ("ALARM: " + r.d.missing).c_str() : "nothing significant");
+    if (any) {
+      ++alarms;
+      why += report(r.d);
+    }
+  }
+  EXPECT_LE(alarms, kAllowedFalseAlarms) << why;
+}
+
+TEST(IndependentPlantClean, FrfFromLogsCallsNothingSignificant) {
+  const LoopRun r = diagnose_case(311, HiddenEffect::kNone, Route::kFrfFromLogs);
+  for (const auto& c : r.d.ranked) EXPECT_FALSE(c.significant) << report(r.d);
+}
+
+// An effect outside the library — a resonance of the theta sensor's mount, in the
+// theta output row only — is never claimed explained, and the description finds its
+// place (the theta output row) and its frequency.
+class OutOfLibrary : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(OutOfLibrary, IsNeverExplainedAndIsDescribedInTheThetaRowAtItsFrequency) {
+  const LoopRun r = diagnose_case(GetParam(), HiddenEffect::kSensorResonance, Route::kAnalyzer);
+  const Diagnosis& d = r.d;
+  EXPECT_FALSE(d.explained) << report(d);
+  ASSERT_FALSE(d.descriptions.empty()) << report(d);
+  const ResidualDescription& best = d.descriptions.front();
+  EXPECT_EQ(best.side, "output");
+  EXPECT_EQ(best.channel, "theta") << best.text;
+  EXPECT_EQ(best.kind, "resonance") << best.text;
+  // the drawn resonance frequency, from the draw's description "sensor_resonance_rad_s = ..."
+  const std::string& desc = r.c.draw.description;
+  const double truth = std::stod(desc.substr(desc.find("sensor_resonance_rad_s = ") + 25));
+  const double found = best.effect.parameters[0].value;
+  // within 2 %: the resonance is sharp (ζ 0.02–0.08) and the analyzer sees it at ~1 % line spacing
+  constexpr double kFrequencyTolerance = 0.02;
+  EXPECT_NEAR(found / truth, 1.0, kFrequencyTolerance) << best.text;
+  std::printf("out of library, seed %llu: %s (truth %.1f rad/s)\n", static_cast<unsigned long long>(GetParam()),
+              best.text.c_str(), truth);
+}
+
+INSTANTIATE_TEST_SUITE_P(IndependentPlant, OutOfLibrary, ::testing::Values(401, 402, 403));
+
+// ---- rules --------------------------------------------------------------------
+
+TEST(DiagnoseRules, DataWithCoherenceButNoAveragesIsAnInputErrorNamingTheRemedy) {
+  LoopCase c = testing::make_loop_case(201, HiddenEffect::kNone, Route::kAnalyzer, 40);
+  for (auto& ds : c.data) ds.response.averages = 0;  // an export that does not state it
   DiagnoseOptions o;
-  o.fit.sample_period_s = kSamplePeriod;
-  o.model_error.averages = kAverages;
-  return o;
-}
-
-double uniform(std::mt19937_64& rng, double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
-double signed_uniform(std::mt19937_64& rng, double lo, double hi) {
-  return (std::bernoulli_distribution(0.5)(rng) ? 1.0 : -1.0) * uniform(rng, lo, hi);
-}
-
-// The truth with `effect` and the start model without it.  Parameter ranges
-// (documented in docs/effects.md, "Ranges used by the tests"):
-struct Case {
-  PhysicalModel truth, start;
-};
-Case hidden(const std::string& effect, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  PhysicalModel base = PhysicalModel::default_platform();  // rod_twist, com_offset, beam_gravity on
-  base.parameter("com_x_m").value = 0.004;
-  base.parameter("com_y_m").value = -0.003;
-  Case c;
-  if (effect == "structural_mode" || effect == "input_delay" || effect == "actuator_lag" || effect == "gain_error") {
-    c.start = base;
-    c.truth = base;
-    c.truth.add_effect(effect);
-    if (effect == "structural_mode") {
-      c.truth.parameter("mode_frequency_rad_s").value = uniform(rng, 600.0, 1500.0);
-      c.truth.parameter("mode_damping").value = uniform(rng, 0.01, 0.05);
-      c.truth.parameter("mode_shape_psi").value = signed_uniform(rng, 1.0, 3.0);
-      c.truth.parameter("mode_shape_theta").value = signed_uniform(rng, 1.0, 3.0);
-      c.truth.parameter("mode_shape_z").value = signed_uniform(rng, 0.2, 0.6);
-    } else if (effect == "input_delay") {
-      c.truth.parameter("input_delay_s").value = uniform(rng, 3e-4, 1.5e-3);
-    } else if (effect == "actuator_lag") {
-      c.truth.parameter("actuator_time_constant_s").value = uniform(rng, 3e-4, 2e-3);
-    } else {
-      // One DOF with a gain error of 10–50 % (eq 9's printed z row is +50 %), the others ±3 %.
-      const char* names[3] = {"gain_psi", "gain_theta", "gain_z"};
-      const int pick = std::uniform_int_distribution<int>(0, 2)(rng);
-      for (int j = 0; j < 3; ++j)
-        c.truth.parameter(names[j]).value = j == pick ? 1.0 + signed_uniform(rng, 0.1, 0.5) : 1.0 + uniform(rng, -0.03, 0.03);
-    }
-  } else if (effect == "rod_twist") {
-    c.truth = base;
-    c.truth.parameter("k_torque_high_Nm_per_rad").value = uniform(rng, 100.0, 300.0);
-    c.start = without_effect(c.truth, effect);
-  } else if (effect == "com_offset") {
-    c.truth = base;
-    c.truth.parameter("com_x_m").value = signed_uniform(rng, 0.003, 0.01);
-    c.truth.parameter("com_y_m").value = signed_uniform(rng, 0.003, 0.01);
-    c.truth.parameter("J_psitheta_kgm2").value = signed_uniform(rng, 5e-4, 2e-3);
-    c.start = without_effect(c.truth, effect);
-  } else if (effect == "beam_gravity") {
-    // The gravity stiffness -z_b m_b g equals a softer rod on both tilts, so it is
-    // separable only when the rod stiffness is known: the start holds
-    // k_torque_high fixed at its (true) design value.  A raised, heavy beam:
-    // z_b 0.2–0.3 m, m_b 2–3 kg, i.e. 4–9 N·m/rad against ~345 N·m/rad of rods.
-    c.truth = base;
-    c.truth.parameter("beam_height_m").value = uniform(rng, 0.2, 0.3);
-    c.truth.parameter("beam_mass_kg").value = uniform(rng, 2.0, 3.0);
-    c.truth.parameter("k_torque_high_Nm_per_rad").free = false;
-    c.start = without_effect(c.truth, effect);
-  }
-  // The start is the truth without the effect, its free values 20 % off.
-  int k = 0;
-  for (auto& p : c.start.parameters)
-    if (p.free) p.value = std::clamp(p.value * (k++ % 2 == 0 ? 1.2 : 0.8), p.lower, p.upper);
-  return c;
-}
-
-class HiddenEffect : public ::testing::TestWithParam<std::string> {};
-
-TEST_P(HiddenEffect, DiagnoseNamesItFirstAndAddingItLowersTheErrorTenfoldOrToTheNoiseFloor) {
-  const std::string effect = GetParam();
-  for (std::uint64_t seed : {11u, 12u, 13u}) {
-    SCOPED_TRACE(fmt::format("{} seed {}", effect, seed));
-    const Case c = hidden(effect, seed);
-    const DiagnoseOptions o = options();
-    const auto data = noisy_data(c.truth, o.fit, 1000 + seed);
-    const Diagnosis d = diagnose(c.start, data, o);
-    ASSERT_FALSE(d.ranked.empty());
-    std::string table;
-    for (const auto& r : d.ranked) table += fmt::format("{} ΔBIC {:.1f} err {:.4g}; ", r.effect, r.delta_bic, r.error);
-    EXPECT_EQ(d.ranked.front().effect, effect) << table;
-    EXPECT_TRUE(d.explained) << table;
-    // The noise floor: the error of the truth's own structure fitted to the same data.
-    const double floor = fit_error(fit_physical_model(c.truth, data, o.fit));
-    const double after = d.ranked.front().error;
-    EXPECT_TRUE(after <= d.baseline_error / 10.0 || after <= 1.5 * floor)
-        << "before " << d.baseline_error << " after " << after << " floor " << floor;
+  o.fit = testing::loop_fit_options(c);
+  try {
+    diagnose(c.start, c.data, o);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("give --averages N"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("coherence without the number of averages"));
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Library, HiddenEffect,
-                         ::testing::Values("structural_mode", "input_delay", "actuator_lag", "gain_error", "rod_twist",
-                                           "com_offset", "beam_gravity"));
-
-TEST(Diagnose, NothingHiddenReportsNothingSignificantInAtLeastNineOfTenSeeds) {
-  int quiet = 0;
-  std::string log;
-  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
-    PhysicalModel truth = PhysicalModel::default_platform();
-    truth.parameter("com_x_m").value = 0.004;
-    truth.parameter("com_y_m").value = -0.003;
-    const DiagnoseOptions o = options();
-    const Diagnosis d = diagnose(truth, noisy_data(truth, o.fit, 500 + seed), o);
-    if (!d.explained) ++quiet;
-    log += fmt::format("seed {}: best {} ΔBIC {:.1f}\n", seed, d.ranked.front().effect, d.ranked.front().delta_bic);
-  }
-  EXPECT_GE(quiet, 9) << log;
+TEST(DiagnoseRules, UnknownOrPresentCandidatesAndBadOptionsAreInputErrors) {
+  LoopCase c = testing::make_loop_case(201, HiddenEffect::kNone, Route::kAnalyzer, 40);
+  DiagnoseOptions o;
+  o.fit = testing::loop_fit_options(c);
+  o.candidates = {"friction"};
+  EXPECT_THROW(diagnose(c.start, c.data, o), InputError);
+  o.candidates = {"beam_gravity"};
+  EXPECT_THROW(diagnose(c.start, c.data, o), InputError);
+  o.candidates.clear();
+  o.min_excess_share = 0;
+  EXPECT_THROW(o.validate(), InputError);
+  o.min_excess_share = 0.5;
+  o.explained_ratio = 0.5;
+  EXPECT_THROW(o.validate(), InputError);
 }
 
-TEST(Diagnose, AnEffectOutsideTheLibraryIsReportedAsNotExplainedWithTheResidualDescribed) {
-  // A second-order actuator roll-off is not in the library... but actuator_lag
-  // would absorb part of it; use instead a notch-free sensor resonance on z only
-  // (an extra output filter), which no library effect reproduces: a lightly damped
-  // second-order section multiplying the z row.
-  PhysicalModel truth = PhysicalModel::default_platform();
-  const DiagnoseOptions o = options();
-  auto data = noisy_data(truth, o.fit, 77);
-  const double wn = 900.0, zeta = 0.03;
-  for (auto& d : data)
-    for (std::size_t k = 0; k < d.response.response.size(); ++k) {
-      const std::complex<double> s(0.0, d.response.omega_rad_s(static_cast<Index>(k)));
-      const std::complex<double> f = wn * wn / (s * s + 2.0 * zeta * wn * s + wn * wn);
-      d.response.response[k].row(2) *= f;
-    }
-  const Diagnosis d = diagnose(truth, data, o);
-  std::string table;
-  for (const auto& r : d.ranked) table += fmt::format("{} ΔBIC {:.1f} err {:.4g}; ", r.effect, r.delta_bic, r.error);
-  std::size_t bands = 0;
-  for (const auto& s : d.baseline_failures) bands += s.size();
-  EXPECT_GT(bands, 0u);
-  // Either nothing is significant, or the best candidate leaves failing bands behind:
-  // never a confident claim that the residual is explained.
-  if (d.explained) {
-    std::size_t left = 0;
-    for (const auto& s : d.remaining_failures) left += s.size();
-    EXPECT_GT(left, 0u) << table;
-  }
-}
-
-TEST(Diagnose, RejectsUnknownOrPresentCandidates) {
-  const PhysicalModel m = PhysicalModel::default_platform();
-  DiagnoseOptions o = options();
-  const auto data = noisy_data(m, o.fit, 3);
-  o.candidates = {"warp_drive"};
-  EXPECT_THROW(diagnose(m, data, o), InputError);
-  o.candidates = {"rod_twist"};
-  EXPECT_THROW(diagnose(m, data, o), InputError);
-}
-
-TEST(Diagnose, WithoutEffectDropsItsParametersAndKeepsTheRest) {
-  PhysicalModel m = PhysicalModel::default_platform();
-  m.parameter("J_psi_kgm2").value = 0.07;
-  const PhysicalModel w = without_effect(m, "com_offset");
-  EXPECT_FALSE(w.has_effect("com_offset"));
-  EXPECT_LT(w.index_of("com_x_m"), 0);
-  EXPECT_DOUBLE_EQ(w.parameter("J_psi_kgm2").value, 0.07);
-  EXPECT_THROW(without_effect(w, "com_offset"), InputError);
+TEST(Phenomena, BandsAtOneFrequencyInOneRowAreOnePhenomenonSaidAsThatRow) {
+  auto band = [](Index d, Index i, Index j, double w, double ratio) {
+    FailingBand b;
+    b.data_index = d;
+    b.output = i;
+    b.input = j;
+    b.lo_rad_s = 0.9 * w;
+    b.hi_rad_s = 1.1 * w;
+    b.omega_at_max_rad_s = w;
+    b.max_sigma_ratio = ratio;
+    b.hint = "narrow peak";
+    return b;
+  };
+  const std::vector<std::vector<FailingBand>> failures = {
+      {band(0, 1, 0, 850, 40), band(0, 1, 1, 860, 90), band(0, 0, 0, 60, 30)},
+      {band(1, 1, 2, 845, 50), band(1, 2, 2, 5, 20)}};
+  const auto ph = group_phenomena(failures, {"psi", "theta", "z"}, {"T_psi", "T_theta", "F_z"});
+  ASSERT_EQ(ph.size(), 3u);
+  EXPECT_EQ(ph[0].bands.size(), 3u);  // the theta row near 850 rad/s, strongest first
+  EXPECT_NEAR(ph[0].omega_rad_s, 860, 1e-9);
+  EXPECT_THAT(ph[0].where, ::testing::StartsWith("the theta output row only"));
+  EXPECT_EQ(ph[0].data_sets, (std::vector<Index>{0, 1}));
+  EXPECT_EQ(ph[1].where, "psi <- T_psi");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include "idlib/lti/frequency_response.h"
 #include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
 namespace {
@@ -23,7 +24,7 @@ constexpr unsigned kNoiseSeed = 20240;   // named seed for the noisy-data test
 // The truth: the default platform with centre-of-mass offsets, so that every
 // off-diagonal channel carries information.
 PhysicalModel truth_model() {
-  PhysicalModel m = PhysicalModel::default_platform();
+  PhysicalModel m = platform_defaults_model();
   m.parameter("com_x_m").value = 0.006;
   m.parameter("com_y_m").value = -0.004;
   return m;
@@ -97,8 +98,11 @@ TEST(PhysicalFit, NoisyPlantEstimatesLieWithinThreeReportedSigma) {
     // for a random seed; kNoiseSeed is fixed, so the outcome is deterministic.
     EXPECT_LE(std::abs(e.estimate - truth.parameter(e.name).value), 3.0 * e.std_error) << e.name;
   }
-  // σ² estimates the noise: each real residual has variance 0.01²/2 (·weight 1).
-  EXPECT_NEAR(r.sigma2, 0.01 * 0.01 / 2.0, 0.2 * 0.01 * 0.01 / 2.0);  // 20 %: chi-square spread and model bias
+  // σ² estimates the noise: without a stated noise the weights are √2/s_ij (a unit
+  // relative noise), so each real residual has variance 0.01².
+  EXPECT_NEAR(r.sigma2, 0.01 * 0.01, 0.2 * 0.01 * 0.01);  // 20 %: chi-square spread and model bias
+  EXPECT_FALSE(r.noise_known);
+  EXPECT_TRUE(std::isnan(r.noise_floor));
 }
 
 TEST(PhysicalFit, ClosedLoopTargetsGAndSRecoverTheParameters) {
@@ -106,7 +110,7 @@ TEST(PhysicalFit, ClosedLoopTargetsGAndSRecoverTheParameters) {
   for (FitTarget target : {FitTarget::kClosedLoopOutput, FitTarget::kInputSensitivity}) {
     FitOptions o = plant_options();
     o.target = target;
-    o.controller = discrete_pi_controller(default_pi_gains(to_platform_parameters(truth)), kSamplePeriod);
+    o.controller = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), kSamplePeriod);
     const FitResult r = fit_physical_model(two_times_off(truth), data_of(truth, o), o);
     expect_recovered(r, truth, kRecovery);
   }
@@ -137,17 +141,117 @@ TEST(PhysicalFit, GOrSWithoutControllerIsInputError) {
 }
 
 TEST(PhysicalFit, IdentifiabilityFlagsNameTheInseparableStiffnesses) {
-  // Three rods 120° apart: only k_torque_low + k_torque_high enters K.
+  // The rods' designed bending k_torque_low and the twist both add on the tilt
+  // diagonals (rod_twist holds the bending scales at the design): freeing it makes
+  // the sum inseparable.
   PhysicalModel truth = truth_model();
   truth.parameter("k_torque_low_Nm_per_rad").free = true;
-  truth.parameter("k_torque_low_Nm_per_rad").lower = 1.0;
   const FitOptions o = plant_options();
   FitOptions quick = o;
   quick.global_start = false;
   const FitResult r = fit_physical_model(truth, data_of(truth, o), quick);
   ASSERT_FALSE(r.identifiability.empty());
-  EXPECT_THAT(r.identifiability.front(), HasSubstr("k_torque_low_Nm_per_rad"));
-  EXPECT_THAT(r.identifiability.front(), HasSubstr("k_torque_high_Nm_per_rad"));
+  std::string all;
+  for (const auto& line : r.identifiability) all += line + "\n";
+  EXPECT_THAT(all, HasSubstr("k_torque_low_Nm_per_rad"));
+  EXPECT_THAT(all, HasSubstr("twist_stiffness_psi_Nm_per_rad"));
+}
+
+// The noise model: the data's variance, coherence with averages, or a stated level
+// give σ per real part, the cost a χ² and the noise floor the error figure of the
+// noise alone (fit.h).
+TEST(PhysicalFit, NoiseFloorIsTheErrorFigureOfTheStatedNoise) {
+  const PhysicalModel truth = truth_model();
+  FitOptions o = plant_options();
+  std::vector<FitDataset> data = data_of(truth, o);
+  constexpr double kLevel = 0.003;  // 0.3 % relative rms error, stated as variance
+  std::mt19937 rng(kNoiseSeed + 1);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (auto& d : data) {
+    d.response.variance.clear();
+    for (auto& m : d.response.response) {
+      const Eigen::Matrix3cd clean = m;
+      Eigen::MatrixXd var(3, 3);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          const double s = std::sqrt(std::abs(clean(i, i)) * std::abs(clean(j, j)));
+          var(i, j) = (kLevel * s) * (kLevel * s);
+          m(i, j) += kLevel * s * Complex(n01(rng), n01(rng)) / std::sqrt(2.0);
+        }
+      d.response.variance.push_back(var);
+    }
+  }
+  o.global_start = false;
+  const FitResult r = fit_physical_model(truth, data, o);
+  EXPECT_TRUE(r.noise_known);
+  EXPECT_EQ(r.noise_source, "variance");
+  // the floor of a noise of relative rms kLevel is kLevel (measured s = sqrt|Ĥ_ii||Ĥ_jj|
+  // of the noisy data: within 1 %)
+  EXPECT_NEAR(r.noise_floor, kLevel, 0.01 * kLevel);
+  // at the truth, the error figure is the noise: the fit can only lower it slightly
+  EXPECT_NEAR(r.error / r.noise_floor, 1.0, 0.05);
+  // σ² of a χ² fit: 1 per real residual (5 %: chi-square spread over ~4000 residuals)
+  EXPECT_NEAR(r.sigma2, 1.0, 0.05);
+}
+
+TEST(PhysicalFit, BandLeavesOutTheFrequenciesOutsideIt) {
+  const PhysicalModel truth = truth_model();
+  FitOptions o = plant_options();
+  o.band_min_rad_s = 10.0;
+  o.band_max_rad_s = 100.0;
+  o.global_start = false;
+  const FitResult r = fit_physical_model(truth, data_of(truth, o), o);
+  Index inside = 0;
+  for (Index k = 0; k < grid().size(); ++k) inside += grid()(k) >= 10.0 && grid()(k) <= 100.0 ? 1 : 0;
+  EXPECT_EQ(r.frequencies_used, 3 * inside);
+  o.band_min_rad_s = 5000;
+  o.band_max_rad_s = 6000;
+  EXPECT_THROW(fit_physical_model(truth, data_of(truth, plant_options()), o), InputError);
+}
+
+// A lightly damped mode far from the start's frequency is found from an extra start
+// (diagnose reads it off the failing bands), searching only the mode's parameters.
+TEST(PhysicalFit, ExtraStartAtAResonanceFindsAModeTheDefaultsMiss) {
+  PhysicalModel truth = truth_model();
+  truth.add_effect("structural_mode");
+  truth.parameter("mode_frequency_rad_s").value = 1500;
+  truth.parameter("mode_damping").value = 0.01;
+  FitOptions o = plant_options();
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 2500.0, 300);
+  std::vector<FitDataset> data;
+  for (double xb : kPaperBeamPositions_m) data.push_back({xb, target_response(truth, xb, w, o), "x_b"});
+  PhysicalModel start = truth;
+  start.parameter("mode_frequency_rad_s").value = 600;  // the library default
+  start.parameter("mode_damping").value = 0.02;
+  o.global_parameters = {"mode_frequency_rad_s", "mode_damping", "mode_shape_psi", "mode_shape_theta",
+                         "mode_shape_z"};
+  o.global_starts = 2;
+  o.extra_starts = {{{"mode_frequency_rad_s", 1480.0}}};
+  const FitResult r = fit_physical_model(start, data, o);
+  EXPECT_NEAR(r.model.parameter("mode_frequency_rad_s").value, 1500, 1e-3 * 1500);
+  EXPECT_LT(r.error, 1e-6);
+  o.extra_starts = {{{"no_such_parameter", 1.0}}};
+  EXPECT_THROW(fit_physical_model(start, data, o), InputError);
+}
+
+TEST(PhysicalFit, AnEstimateOnABoundIsFlaggedAndWarned) {
+  PhysicalModel truth = PhysicalModel::initial();  // without rod_twist: the bending alone carries the tilt stiffness
+  truth.parameter("bending_scale_psi").value = 1.9;
+  PhysicalModel start = truth;
+  start.parameter("bending_scale_psi").value = 1.0;
+  start.parameter("bending_scale_psi").upper = 1.5;  // the truth lies beyond the bound
+  FitOptions o = plant_options();
+  o.global_start = false;
+  const FitResult r = fit_physical_model(start, data_of(truth, o), o);
+  bool flagged = false;
+  for (const auto& e : r.parameters)
+    if (e.name == "bending_scale_psi") {
+      flagged = e.at_bound;
+      EXPECT_THAT(e.flags.front(), HasSubstr("at upper bound 1.5"));
+    }
+  EXPECT_TRUE(flagged);
+  ASSERT_FALSE(r.report.warnings.empty());
+  EXPECT_THAT(r.report.warnings.back(), HasSubstr("bending_scale_psi ended on its upper bound"));
 }
 
 TEST(PhysicalFit, BandsAreTheDeltaMethodOfTheExactDerivative) {

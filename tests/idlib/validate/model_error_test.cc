@@ -21,10 +21,20 @@ constexpr double kAverages = 16;
 // σ_c / |P| per real part of that estimate (model_error.h): sqrt(0.05 / 30.4) = 4.06 %.
 const double kRelSigma = std::sqrt((1 - kCoherence) / (2 * kAverages * kCoherence));
 
-ModelErrorOptions options() {
-  ModelErrorOptions o;
-  o.averages = kAverages;
-  return o;
+ModelErrorOptions options() { return ModelErrorOptions{}; }
+
+// σ_c per real part of that estimate, by the H1 formula (the caller's job since the
+// noise model moved to idlib/fit's data_sigma): |Ĥ| sqrt((1 − γ²) / (2 n_d γ²)).
+std::vector<Eigen::MatrixXd> sigma(const FrequencyResponse& d) {
+  std::vector<Eigen::MatrixXd> out;
+  for (std::size_t k = 0; k < d.response.size(); ++k) {
+    Eigen::MatrixXd s = d.response[k].cwiseAbs();
+    const Eigen::MatrixXd& g2 = d.coherence[k];
+    for (Index i = 0; i < s.rows(); ++i)
+      for (Index j = 0; j < s.cols(); ++j) s(i, j) *= std::sqrt((1 - g2(i, j)) / (2 * kAverages * g2(i, j)));
+    out.push_back(s);
+  }
+  return out;
 }
 
 // The platform at the right beam position (every tilt-z coupling but psi-z is
@@ -63,11 +73,14 @@ TEST(ConfidenceRadius, IsTheRayleighQuantile) {
   EXPECT_NEAR(confidence_radius(0.99), 3.0349, 1e-4);
 }
 
-TEST(ModelError, SigmaFollowsTheH1FormulaFromCoherence) {
+ModelErrorModel model_error_of(const FrequencyResponse& d, const std::vector<Eigen::MatrixXcd>& model) {
+  return model_error(d, model, sigma(d), options());
+}
+
+TEST(ModelError, SigmaIsTheGivenNoiseAboveTheResolution) {
   const Truth t;
   const FrequencyResponse d = measured(t.omega, t.model, 3);
-  const ModelErrorModel mem = model_error(d, t.model, options());
-  EXPECT_TRUE(mem.coherence_used);
+  const ModelErrorModel mem = model_error(d, t.model, sigma(d), options());
   for (std::size_t f = 0; f < d.response.size(); f += 37)
     for (Index i = 0; i < 3; ++i) {
       // The defining equation: σ_c = |Ĥ| sqrt((1 − γ²) / (2 n γ²)); 1e-12 is rounding.
@@ -77,17 +90,18 @@ TEST(ModelError, SigmaFollowsTheH1FormulaFromCoherence) {
     }
 }
 
-TEST(ModelError, WithoutCoherenceTheDefaultNoiseLevelIsUsedAndSaid) {
+// Noise-free data (σ far below round-off of the fit): lpvid's resolution, 0.01 % of
+// the channel's scale sqrt(|H_ii| |H_jj|), is the floor.
+TEST(ModelError, TheResolutionFloorsANoiseOfNearlyZero) {
   const Truth t;
-  FrequencyResponse d = measured(t.omega, t.model, 4);
-  d.coherence.clear();
-  const ModelErrorModel mem = model_error(d, t.model, options());
-  EXPECT_FALSE(mem.coherence_used);
-  // σ_c = 2 % of the row's largest entry (defining equation; 1e-12 is rounding).
+  const FrequencyResponse d = measured(t.omega, t.model, 4);
+  std::vector<Eigen::MatrixXd> tiny = sigma(d);
+  for (auto& m : tiny) m.setConstant(1e-300);
+  const ModelErrorModel mem = model_error(d, t.model, tiny, options());
   for (Index i = 0; i < 3; ++i)
     for (Index j = 0; j < 3; ++j) {
-      const double row = d.response[10].row(i).cwiseAbs().maxCoeff();
-      EXPECT_NEAR(mem.sigma[10](i, j), 0.02 * row, 1e-12 * row);
+      const double scale = std::sqrt(std::abs(d.response[10](i, i)) * std::abs(d.response[10](j, j)));
+      EXPECT_NEAR(mem.sigma[10](i, j), 1e-4 * scale, 1e-12 * scale);
     }
 }
 
@@ -96,7 +110,7 @@ TEST(ModelError, NoiseConsistentWithCoherenceIsNotSignificantInNineOfTenSeeds) {
   int clean = 0;
   for (unsigned seed = 1; seed <= 10; ++seed) {
     const FrequencyResponse d = measured(t.omega, t.model, seed);
-    const auto bands = failing_bands(model_error(d, t.model, options()), options());
+    const auto bands = failing_bands(model_error(d, t.model, sigma(d), options()), options());
     clean += bands.empty() ? 1 : 0;
   }
   // 3600 tests per seed at 1 % each: single outliers are expected, three in a band
@@ -111,7 +125,7 @@ TEST(ModelError, MissingDelayFailsAboveWhereItExceedsTheNoiseAndIsNamedADelay) {
   std::vector<Eigen::MatrixXcd> delayed = t.model;
   for (Index f = 0; f < t.omega.size(); ++f) delayed[f] *= std::polar(1.0, -t.omega(f) * kDelay_s);
   const FrequencyResponse d = measured(t.omega, delayed, 11);
-  const auto bands = failing_bands(model_error(d, t.model, options()), options());
+  const auto bands = failing_bands(model_error(d, t.model, sigma(d), options()), options());
   // |1 − e^{−jωτ}| = 2 sin(ωτ/2) crosses k σ_rel at ω_on (about 123 rad/s).
   const double k = confidence_radius(0.99);
   const double on = 2 * std::asin(k * kRelSigma / 2) / kDelay_s;
@@ -152,7 +166,7 @@ TEST(ModelError, MissingModeIsANarrowPeakAtItsFrequencyOnItsChannelOnly) {
     with_mode[f](2, 2) += a / (s * s + 2 * kZeta * kModeOmega * s + kModeOmega * kModeOmega);
   }
   const FrequencyResponse d = measured(t.omega, with_mode, 12);
-  const auto bands = failing_bands(model_error(d, t.model, options()), options());
+  const auto bands = failing_bands(model_error(d, t.model, sigma(d), options()), options());
   ASSERT_EQ(bands.size(), 1u);
   const FailingBand& b = bands.front();
   EXPECT_EQ(b.output, 2);
@@ -173,7 +187,7 @@ TEST(ModelError, ModelWithoutTheBeamOffsetLacksTheTiltHeightCoupling) {
   const Truth t;  // data at x_b = +0.1 m; the model at x_b = 0 has no theta-z coupling
   const auto centred = evaluate_response(platform_model(PlatformParameters::defaults(), kBeamMiddle_m), t.omega);
   const FrequencyResponse d = measured(t.omega, t.model, 13);
-  const auto bands = failing_bands(model_error(d, centred, options()), options());
+  const auto bands = failing_bands(model_error(d, centred, sigma(d), options()), options());
   int coupling = 0;
   for (const auto& b : bands)
     if ((b.output == 1 && b.input == 2) || (b.output == 2 && b.input == 1)) {
@@ -191,8 +205,8 @@ TEST(ModelError, FailuresInOnlySomeDataSetsAreMarked) {
   std::vector<Eigen::MatrixXcd> delayed = t.model;
   for (Index f = 0; f < t.omega.size(); ++f) delayed[f] *= std::polar(1.0, -t.omega(f) * 1e-3);
   std::vector<std::vector<FailingBand>> all;
-  all.push_back(failing_bands(model_error(measured(t.omega, delayed, 21), t.model, options()), options(), 0));
-  all.push_back(failing_bands(model_error(measured(t.omega, t.model, 22), t.model, options()), options(), 1));
+  all.push_back(failing_bands(model_error_of(measured(t.omega, delayed, 21), t.model), options(), 0));
+  all.push_back(failing_bands(model_error_of(measured(t.omega, t.model, 22), t.model), options(), 1));
   ASSERT_FALSE(all[0].empty());
   ASSERT_TRUE(all[1].empty());
   mark_differences_between_data(all);
@@ -210,7 +224,7 @@ TEST(ModelError, FlaggedFrequenciesAreNeverSignificant) {
     d.flagged[f] = true;
     d.response[f] *= 10.0;  // garbage at flagged frequencies
   }
-  const ModelErrorModel mem = model_error(d, t.model, options());
+  const ModelErrorModel mem = model_error(d, t.model, sigma(d), options());
   for (Index f = 100; f < 120; ++f) EXPECT_FALSE(mem.significant[f].any());
   EXPECT_TRUE(failing_bands(mem, options()).empty());
 }
@@ -219,18 +233,21 @@ TEST(ModelError, BadOptionsAndShapesAreInputErrors) {
   const Truth t;
   const FrequencyResponse d = measured(t.omega, t.model, 6);
   ModelErrorOptions o = options();
-  o.averages = 0;
+  o.resolution = -1;
   try {
-    model_error(d, t.model, o);
+    model_error(d, t.model, sigma(d), o);
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
-    EXPECT_STREQ(e.what(), "model error: 0 averages; the H1 estimate needs at least 1 (use --averages N)");
+    EXPECT_STREQ(e.what(), "model error: resolution -1; must be finite and >= 0 (e.g. 0.001)");
   }
+  std::vector<Eigen::MatrixXd> short_sigma = sigma(d);
+  short_sigma.pop_back();
+  EXPECT_THROW(model_error(d, t.model, short_sigma, options()), InputError);
   o = options();
   o.confidence = 1.0;
-  EXPECT_THROW(model_error(d, t.model, o), InputError);
+  EXPECT_THROW(model_error(d, t.model, sigma(d), o), InputError);
   std::vector<Eigen::MatrixXcd> short_model(t.model.begin(), t.model.end() - 1);
-  EXPECT_THROW(model_error(d, short_model, options()), InputError);
+  EXPECT_THROW(model_error(d, short_model, sigma(d), options()), InputError);
 }
 
 }  // namespace
