@@ -10,6 +10,7 @@
 
 #include "formats/io/csv_detail.h"
 #include "formats/io/csv_log.h"
+#include "formats/io/dataset_manifest.h"
 #include "formats/io/frd_csv.h"
 #include "formats/io/frd_mat.h"
 #include "formats/io/history.h"
@@ -107,6 +108,12 @@ void run(Reader reader, const std::string& path, std::size_t size, const std::ui
     case Reader::kPlatformJson:
       read_platform_parameters(path);
       break;
+    case Reader::kEffectJson:
+      read_effect_definition(path);
+      break;
+    case Reader::kDatasetManifest:
+      read_dataset_manifest(path);
+      break;
   }
 }
 
@@ -116,7 +123,8 @@ const std::vector<Reader>& all_readers() {
   static const std::vector<Reader> all = {Reader::kLogCsv,          Reader::kFrdCsv,
                                           Reader::kFrdMat,          Reader::kStateSpaceJson,
                                           Reader::kPhysicalModelJson, Reader::kHistory,
-                                          Reader::kMarkovCsv,       Reader::kPlatformJson};
+                                          Reader::kMarkovCsv,       Reader::kPlatformJson,
+                                          Reader::kEffectJson,      Reader::kDatasetManifest};
   return all;
 }
 
@@ -130,6 +138,8 @@ const char* name(Reader reader) {
     case Reader::kHistory: return "history";
     case Reader::kMarkovCsv: return "markov_csv";
     case Reader::kPlatformJson: return "platform_json";
+    case Reader::kEffectJson: return "effect_json";
+    case Reader::kDatasetManifest: return "dataset_manifest";
   }
   return "?";
 }

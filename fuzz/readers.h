@@ -24,13 +24,16 @@ enum class Reader {
   kHistory,            // read_history (fit-history JSON lines)
   kMarkovCsv,          // read_markov_csv
   kPlatformJson,       // read_platform_parameters
+  kEffectJson,         // read_effect_definition (a user-defined effect)
+  kDatasetManifest,    // read_dataset_manifest
 };
 
 // Every reader, for loops over them.
 const std::vector<Reader>& all_readers();
 
 // The harness name: "log_csv", "frd_csv", "frd_mat", "state_space_json",
-// "physical_model_json", "history", "markov_csv", "platform_json".
+// "physical_model_json", "history", "markov_csv", "platform_json", "effect_json",
+// "dataset_manifest".
 const char* name(Reader reader);
 
 // Longest message a reader may give (values are cut to 40 bytes; paths are short here).
