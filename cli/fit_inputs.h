@@ -4,8 +4,9 @@
 // the frequency band and the fit options.  Parsing and loading only (STYLE.md
 // item 8).
 //
-// Dataset manifest (--datasets FILE): formats/io/dataset_manifest.h; every key but
-// "datasets" is optional and a flag on the command line wins over it.
+// Dataset manifest (--datasets FILE): formats/io/dataset_manifest.h and
+// docs/formats.md "Data-set manifest"; every key but "datasets" is optional and a
+// flag on the command line wins over it.
 #pragma once
 
 #include <limits>

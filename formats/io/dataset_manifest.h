@@ -1,5 +1,5 @@
 // lpvid — the dataset manifest read by fit, diagnose and compare with a physical
-// model (--datasets FILE; docs/formats.md, "Dataset manifests"): the data files and
+// model (--datasets FILE; docs/formats.md, "Data-set manifest"): the data files and
 // beam positions of every data set, given once instead of --data FILE@X_B flags.
 //
 //   {"format": "lpvid-datasets",

@@ -108,8 +108,10 @@ class Reader {
                                     "parameters} (docs/formats.md)");
       for (auto it = defs->begin(); it != defs->end(); ++it) {
         const size_t at = find_key(text_, it.key(), top("definitions"));
+        // effect_definition's own errors carry their position already
+        EffectInfo definition = effect_definition(it.key(), it.value(), at == std::string::npos ? top("definitions") : at);
         try {
-          model.define_effect(effect_definition(it.key(), it.value(), at == std::string::npos ? top("definitions") : at));
+          model.define_effect(definition);
         } catch (const InputError& e) {
           fail_at(at == std::string::npos ? top("definitions") : at, e.what());
         }

@@ -227,11 +227,31 @@ struct CandidateContext {
   bool something;              // global excess or failing bands: there is something to explain
 };
 
+// Every FREE parameter's library default (the base's and each effect's; fixed ones
+// keep the user's design values).  A model fitted while it lacked an effect can sit,
+// bent out of shape, in a basin the effect cannot pull it out of (a rod twist that
+// makes the tilts 4x stiffer than the design: the fit without it ran the inertia and
+// the bending scales to their bounds); a second refit from the defaults finds it
+// (tests/idlib/diagnose, FromTheFittedModel).
+std::vector<std::pair<std::string, double>> library_defaults(const PhysicalModel& m) {
+  std::vector<std::pair<std::string, double>> out;
+  auto add_from = [&](const std::vector<PhysicalParameter>& defaults) {
+    for (const PhysicalParameter& d : defaults) {
+      const Index i = m.index_of(d.name);
+      if (i >= 0 && m.parameters[static_cast<std::size_t>(i)].free) out.emplace_back(d.name, d.value);
+    }
+  };
+  add_from(base_info(m.base).parameters);
+  for (const std::string& e : m.effects)
+    if (const EffectInfo* info = m.effect_info(e)) add_from(info->parameters);
+  return out;
+}
+
 void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model, const CandidateContext& ctx) {
   // From the fitted baseline, searching globally over the effect's own parameters
   // (the base is fitted already).  A baseline with parameters on bounds is a base
   // bent out of shape by what it lacks: then from the model as given, searching
-  // over everything.
+  // over everything, and once more from the library defaults (the better wins).
   PhysicalModel start = ctx.baseline_distorted ? ctx.given : baseline_model;
   start.add_effect(c.effect);
   FitOptions fo = ctx.refit;
@@ -240,11 +260,26 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model
     for (const PhysicalParameter& q : start.effect_info(c.effect)->parameters) fo.global_parameters.push_back(q.name);
     fo.global_starts = std::min(fo.global_starts, ctx.options.candidate_global_starts);
   }
+  std::string failure;
   try {
     c.fit = fit_physical_model(start, ctx.data, fo);
     c.fitted = true;
   } catch (const NumericalError& e) {
-    c.failure = e.what();
+    failure = e.what();
+  }
+  if (ctx.baseline_distorted) {
+    PhysicalModel fresh = start;
+    for (const auto& [name, value] : library_defaults(start)) fresh.parameter(name).value = value;
+    try {
+      FitResult again = fit_physical_model(fresh, ctx.data, fo);
+      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
+      c.fitted = true;
+    } catch (const NumericalError& e) {
+      if (!c.fitted) failure = e.what();
+    }
+  }
+  if (!c.fitted) {
+    c.failure = failure;
     c.verdict = "refit failed";
     return;
   }

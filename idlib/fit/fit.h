@@ -129,7 +129,7 @@ struct FitOptions {
 struct ParameterEstimate {
   std::string name, unit;
   double start = 0.0, estimate = 0.0;
-  double std_error = 0.0;  // NaN when the data cannot determine it
+  double std_error = 0.0;  // from the pseudo-inverse: not infinite along a direction the data cannot fix (the flags say so)
   double lower = 0.0, upper = 0.0;
   bool at_bound = false;   // estimate at (within 1e-6 of the span of) a bound
   std::vector<std::string> flags;  // e.g. "at upper bound 2", "corr -0.999 with ..."

@@ -45,7 +45,7 @@ std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
                  {par("mode_frequency_rad_s", "rad/s", 600.0, 300.0, 6000.0, true),
                   par("mode_damping", "1", 0.02, 1e-4, 0.7, true)},
                  {},
-                 false};
+                 false, {}};
     Block blk{BlockKind::kMode, BlockSide::kBody, {}, {"mode_frequency_rad_s", "mode_damping"}};
     for (std::size_t i = 0; i < n; ++i) {
       const std::string name = "mode_shape_" + b.dof_names[i];
@@ -63,21 +63,21 @@ std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
                  "a phase lag growing linearly with frequency in every channel, magnitude fits",
                  {par("input_delay_s", "s", 5e-4, 0.0, 0.02, true)},
                  {{BlockKind::kDelay, BlockSide::kInput, {}, {"input_delay_s"}}},
-                 false});
+                 false, {}});
   out.push_back({"actuator_lag", "first-order actuator (coil current) lag 1/(tau_a s + 1), tau_a = L/R (seed 001 eqs "
                  "10–13)",
                  "inserts 1/(tau_a s + 1) on every input; one state per input",
                  "magnitude roll-off and phase lag near and above 1/tau_a in every channel",
                  {par("actuator_time_constant_s", "s", 5e-4, 1e-6, 0.1, true)},
                  {{BlockKind::kFirstOrder, BlockSide::kInput, {}, {"actuator_time_constant_s"}}},
-                 false});
+                 false, {}});
   {
     EffectInfo e{"gain_error", "per-input actuator gain (e.g. the 1.5 of eq 9's printed z row, a coil constant)",
                  "multiplies input j of P by g_j: P -> P diag(g)",
                  "a frequency-independent magnitude ratio in the columns of one input",
                  {},
                  {},
-                 false};
+                 false, {}};
     Block blk{BlockKind::kGain, BlockSide::kInput, b.input_names, {}};
     for (std::size_t j = 0; j < n; ++j) {
       const std::string name = "gain_" + b.dof_names[j];
@@ -93,7 +93,7 @@ std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
                  "a frequency-independent magnitude ratio in the rows of one output",
                  {},
                  {},
-                 false};
+                 false, {}};
     Block blk{BlockKind::kGain, BlockSide::kOutput, b.output_names, {}};
     for (std::size_t i = 0; i < n; ++i) {
       const std::string name = "sensor_gain_" + b.dof_names[i];
@@ -105,11 +105,11 @@ std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
   }
   {
     EffectInfo e{"sensor_crosstalk", "static cross-talk between the measured outputs (sensor or transformation)",
-                 "y_to += c y_from for every ordered pair of outputs: P -> (I + X) P",
+                 "y_to += c y_from for every ordered pair of outputs, applied pair after pair: P -> (I + X) P to first order in the couplings",
                  "off-diagonal errors that follow the shape of another output's row",
                  {},
                  {},
-                 false};
+                 false, {}};
     for (std::size_t a = 0; a < n; ++a)
       for (std::size_t t = 0; t < n; ++t) {
         if (a == t) continue;

@@ -107,7 +107,7 @@ void check_platform_beam_position(const PhysicalModel& model, double beam_positi
 
 // The rigid-body physics of a platform model as PlatformParameters (for the
 // closed-loop and moving-beam simulators and the PI design): the same M(x_b), D
-// and K (the generalised terms in stiffness_extra and damping_per_dof).  Block
+// and K (the generalised terms in stiffness_extra and damping_override).  Block
 // effects (delays, lags, modes, gains, cross-talk) have no counterpart there and
 // are left out; `blocks_left_out` (if given) receives their names.
 // @throws InputError  the model is invalid or not of base "platform".

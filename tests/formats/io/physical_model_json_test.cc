@@ -127,6 +127,11 @@ TEST(PhysicalModelJson, UserDefinedEffectsRoundTripAndTheirRulesArePositioned) {
   const std::string err = error_of(bad);
   EXPECT_THAT(err, StartsWith(fmt::format("m.json:{}:", line_of(bad, "\"theta_mount\": {"))));
   EXPECT_THAT(err, HasSubstr("channel 'phi' is not an output of base 'platform'"));
+  // a malformed definition: its position once (it was printed twice)
+  const std::string bad_kind = edit(text, "\"resonance\"", "\"wobble\"");
+  const std::string err_kind = error_of(bad_kind);
+  EXPECT_THAT(err_kind, StartsWith("m.json:"));
+  EXPECT_EQ(err_kind.find("m.json:", 1), std::string::npos) << err_kind;
   // a definition file of its own reads back to the same effect
   const EffectInfo again = parse_effect_definition(effect_definition_file(back.definitions[0]), "e.json");
   EXPECT_EQ(again.name, "theta_mount");

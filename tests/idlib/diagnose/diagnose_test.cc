@@ -19,6 +19,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <ostream>
 
 #include <fmt/format.h>
 
@@ -75,6 +76,11 @@ struct HiddenCase {
   Route route;
 };
 
+// gtest prints the parameter beside the test name (ctest's listing): say what it is.
+void PrintTo(const HiddenCase& h, std::ostream* os) {
+  *os << indep::hidden_name(h.effect) << " seed " << h.seed << (h.route == Route::kAnalyzer ? " analyzer" : " frf");
+}
+
 std::string case_name(const ::testing::TestParamInfo<HiddenCase>& info) {
   return fmt::format("{}_seed{}_{}", indep::hidden_name(info.param.effect), info.param.seed,
                      info.param.route == Route::kAnalyzer ? "analyzer" : "frf");
@@ -107,6 +113,32 @@ std::vector<HiddenCase> hidden_cases() {
 }
 
 INSTANTIATE_TEST_SUITE_P(IndependentPlant, HiddenEffectIsNamed, ::testing::ValuesIn(hidden_cases()), case_name);
+
+// The user's order: fit the start model first, then diagnose the FITTED model (the
+// walkthrough's fit1.json).  A rod twist that makes the tilts 3-6x stiffer than the
+// design cannot be followed by the base (its bending tolerance is 0.5-2x): the fit
+// runs inertias and bending scales to their bounds, and a candidate refitted from
+// those values stays in that basin unless it also starts from the library defaults
+// (found by tests/support/loop_trial.sh, seed 1001: nothing named, error 36 %).
+class FromTheFittedModel : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(FromTheFittedModel, RodTwistIsStillNamedAndTheErrorFalls) {
+  const LoopCase c = testing::make_loop_case(GetParam(), HiddenEffect::kRodTwist, Route::kAnalyzer);
+  DiagnoseOptions o;
+  o.fit = testing::loop_fit_options(c);
+  const FitResult first = fit_physical_model(c.start, c.data, o.fit);
+  bool distorted = false;
+  for (const ParameterEstimate& p : first.parameters) distorted = distorted || p.at_bound;
+  const Diagnosis d = diagnose(first.model, c.data, o);
+  ASSERT_EQ(d.missing, "rod_twist") << report(d) << c.draw.description;
+  const double e1 = d.ranked.front().error;
+  std::printf("rod_twist seed %llu from the fitted model (%s): error %.4f %% -> %.4f %% (floor %.4f %%)\n",
+              static_cast<unsigned long long>(GetParam()), distorted ? "a parameter on a bound" : "no bound",
+              100 * d.baseline_error, 100 * e1, 100 * d.effective_floor);
+  EXPECT_TRUE(e1 * kFallFactor <= d.baseline_error || e1 <= kWithinFloor * d.effective_floor) << report(d);
+}
+
+INSTANTIATE_TEST_SUITE_P(IndependentPlant, FromTheFittedModel, ::testing::Values(201, 202, 203, 204));
 
 // A clean plant (nothing hidden): nothing significant in at least 9 of 10 seeds.
 TEST(IndependentPlantClean, NothingIsSignificantInAtLeastNineOfTenSeeds) {
