@@ -31,7 +31,17 @@ namespace lpvid::detail {
 std::string display_path(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 
 void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what) {
-  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, what));
+  // Bounds of the readers' messages (fuzz/readers.h allows 1000 bytes with the path).
+  constexpr size_t kMaxWhat = 900, kHead = 450, kTail = 400;
+  std::string shown;
+  for (const char c : what) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+      shown += fmt::format("\\x{:02X}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+    else
+      shown += c;
+  }
+  if (shown.size() > kMaxWhat) shown = shown.substr(0, kHead) + " ... " + shown.substr(shown.size() - kTail);
+  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, shown));
 }
 
 std::string quote_cell(std::string_view text) {

@@ -24,7 +24,8 @@ DatasetManifest read_dataset_manifest(const std::string& path) {
     fail("", "a dataset manifest is a JSON object; write {\"format\": \"lpvid-datasets\", \"datasets\": [...]} "
              "(docs/formats.md)");
   if (!root.contains("format") || root["format"] != "lpvid-datasets")
-    fail("format", "key 'format' must be \"lpvid-datasets\"; give a dataset manifest (docs/formats.md, \"Dataset manifests\")");
+    fail("format", "key 'format' must be \"lpvid-datasets\"; give a dataset manifest (docs/formats.md, \"Data-set "
+                   "manifest\")");
   const std::filesystem::path dir = std::filesystem::path(path).parent_path();
   auto resolve = [&](const std::string& p) {
     const std::filesystem::path q(p);
