@@ -30,7 +30,7 @@ namespace lpvid::detail {
 
 std::string display_path(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 
-void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what) {
+std::string one_line_message(std::string_view what) {
   // Bounds of the readers' messages (fuzz/readers.h allows 1000 bytes with the path).
   constexpr size_t kMaxWhat = 900, kHead = 450, kTail = 400;
   std::string shown;
@@ -41,7 +41,11 @@ void fail_at(const std::string& path, int64_t line, int64_t column, const std::s
       shown += c;
   }
   if (shown.size() > kMaxWhat) shown = shown.substr(0, kHead) + " ... " + shown.substr(shown.size() - kTail);
-  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, shown));
+  return shown;
+}
+
+void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what) {
+  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, one_line_message(what)));
 }
 
 std::string quote_cell(std::string_view text) {

@@ -18,10 +18,13 @@ namespace lpvid::detail {
 // "-" is shown as "<stdin>" in messages.
 std::string display_path(const std::string& path);
 
-// Throws InputError "path:line:column: what", always one line of bounded length:
-// control bytes in `what` (a name echoed from the file by a rule) are shown as
-// \xNN, and a `what` longer than 900 bytes keeps its first 450 and its last 400
-// bytes (the rule and the remedy) around "...".
+// A reader's message made one line of bounded length whatever the file holds:
+// control bytes (a name echoed from the file by a rule) shown as \xNN, and a text
+// longer than 900 bytes kept to its first 450 and its last 400 bytes (the rule and
+// the remedy) around " ... ".
+std::string one_line_message(std::string_view what);
+
+// Throws InputError "path:line:column: what" (what through one_line_message).
 [[noreturn]] void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what);
 
 // Quotes a cell for a message: at most 40 bytes, longer text cut with "...",

@@ -209,7 +209,9 @@ class V5Source : public MatSource {
     std::vector<Var> cells;   // cell arrays
   };
 
-  [[noreturn]] void fail(const std::string& what) const { throw InputError(fmt::format("'{}': {}", path_, what)); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(fmt::format("'{}': {}", path_, detail::one_line_message(what)));
+  }
   [[noreturn]] void fail_damaged(const std::string& what) const {
     fail(fmt::format("the file is damaged or truncated ({}); save it again, e.g. in MATLAB with save(name, '-v7')", what));
   }
@@ -506,7 +508,9 @@ class MatioSource : public MatSource {
   }
 
  private:
-  [[noreturn]] void fail(const std::string& what) const { throw InputError(fmt::format("'{}': {}", path_, what)); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(fmt::format("'{}': {}", path_, detail::one_line_message(what)));
+  }
   [[noreturn]] static void not_mat(const std::string& path) {
     throw InputError(fmt::format("'{}' is not a MATLAB .mat file (v5 or v7.3); check the file, or save it in MATLAB "
                                  "with save(name, '-v7')",
@@ -631,7 +635,7 @@ class MatReader {
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
-    throw InputError(fmt::format("'{}': {}", path_, what));
+    throw InputError(fmt::format("'{}': {}", path_, detail::one_line_message(what)));
   }
 
   void open() {
@@ -686,8 +690,18 @@ class MatReader {
   bool has(const std::string& name) const {
     return std::find(variables_.begin(), variables_.end(), name) != variables_.end();
   }
+  // The variables' names for a message: each cut to 40 bytes with control bytes as
+  // \xNN (detail::quote_cell, without its quotes), at most 20 of them.
   std::string holds() const {
-    return variables_.empty() ? std::string("no variables") : fmt::format("{}", fmt::join(variables_, ", "));
+    constexpr size_t kMaxListed = 20;
+    if (variables_.empty()) return "no variables";
+    std::string out;
+    for (size_t i = 0; i < variables_.size() && i < kMaxListed; ++i) {
+      const std::string quoted = detail::quote_cell(variables_[i]);
+      out += (i ? ", " : "") + quoted.substr(1, quoted.size() - 2);
+    }
+    if (variables_.size() > kMaxListed) out += fmt::format(", ... ({} in all)", variables_.size());
+    return out;
   }
 
   std::string pick_frequency() const {
