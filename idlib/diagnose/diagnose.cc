@@ -573,8 +573,13 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     else
       failed.push_back(std::move(c));
   }
+  // Significant ones by ΔBIC (the noise-weighted likelihood: between effects that
+  // both pass the criteria it is the better judge than the unweighted error figure,
+  // which a few noisy low-frequency lines of an frf estimate can sway), the rest
+  // by error.
   std::stable_sort(out.ranked.begin(), out.ranked.end(), [](const CandidateOutcome& a, const CandidateOutcome& b) {
     if (a.significant != b.significant) return a.significant;
+    if (a.significant) return a.delta_bic < b.delta_bic;
     return a.error < b.error;
   });
   for (CandidateOutcome& c : failed) out.ranked.push_back(std::move(c));
@@ -588,6 +593,10 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     out.explained = winner->error <= options.explained_ratio * f &&
                     static_cast<double>(winner->band_points) <=
                         kLeftBandShare * static_cast<double>(out.baseline_band_points);
+    if (out.explained)
+      for (std::size_t i = 1; i < out.ranked.size(); ++i)
+        if (out.ranked[i].significant && out.ranked[i].error <= options.explained_ratio * f)
+          out.indistinguishable.push_back(out.ranked[i].effect);
     const ModelErrorSet rest = model_errors(winner->fit.model, data, refit, options.model_error);
     out.remaining_failures = rest.failures;
     out.remaining_phenomena = group_phenomena(rest.failures, out.baseline.output_names, out.baseline.input_names);
@@ -649,6 +658,13 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     if (out.explained) {
       s.push_back(fmt::format("  explained: with it the error is within the noise ({} <= {:g} x {})",
                               percent(winner->error), options.explained_ratio, percent(f)));
+      if (!out.indistinguishable.empty())
+        s.push_back(fmt::format("  but these data hardly separate it from {}: {} the error within the noise too; {} "
+                                "has the better likelihood (ΔBIC {:.1f} against {:.1f}); a longer or less noisy "
+                                "measurement, or a wider band, would decide",
+                                fmt::join(out.indistinguishable, ", "),
+                                out.indistinguishable.size() == 1 ? "it explains" : "they explain", winner->effect,
+                                winner->delta_bic, out.ranked[1].delta_bic));
     } else {
       s.push_back(fmt::format("  partly explained: with it the error {} is still above {:g} x the noise floor; still "
                               "failing:",
