@@ -148,14 +148,18 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
   };
   constexpr std::size_t kPhenomenaSeeded = 3;  // the strongest few phenomena
   constexpr double kSeedDamping = 0.02;       // a lightly damped start
+  // the strongest few phenomena whose frequency the parameter's bounds admit
+  auto strongest_within = [&](const std::string& frequency_parameter) {
+    const auto [lo, hi] = bounds(frequency_parameter);
+    std::vector<const Phenomenon*> chosen;
+    for (const Phenomenon& ph : phenomena)
+      if (chosen.size() < kPhenomenaSeeded && ph.omega_rad_s >= lo && ph.omega_rad_s <= hi) chosen.push_back(&ph);
+    return chosen;
+  };
   for (const Block& b : effect.blocks) {
     if (b.kind == BlockKind::kMode) {
-      const auto [lo, hi] = bounds(b.parameters[0]);
-      std::size_t used = 0;
-      for (const Phenomenon& ph : phenomena) {
-        if (used >= kPhenomenaSeeded) break;
-        if (ph.omega_rad_s < lo || ph.omega_rad_s > hi) continue;
-        ++used;
+      for (const Phenomenon* p : strongest_within(b.parameters[0])) {
+        const Phenomenon& ph = *p;
         std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
                                                          {b.parameters[1], kSeedDamping}};
         // shape: φφᵀ ≈ Re(ΔP · 2jζω²) at the peak (a collocated mode at resonance)
@@ -189,16 +193,11 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
         out.push_back(std::move(seed));
       }
     } else if (b.kind == BlockKind::kResonance || b.kind == BlockKind::kSecondOrder) {
-      const auto [lo, hi] = bounds(b.parameters[0]);
-      std::size_t used = 0;
-      for (const Phenomenon& ph : phenomena) {
-        if (used >= kPhenomenaSeeded) break;
-        if (ph.omega_rad_s < lo || ph.omega_rad_s > hi) continue;
-        ++used;
-        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
+      for (const Phenomenon* ph : strongest_within(b.parameters[0])) {
+        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph->omega_rad_s},
                                                          {b.parameters[1], 0.05}};
         if (b.kind == BlockKind::kResonance) {
-          seed.emplace_back(b.parameters[2], ph.omega_rad_s * 1.15);
+          seed.emplace_back(b.parameters[2], ph->omega_rad_s * 1.15);
           seed.emplace_back(b.parameters[3], 0.1);
         }
         out.push_back(std::move(seed));
