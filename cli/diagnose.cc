@@ -185,7 +185,7 @@ void run(const DiagnoseCliOptions& o) {
 
   std::string text;
   for (const std::string& line : d.summary) text += line + "\n";
-  text += "\ncandidates (each refitted with all free parameters; significant first, then by error):\n" + table;
+  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
   if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
   if (unmet.empty() && !o.out_effect.empty())
     text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
@@ -203,6 +203,7 @@ void run(const DiagnoseCliOptions& o) {
                             {"effect_name", r.effect.name}});
   const nlohmann::json summary = {
       {"explained", d.explained},
+      {"indistinguishable", d.indistinguishable},
       {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
       {"noise_floor", number_or_null(d.noise_floor)},
       {"effective_floor", d.effective_floor},
