@@ -27,6 +27,21 @@
 namespace lpvid {
 namespace {
 
+// One UTF-16 code unit of the Basic Multilingual Plane, appended as UTF-8 (MATLAB's
+// char arrays; surrogate pairs are not combined: names and labels are BMP text).
+void append_utf8(std::string& text, unsigned u) {
+  if (u < 0x80) {
+    text += static_cast<char>(u);
+  } else if (u < 0x800) {
+    text += static_cast<char>(0xC0 | (u >> 6));
+    text += static_cast<char>(0x80 | (u & 0x3F));
+  } else {
+    text += static_cast<char>(0xE0 | (u >> 12));
+    text += static_cast<char>(0x80 | ((u >> 6) & 0x3F));
+    text += static_cast<char>(0x80 | (u & 0x3F));
+  }
+}
+
 // matio reports problems through a global log function that prints to stderr;
 // every problem here becomes an InputError instead, so the log is silenced.
 void silence_matio() {
@@ -393,17 +408,7 @@ class V5Source : public MatSource {
     } else if (part.type == kMiUtf16 || part.type == kMiUint16) {
       if (part.bytes != n * size) throw Damaged{fmt::format("'{}'{{{}}} holds fewer characters than its size", name, k + 1)};
       for (size_t c = 0; c < n; ++c) {  // UTF-16 code units of the BMP to UTF-8
-        const unsigned u = get<uint16_t>(part.data + 2 * c);
-        if (u < 0x80) {
-          text += static_cast<char>(u);
-        } else if (u < 0x800) {
-          text += static_cast<char>(0xC0 | (u >> 6));
-          text += static_cast<char>(0x80 | (u & 0x3F));
-        } else {
-          text += static_cast<char>(0xE0 | (u >> 12));
-          text += static_cast<char>(0x80 | ((u >> 6) & 0x3F));
-          text += static_cast<char>(0x80 | (u & 0x3F));
-        }
+        append_utf8(text, get<uint16_t>(part.data + 2 * c));
       }
     } else {
       fail(fmt::format("'{}'{{{}}} is text of an encoding lpvid cannot read; save names as char", name, k + 1));
@@ -483,19 +488,7 @@ class MatioSource : public MatSource {
       if (len > 0 && cell->data != nullptr) {
         if (cell->data_type == MAT_T_UINT16 || cell->data_type == MAT_T_UTF16) {
           const auto* p = static_cast<const uint16_t*>(cell->data);
-          for (size_t c = 0; c < len; ++c) {  // UTF-16 code units of the BMP to UTF-8
-            const unsigned u = p[c];
-            if (u < 0x80) {
-              text += static_cast<char>(u);
-            } else if (u < 0x800) {
-              text += static_cast<char>(0xC0 | (u >> 6));
-              text += static_cast<char>(0x80 | (u & 0x3F));
-            } else {
-              text += static_cast<char>(0xE0 | (u >> 12));
-              text += static_cast<char>(0x80 | ((u >> 6) & 0x3F));
-              text += static_cast<char>(0x80 | (u & 0x3F));
-            }
-          }
+          for (size_t c = 0; c < len; ++c) append_utf8(text, p[c]);  // UTF-16 of the BMP to UTF-8
         } else if (cell->data_type == MAT_T_UINT8 || cell->data_type == MAT_T_UTF8 || cell->data_type == MAT_T_INT8) {
           text.assign(static_cast<const char*>(cell->data), static_cast<const char*>(cell->data) + len);
         } else {
