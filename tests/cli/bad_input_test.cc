@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "formats/io/model_json.h"
+#include "tests/cli/effect_fixture.h"
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
@@ -325,13 +326,7 @@ TEST_F(BadInput, LogGivenTwiceOrStdinTwice_IsRefused) {
 
 // ---- the model-error loop (issue 10's commands): every output, flag and reader --
 
-constexpr const char* kMountEffect = R"({"name": "theta_mount", "description": "theta sensor mount",
- "blocks": [{"kind": "resonance", "side": "output", "channels": ["theta"],
-             "parameters": ["wp_rad_s", "zp", "wz_rad_s", "zz"]}],
- "parameters": {"wp_rad_s": {"value": 800, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
-                "zp": {"value": 0.05, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true},
-                "wz_rad_s": {"value": 900, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
-                "zz": {"value": 0.1, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true}}})";
+using testing::kMountEffect;
 
 TEST_F(BadInput, ModelErrorLoopOutputs_NeverOverwriteAnInputOrEachOther) {
   const std::string start = at("start.json");
