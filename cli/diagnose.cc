@@ -37,7 +37,8 @@ files, or --averages), or --noise-level; without any of them diagnose stops and 
 The report says where the model fails (distinct phenomena: frequency, channels, data
 sets, size, signature), what is missing and how much of the excess it explains, the
 error before and after, and "explained" only when what remains is within 1.5x the noise
-floor.  When nothing explains it, the residual is described by a resonance or lag in one
+floor.  Significant candidates rank by BIC; others that also leave only noise are named
+as indistinguishable on these data.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).)";
