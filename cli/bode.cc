@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "cli/responses.h"
@@ -35,8 +36,10 @@ struct BodeCliOptions {
 };
 
 void run(const BodeCliOptions& o) {
-  if (o.points < 2) throw InputError(fmt::format("--points {}: must be at least 2", o.points));
-  check_not_overwriting(o.models, o.out);
+  OutputSet outputs;
+  outputs.inputs(o.models);
+  outputs.file("--out", o.out);
+  outputs.check();
   std::vector<std::string> labels;
   if (!o.labels.empty()) labels = split_names(o.labels, "--labels");
   if (!labels.empty() && labels.size() != o.models.size())
@@ -68,7 +71,7 @@ void run(const BodeCliOptions& o) {
   };
   for (std::size_t i = 0; i < items.size(); ++i)
     if (shape(items[i]) != shape(items[0]))
-      throw InputError(fmt::format("{} is {}x{} but {} is {}x{}; overlaid responses must have the same shape",
+      throw InputError(fmt::format("{} is {}x{} but {} is {}x{}; give responses of the same shape to overlay",
                                    o.models[i], shape(items[i]).first, shape(items[i]).second, o.models[0],
                                    shape(items[0]).first, shape(items[0]).second));
   std::vector<BodeSeries> series;
@@ -90,7 +93,8 @@ void run(const BodeCliOptions& o) {
   plot.show_phase = !o.no_phase;
   plot.title = o.title;
   const auto bytes = bode_png(series, plot);
-  write_file_atomic(o.out, std::string(bytes.begin(), bytes.end()));
+  outputs.stage(o.out, bytes);
+  outputs.commit();
 }
 
 }  // namespace
@@ -106,9 +110,12 @@ Command make_bode_command() {
             app->add_option("--title", o->title, "figure title");
             app->add_flag("--hz", o->hz, "frequency axis in Hz (default rad/s)");
             app->add_flag("--no-phase", o->no_phase, "magnitude only");
-            app->add_option("--min", o->min, "lowest frequency (rad/s, or Hz with --hz)");
-            app->add_option("--max", o->max, "highest frequency (rad/s, or Hz with --hz)");
-            app->add_option("--points", o->points, "number of log-spaced frequencies");
+            app->add_option("--min", o->min, "lowest frequency (rad/s, or Hz with --hz)")
+                ->check(positive_up_to(kMaxFrequency, "the lowest frequency"));
+            app->add_option("--max", o->max, "highest frequency (rad/s, or Hz with --hz)")
+                ->check(positive_up_to(kMaxFrequency, "the highest frequency"));
+            app->add_option("--points", o->points, "number of log-spaced frequencies")
+                ->check(integer_in(2, kMaxFrequencyPoints, "the number of frequencies"));
             app->callback([o] { run(*o); });
           }};
 }

@@ -13,6 +13,7 @@
 #include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
@@ -92,7 +93,7 @@ struct ErrorReport {
   std::string extra_text;
 };
 
-void report(const CompareCliOptions& o, ErrorReport& r) {
+void report(const CompareCliOptions& o, ErrorReport& r, OutputSet& outputs) {
   mark_differences_between_data(r.failures);
   nlohmann::json jdata = nlohmann::json::array(), jfail = nlohmann::json::array();
   std::string text = fmt::format("compare: model-error model of {} data set(s) against {}; {:.3g} % noise band (k = {:.3f} sigma)\n",
@@ -166,7 +167,6 @@ void report(const CompareCliOptions& o, ErrorReport& r) {
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) summary[it.key()] = it.value();
 
   // --- outputs, staged and committed together ---
-  AtomicOutputSet outputs;
   if (!o.out_png.empty()) {
     std::vector<CompareSeries> series;
     std::vector<CompareBandMark> marks;
@@ -183,19 +183,12 @@ void report(const CompareCliOptions& o, ErrorReport& r) {
     if (static_cast<Index>(r.out_names.size()) == r.mems.front().data.front().rows()) po.output_labels = r.out_names;
     if (static_cast<Index>(r.in_names.size()) == r.mems.front().data.front().cols()) po.input_labels = r.in_names;
     const auto png = compare_png(series, marks, po);
-    outputs.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+    outputs.stage(o.out_png, png);
     summary["png"] = o.out_png;
   }
-  if (!o.out.empty()) outputs.stage(o.out, summary.dump(2) + "\n");
+  if (!o.out.empty()) outputs.stage(o.out, json_text(summary));
   outputs.commit();
-  print_summary(o.json, summary, text);
-}
-
-void check_outputs(const CompareCliOptions& o, const std::vector<std::string>& inputs) {
-  for (const std::string& out : {o.out_png, o.out})
-    if (!out.empty()) check_not_overwriting(inputs, out);
-  if (!o.out_png.empty() && o.out_png == o.out)
-    throw InputError(fmt::format("compare: --out-png and --out are both '{}'; give two files", o.out));
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 // --model is a physical model file: the inputs of fit/diagnose, the fit's error figure.
@@ -211,9 +204,10 @@ void run_physical_model_error(const CompareCliOptions& o) {
   f.noise_level = o.noise.noise_level > 0 ? o.noise.noise_level : kUnset;
   f.band_min = o.band_min > 0 ? o.band_min : kUnset;
   f.band_max = o.band_max > 0 ? o.band_max : kUnset;
-  const FitInputs in = load_fit_inputs(f, {o.out_png, o.out});
-  if (!o.out_png.empty() && o.out_png == o.out)
-    throw InputError(fmt::format("compare: --out-png and --out are both '{}'; give two files", o.out));
+  OutputSet outputs;
+  outputs.file("--out-png", o.out_png);
+  outputs.file("--out", o.out);
+  const FitInputs in = load_fit_inputs(f, outputs);
   for (const FitDataset& ds : in.data) {
     bool known = false;
     std::string source;
@@ -249,13 +243,13 @@ void run_physical_model_error(const CompareCliOptions& o) {
                              std::isfinite(score.noise_floor) ? fmt::format("{:.4g} %", 100 * score.noise_floor) : "unknown",
                              100 * mes.effective_floor,
                              score.error <= 1.5 * mes.effective_floor ? ": within the noise" : "");
-  report(o, r);
+  report(o, r, outputs);
 }
 
 void run_model_error(const CompareCliOptions& o) {
   o.mem.validate();
   o.noise.validate();
-  if (o.models.empty()) throw InputError("compare: --data needs --model (the model to compare the data with)");
+  if (o.models.empty()) throw InputError("compare: --data needs --model; give the model to compare the data with (--model M.json)");
   if (!o.estimate.empty())
     throw InputError(fmt::format("compare: '{}' given with --model/--data; use either ESTIMATE REFERENCE or "
                                  "--model M --data FRD",
@@ -274,9 +268,12 @@ void run_model_error(const CompareCliOptions& o) {
       throw InputError(fmt::format("--labels: {} labels for {} --data; give one per data set", labels.size(),
                                    o.data.size()));
   }
-  std::vector<std::string> inputs = o.models;
-  inputs.insert(inputs.end(), o.data.begin(), o.data.end());
-  check_outputs(o, inputs);
+  OutputSet outputs;
+  outputs.inputs(o.models);
+  outputs.inputs(o.data);
+  outputs.file("--out-png", o.out_png);
+  outputs.file("--out", o.out);
+  outputs.check();
 
   std::vector<LoadedResponse> models;
   for (const auto& m : o.models) models.push_back(load_response(m));
@@ -286,8 +283,8 @@ void run_model_error(const CompareCliOptions& o) {
   for (std::size_t d = 0; d < o.data.size(); ++d) {
     LoadedResponse data = load_response(o.data[d]);
     if (!data.frd)
-      throw InputError(fmt::format("--data '{}' is a model; --data takes measured frequency-response data (FRD .csv "
-                                   "or .mat), --model the model",
+      throw InputError(fmt::format("--data '{}' is a model; give measured frequency-response data (FRD .csv "
+                                   "or .mat) to --data and the model to --model",
                                    o.data[d]));
     const LoadedResponse& model = models[models.size() == 1 ? 0 : d];
     const FrequencyResponse on = response_on(model, data.frd->omega_rad_s);
@@ -326,21 +323,28 @@ void run_model_error(const CompareCliOptions& o) {
   r.in_names = !first.input_names.empty()
                    ? first.input_names
                    : (models.front().model ? models.front().model->input_names : std::vector<std::string>{});
-  report(o, r);
+  report(o, r, outputs);
 }
 
 void run(const CompareCliOptions& o) {
   if (!o.data.empty() || !o.datasets.empty()) return run_model_error(o);
-  if (!o.models.empty()) throw InputError("compare: --model needs --data (the measured FRD to compare it with)");
+  if (!o.models.empty()) throw InputError("compare: --model needs --data; give the measured FRD to compare it with (--data P.csv)");
   if (o.estimate.empty() || o.reference.empty())
     throw InputError("compare: give --model M --data FRD (where the model fails), ESTIMATE REFERENCE (distance "
                      "between two responses), or --log RUN.csv (the time domain)");
-  if (!o.out_png.empty()) throw InputError("compare: --out-png needs --model and --data");
+  if (!o.out_png.empty()) throw InputError("compare: --out-png needs --model and --data; give both, or drop --out-png");
   CompareOptions options;
   options.band_min_rad_s = o.band_min;
   options.band_max_rad_s = o.band_max;
   options.bands_per_decade = o.per_decade;
   options.validate();
+  OutputSet outputs;
+  outputs.input(o.estimate);
+  outputs.input(o.reference);
+  outputs.file("--out", o.out);
+  outputs.check();
+  std::vector<double> weights;
+  if (!o.weights.empty()) weights = split_numbers(o.weights, "--weights", "weight");
   const LoadedResponse a = load_response(o.estimate), b = load_response(o.reference);
   Eigen::VectorXd omega;
   std::vector<bool> flagged;
@@ -363,16 +367,8 @@ void run(const CompareCliOptions& o) {
     if (flagged.empty()) flagged.assign(b.frd->flagged.size(), false);
     for (std::size_t k = 0; k < flagged.size(); ++k) flagged[k] = flagged[k] || b.frd->flagged[k];
   }
-  if (!o.weights.empty()) {
-    const auto w = split_names(o.weights, "--weights");
-    Eigen::VectorXd v(static_cast<Index>(w.size()));
-    for (std::size_t i = 0; i < w.size(); ++i) {
-      try {
-        v(static_cast<Index>(i)) = std::stod(w[i]);
-      } catch (const std::exception&) {
-        throw InputError(fmt::format("--weights: '{}' is not a number", w[i]));
-      }
-    }
+  if (!weights.empty()) {
+    const Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(weights.data(), static_cast<Index>(weights.size()));
     // W (A - R) W: the same weights on outputs and inputs (square responses).
     options.left_weight = v;
     options.right_weight = v;
@@ -415,11 +411,9 @@ void run(const CompareCliOptions& o) {
     text += fmt::format("  {:<9} {:<9} {:9.4g} - {:<9.4g} {:6.3f} %  {}\n", name(fb.output_names, c.output),
                         name(fb.input_names, c.input), c.band_lo_rad_s, c.band_hi_rad_s, c.share_percent, gp);
   }
-  if (!o.out.empty()) {
-    check_not_overwriting({o.estimate, o.reference}, o.out);
-    write_file_atomic(o.out, summary.dump(2) + "\n");
-  }
-  print_summary(o.json, summary, text);
+  if (!o.out.empty()) outputs.stage(o.out, json_text(summary));
+  outputs.commit();
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -436,23 +430,33 @@ Command make_compare_command() {
             app->add_option("--out-png", o->out_png, "figure: measurement and model overlaid with error panels (with --log: the time-domain overlay)");
             app->add_option("--labels", o->labels, "one label per --data for the table and figure (comma separated)");
             app->add_option("--averages", o->noise.averages,
-                            "independent averages behind the data's coherence, when the files do not state it");
-            app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)");
+                            "independent averages behind the data's coherence, when the files do not state it")
+                ->check(number_in(1, 1e9, "the number of averages"));
+            app->add_option("--confidence", o->mem.confidence, "confidence of the noise band (default 0.99)")
+                ->check(number_in(0, 1, "the confidence", true, true));
             app->add_option("--noise-level", o->noise.noise_level,
-                            "relative rms error of the measurement (e.g. 0.01) for data with neither variance nor coherence");
+                            "relative rms error of the measurement (e.g. 0.01) for data with neither variance nor coherence")
+                ->check(number_in(0, 1, "the relative noise level (0.01 for 1 %)", true, true));
             app->add_option("--datasets", o->datasets, "physical model: the dataset manifest (as for fit)");
             app->add_option("--target", o->target, "physical model: what the data are (plant, G, S)");
-            app->add_option("--rate-hz", o->rate_hz, "physical model: sample rate of the experiment");
+            app->add_option("--rate-hz", o->rate_hz, "physical model: sample rate of the experiment")
+                ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
             app->add_option("--min-points", o->mem.min_band_points,
-                            "significant frequencies a failing band needs (default 3)");
+                            "significant frequencies a failing band needs (default 3)")
+                ->check(integer_in(1, kMaxFrequencyPoints, "the number of frequencies"));
             app->add_option("estimate", o->estimate, "model (.json) or FRD (.csv, .mat)");
             app->add_option("reference", o->reference, "model (.json) or FRD (.csv, .mat)");
-            app->add_option("--band-min", o->band_min, "lowest frequency, rad/s (default: from the data)");
-            app->add_option("--band-max", o->band_max, "highest frequency, rad/s (default: from the data)");
-            app->add_option("--bands-per-decade", o->per_decade, "log-spaced bands per decade");
+            app->add_option("--band-min", o->band_min, "lowest frequency, rad/s (default: from the data)")
+                ->check(positive_up_to(kMaxFrequency, "the lowest frequency in rad/s"));
+            app->add_option("--band-max", o->band_max, "highest frequency, rad/s (default: from the data)")
+                ->check(positive_up_to(kMaxFrequency, "the highest frequency in rad/s"));
+            app->add_option("--bands-per-decade", o->per_decade, "log-spaced bands per decade")
+                ->check(positive_up_to(1000, "the bands per decade"));
             app->add_option("--weights", o->weights, "weights W on outputs and inputs (comma separated)");
-            app->add_option("--top", o->top, "how many channel rows to print");
-            app->add_option("--points", o->points, "frequencies when both are models");
+            app->add_option("--top", o->top, "how many channel rows to print")
+                ->check(integer_in(1, kMaxListed, "the number of rows"));
+            app->add_option("--points", o->points, "frequencies when both are models")
+                ->check(integer_in(2, kMaxFrequencyPoints, "the number of frequencies"));
             app->add_option("--out", o->out, "also write the JSON summary to this file");
             app->add_flag("--json", o->json, "print the summary as JSON");
             auto t = std::make_shared<TimeCompareCliOptions>();

@@ -12,6 +12,8 @@
 
 #include "cli/beam_commands.h"
 #include "cli/common.h"
+#include "cli/output_set.h"
+#include "cli/responses.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
@@ -87,14 +89,34 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller,
                   "the discrete controller (JSON model): of the run with --log; for G and S data of a physical model");
-  app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)");
+  app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)")
+      ->check(positive_up_to(kMaxDurationS, "the window length in s"));
   app->add_option("--threshold-percent", o.threshold_percent,
-                  "with --log: a window fails when its residual rms exceeds this % of the output's rms (default 10)");
-  app->add_option("--max-lag", o.max_lag, "with --log: lags of the residual tests (default 25)");
-  app->add_option("--substeps", o.substeps, "with --log: integration pieces per sample (default 1)");
+                  "with --log: a window fails when its residual rms exceeds this % of the output's rms (default 10)")
+      ->check(positive_up_to(1e6, "the threshold in percent"));
+  app->add_option("--max-lag", o.max_lag, "with --log: lags of the residual tests (default 25)")
+      ->check(integer_in(1, 10'000, "the number of lags"));
+  app->add_option("--substeps", o.substeps, "with --log: integration pieces per sample (default 1)")
+      ->check(integer_in(1, 1000, "the integration pieces per sample"));
+}
+
+// Every input and output of the time-domain compare (cli/output_set.h).
+void register_time_compare_files(OutputSet& outputs, const TimeCompareCliOptions& o, const std::string& out_json) {
+  if (o.controller.empty())
+    throw InputError("compare --log: give --controller CONTROLLER.json, the discrete controller of the measured run");
+  outputs.input(o.log);
+  outputs.input(o.controller);
+  outputs.input(o.params);
+  outputs.file("--out-png", o.out_png);
+  outputs.file("--out", out_json);
+  outputs.check();
 }
 
 void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
+  {
+    OutputSet outputs;  // checked before the parameter file is read
+    register_time_compare_files(outputs, o, out_json);
+  }
   PlatformParameters model = PlatformParameters::defaults();
   if (!o.params.empty()) {
     // A physical model file (lpvid model / fit) or a platform parameter file.
@@ -125,16 +147,10 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
   fo.window_threshold_percent = o.threshold_percent;
   fo.max_lag = o.max_lag;
   fo.validate();
-  if (o.controller.empty())
-    throw InputError("compare --log: give --controller CONTROLLER.json, the discrete controller of the measured run");
-  std::vector<std::string> inputs = {o.log, o.controller};
-  if (!o.params.empty()) inputs.push_back(o.params);
-  for (const std::string& out : {o.out_png, out_json})
-    if (!out.empty()) check_not_overwriting(inputs, out);
-  if (!o.out_png.empty() && !out_json.empty() && o.out_png == out_json)
-    throw InputError(fmt::format("--out-png and --out are both '{}'; give two files", o.out_png));
+  OutputSet outputs;
+  register_time_compare_files(outputs, o, out_json);
 
-  const StateSpace controller = read_state_space(o.controller);
+  const StateSpace controller = read_controller(o.controller);
   const Log log = read_log(o.log);
   const Eigen::MatrixXd v = log.columns(kExcitations), q = log.columns(kOutputs), u = log.columns(kPlantInputs);
   const Eigen::VectorXd t = log.data.col(0), xb = log.data.col(log.column("x_b"));
@@ -206,14 +222,14 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
       text += fmt::format("                   {:<7} {:11.3f} {:10.3f} {:9.1f}\n",
                           kOutputNames[static_cast<std::size_t>(f.channel)], f.t_start_s, f.t_end_s, f.size_percent);
   }
-  AtomicOutputSet out;
+  OutputSet& out = outputs;
   if (!o.out_png.empty()) {
     const auto png = overlay_png(t, q, pr.q, r, fmt::format("{}: measured vs model", o.log));
     out.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   }
-  if (!out_json.empty()) out.stage(out_json, summary.dump(2) + "\n");
+  if (!out_json.empty()) out.stage(out_json, json_text(summary));
   out.commit();
-  print_summary(json, summary, text);
+  if (!out.to_stdout()) print_summary(json, summary, text);
 }
 
 }  // namespace lpvid::cli

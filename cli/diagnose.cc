@@ -10,6 +10,7 @@
 
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/physical_model_json.h"
@@ -36,7 +37,8 @@ files, or --averages), or --noise-level; without any of them diagnose stops and 
 The report says where the model fails (distinct phenomena: frequency, channels, data
 sets, size, signature), what is missing and how much of the excess it explains, the
 error before and after, and "explained" only when what remains is within 1.5x the noise
-floor.  When nothing explains it, the residual is described by a resonance or lag in one
+floor.  Significant candidates rank by BIC; others that also leave only noise are named
+as indistinguishable on these data.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).)";
@@ -95,16 +97,16 @@ void run(const DiagnoseCliOptions& o) {
   DiagnoseOptions options;
   options.significance_delta_bic = o.delta_bic;
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
-  const FitInputs in = load_fit_inputs(o.in, {o.out, o.png, o.out_effect});
-  for (const std::string* a : {&o.out, &o.png, &o.out_effect})
-    for (const std::string* b : {&o.out, &o.png, &o.out_effect})
-      if (a < b && !a->empty() && *a == *b)
-        throw InputError(fmt::format("diagnose: two outputs are both '{}'; give different files", *a));
+  OutputSet outputs;
+  outputs.file("--out", o.out);
+  outputs.file("--out-effect", o.out_effect);
+  outputs.file("--png", o.png);
+  const FitInputs in = load_fit_inputs(o.in, outputs);
   options.fit = in.options;
   for (const std::string& c : options.candidates)
     if (in.start.effect_info(c) == nullptr) {
       const auto absent = in.start.absent_effects();
-      throw InputError(fmt::format("--candidates: unknown effect '{}'; the model could add {}", c,
+      throw InputError(fmt::format("--candidates: unknown effect '{}'; use one the model could add: {}", c,
                                    fmt::join(absent, ", ")));
     }
   const Diagnosis d = diagnose(in.start, in.data, options);
@@ -154,7 +156,6 @@ void run(const DiagnoseCliOptions& o) {
                         d.explained ? fmt::format("{} explains the error within the noise", d.missing)
                                     : std::string("the residual was not described"),
                         o.out_effect);
-  AtomicOutputSet outputs;
   if (unmet.empty() && !o.out.empty())
     outputs.stage(o.out, physical_model_to_json(d.ranked.front().fit.model, nlohmann::json()));
   if (unmet.empty() && !o.out_effect.empty())
@@ -179,13 +180,13 @@ void run(const DiagnoseCliOptions& o) {
     po.input_labels = d.baseline.input_names;
     po.output_labels = d.baseline.output_names;
     const auto bytes = compare_png(series, marks, po);
-    outputs.stage(o.png, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+    outputs.stage(o.png, bytes);
   }
   outputs.commit();
 
   std::string text;
   for (const std::string& line : d.summary) text += line + "\n";
-  text += "\ncandidates (each refitted with all free parameters; significant first, then by error):\n" + table;
+  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
   if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
   if (unmet.empty() && !o.out_effect.empty())
     text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
@@ -203,6 +204,7 @@ void run(const DiagnoseCliOptions& o) {
                             {"effect_name", r.effect.name}});
   const nlohmann::json summary = {
       {"explained", d.explained},
+      {"indistinguishable", d.indistinguishable},
       {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
       {"noise_floor", number_or_null(d.noise_floor)},
       {"effective_floor", d.effective_floor},
@@ -219,7 +221,7 @@ void run(const DiagnoseCliOptions& o) {
       {"delta_bic_threshold", o.delta_bic},
       {"summary", d.summary},
       {"out", o.out}};
-  print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
   if (!unmet.empty()) throw NumericalError(unmet);
 }
 
@@ -233,7 +235,8 @@ Command make_diagnose_command() {
                 "diagnose", "Which physical effect is the model missing?" + std::string(kExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--candidates", o->candidates, "effects to try, comma separated (default: all it lacks)");
-            app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs besides (default 10)");
+            app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs besides (default 10)")
+                ->check(positive_up_to(1e9, "the BIC decrease"));
             app->add_option("--out", o->out, "write the winning candidate's fitted model here");
             app->add_option("--out-effect", o->out_effect,
                             "write the user-defined effect describing an unexplained residual (JSON)");

@@ -11,6 +11,7 @@
 
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
@@ -55,7 +56,17 @@ struct FitCliOptions {
 std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
 
 void run(const FitCliOptions& o) {
-  const FitInputs in = load_fit_inputs(o.in, {o.out, o.plot, o.bands});
+  if (o.out == "-")
+    throw InputError("fit --out '-': the fit history is written beside --out, so --out must be a file; give a file "
+                     "path (or --json to print the fit)");
+  // Every output, with the history beside --out; the start model's history is read.
+  OutputSet outputs;
+  outputs.file("--out", o.out);
+  outputs.file("--plot", o.plot);
+  outputs.file("--bands", o.bands);
+  outputs.file("--out (its history)", history_path_for(o.out));
+  outputs.input(history_path_for(o.in.model));
+  const FitInputs in = load_fit_inputs(o.in, outputs);
   const FitOptions& options = in.options;
   const std::vector<FitDataset>& data = in.data;
   const std::vector<FitDataSpec>& specs = in.specs;
@@ -119,7 +130,6 @@ void run(const FitCliOptions& o) {
       {"channels", channels},
   };
 
-  AtomicOutputSet outputs;
   outputs.stage(o.out, physical_model_to_json(r.model, fit_section));
   if (!o.bands.empty() || !o.plot.empty()) {
     // Bands at the data frequencies of each x_b; 2σ in the plot.
@@ -170,7 +180,7 @@ void run(const FitCliOptions& o) {
       plot.title = fmt::format("lpvid fit: {} model (lines, +-2 sigma dashed) over data (markers)",
                                target_name(options.target));
       const auto bytes = bode_png(series, plot);
-      outputs.stage(o.plot, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+      outputs.stage(o.plot, bytes);
     }
   }
   // The fit history beside the fitted model (formats/io/history.h): the start
@@ -178,9 +188,6 @@ void run(const FitCliOptions& o) {
   // newest model shows the whole lineage, model by model.
   const std::string history_out = history_path_for(o.out);
   {
-    std::vector<std::string> guarded = in.inputs;
-    guarded.push_back(history_path_for(o.in.model));
-    check_not_overwriting(guarded, history_out);
     std::vector<HistoryRecord> records;
     if (std::filesystem::exists(history_path_for(o.in.model))) records = read_history(history_path_for(o.in.model));
     HistoryRecord rec;
@@ -244,7 +251,7 @@ void run(const FitCliOptions& o) {
   nlohmann::json summary = fit_section;
   summary["out"] = o.out;
   summary["seconds"] = r.seconds;
-  print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace

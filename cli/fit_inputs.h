@@ -4,15 +4,9 @@
 // the frequency band and the fit options.  Parsing and loading only (STYLE.md
 // item 8).
 //
-// Dataset manifest (--datasets FILE, docs/formats.md "Data-set manifest"): every
-// key but "datasets" is optional and a flag on the command line wins over it;
-// relative paths are relative to the manifest's folder.
-//
-//   {"format": "lpvid-datasets",
-//    "target": "S", "controller": "middle/controller.json", "rate_hz": 1000,
-//    "averages": 16, "noise_level": 0.01, "band_rad_s": [1, 600],
-//    "datasets": [{"beam_position_m": -0.1, "files": ["left/S_v1.csv", "left/S_v2.csv", "left/S_v3.csv"]},
-//                 {"beam_position_m": 0, "files": ["middle/S.csv"]}]}
+// Dataset manifest (--datasets FILE): formats/io/dataset_manifest.h and
+// docs/formats.md "Data-set manifest"; every key but "datasets" is optional and a
+// flag on the command line wins over it.
 #pragma once
 
 #include <limits>
@@ -27,6 +21,8 @@ class App;
 }
 
 namespace lpvid::cli {
+
+class OutputSet;
 
 inline constexpr double kUnset = std::numeric_limits<double>::quiet_NaN();
 
@@ -67,12 +63,14 @@ struct FitInputs {
   std::vector<std::string> inputs;   // every file read (for output guards)
 };
 
-// Validates the options first (before reading anything), refuses any output
-// path that names an input, then reads the manifest, model, controller and data.
-// The sample period: --rate-hz (or the manifest's), else a discrete data model's,
-// else the controller's.
-// @throws InputError  as the readers and FitOptions::validate; --data and
-//   --datasets both or neither given.
-FitInputs load_fit_inputs(const FitInputOptions& o, const std::vector<std::string>& outputs);
+// Validates the options first (before reading anything), registers every input
+// (the manifest, then the model, data and controller it names) with `outputs`
+// (whose outputs the caller has registered) and checks them all
+// (cli/output_set.h), then reads the model, controller and data.  The sample
+// period: --rate-hz (or the manifest's), else a discrete data model's, else the
+// controller's.
+// @throws InputError  as the readers, OutputSet::check and FitOptions::validate;
+//   --data and --datasets both or neither given.
+FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
 
 }  // namespace lpvid::cli

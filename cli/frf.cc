@@ -6,6 +6,7 @@
 
 #include "cli/common.h"
 #include "cli/logs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/frd_csv.h"
@@ -42,9 +43,17 @@ void run(const FrfCliOptions& o) {
   } else {
     throw InputError(fmt::format("--window '{}': use hann or rect", o.window));
   }
+  try {
+    FrdReadOptions{o.quantity}.validate();  // before any log is read
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("--quantity: {}", e.what()));
+  }
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
-  check_not_overwriting(o.logs, o.out);
+  OutputSet outputs;
+  outputs.inputs(o.logs);
+  outputs.file("--out", o.out);
+  outputs.check();
   const ExperimentSet set = read_experiments(o.logs, excitation, output);
   options.sample_period_s = set.sample_period_s;
   FrequencyResponse frd = estimate_frf(set.views(), options);
@@ -52,7 +61,7 @@ void run(const FrfCliOptions& o) {
   frd.output_names = output;
   Index flagged = 0;
   for (bool f : frd.flagged) flagged += f ? 1 : 0;
-  write_frd_csv(o.out, frd, o.quantity,
+  write_frd_csv(outputs.stage(o.out), frd, o.quantity,
                 {fmt::format("lpvid frf: H1 Welch estimate of {} from {} log(s), Ts = {:.6g} s", o.quantity,
                              set.paths.size(), set.sample_period_s)});
   nlohmann::json summary = {{"frequencies", frd.num_frequencies()},
@@ -63,7 +72,8 @@ void run(const FrfCliOptions& o) {
                                        frd.num_frequencies(), frd.omega_rad_s.size() ? frd.omega_rad_s(0) : 0.0,
                                        frd.omega_rad_s.size() ? frd.omega_rad_s(frd.omega_rad_s.size() - 1) : 0.0,
                                        flagged, o.out);
-  if (o.out != "-") print_summary(o.json, summary, text);
+  outputs.commit();
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -78,8 +88,10 @@ Command make_frf_command() {
             app->add_option("--output", o->output, "response columns (u for S, q for G), comma separated")->required();
             app->add_option("--out", o->out, "FRD CSV to write ('-' = stdout)")->required();
             app->add_option("--quantity", o->quantity, "column prefix in the FRD file (S, G, P, H)");
-            app->add_option("--segment", o->segment, "samples per segment (default: N/16 as a power of two)");
-            app->add_option("--overlap", o->overlap, "segment overlap fraction in [0, 0.95)");
+            app->add_option("--segment", o->segment, "samples per segment (default: N/16 as a power of two)")
+                ->check(integer_in(4, kMaxSegment, "the samples per segment"));
+            app->add_option("--overlap", o->overlap, "segment overlap fraction in [0, 0.95)")
+                ->check(number_in(0, 0.95, "the segment overlap fraction", false, true));
             app->add_option("--window", o->window, "hann (default) or rect");
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/markov_csv.h"
@@ -29,8 +30,11 @@ struct HankelOptions {
 };
 
 void run(const HankelOptions& o) {
-  if (o.count < 1) throw InputError(fmt::format("--count {}: must be at least 1", o.count));
-  check_not_overwriting({o.markov}, o.out);
+  OutputSet outputs;
+  outputs.input(o.markov);
+  outputs.file("--out", o.out);
+  outputs.file("--png", o.png);
+  outputs.check();
   const MarkovFile file = read_markov_csv(o.markov);
   EraOptions options = era_options_from(file);
   options.max_order = std::max<Index>(o.count, options.max_order);
@@ -56,7 +60,7 @@ void run(const HankelOptions& o) {
     table(i, 1) = sv(i);
     table(i, 2) = sv(i) > era.selection.noise_floor ? 1.0 : 0.0;
   }
-  write_table_csv(o.out, {"index", "singular_value", "above_noise_floor"}, table,
+  write_table_csv(outputs.stage(o.out), {"index", "singular_value", "above_noise_floor"}, table,
                   {fmt::format("lpvid hankel {}", o.markov),
                    fmt::format("block_rows={} block_cols={} stride={} noise_floor={:.6g} chosen_order={}",
                                era.block_rows, era.block_cols, era.stride, era.selection.noise_floor,
@@ -69,7 +73,7 @@ void run(const HankelOptions& o) {
     plot.noise_floor = era.selection.noise_floor;
     plot.title = "Largest Hankel singular values (scaled channels)";
     const auto bytes = singular_values_png(sv, plot);
-    write_file_atomic(o.png, std::string(bytes.begin(), bytes.end()));
+    outputs.stage(o.png, bytes);
   }
   nlohmann::json summary = {{"order", era.selection.order},
                             {"reason", era.selection.reason},
@@ -83,7 +87,8 @@ void run(const HankelOptions& o) {
   std::string text = fmt::format("hankel: {} x {} blocks, stride {}; order {}: {}\n", era.block_rows, era.block_cols,
                                  era.stride, era.selection.order, era.selection.reason);
   if (!no_order.empty()) text += "warning: no model order stands above the noise floor; realize would fail on these data\n";
-  if (o.out != "-") print_summary(o.json, summary, text);
+  outputs.commit();
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -96,7 +101,8 @@ Command make_hankel_command() {
             app->add_option("markov", o->markov, "Markov parameter CSV written by 'lpvid markov'")->required();
             app->add_option("--out", o->out, "singular-value CSV to write ('-' = stdout)")->required();
             app->add_option("--png", o->png, "also write a PNG of the largest singular values");
-            app->add_option("--count", o->count, "how many singular values to list and plot");
+            app->add_option("--count", o->count, "how many singular values to list and plot")
+                ->check(integer_in(1, kMaxListed, "how many singular values to list"));
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });
           }};

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/history.h"
@@ -54,7 +55,11 @@ std::string effects_change(const HistoryRecord& before, const HistoryRecord& aft
 
 void run(const HistoryCliOptions& o) {
   const std::string path = history_path_for(o.model);
-  if (!o.png.empty()) check_not_overwriting({o.model, path}, o.png);
+  OutputSet outputs;
+  outputs.input(o.model);
+  outputs.input(path);
+  outputs.file("--png", o.png);
+  outputs.check();
   const std::vector<HistoryRecord> records = read_history(path);
   if (records.empty())
     throw InputError(fmt::format("history '{}' is empty; fit a model first (each fit appends a record)", path));
@@ -105,10 +110,11 @@ void run(const HistoryCliOptions& o) {
       bars.push_back(bar);
     }
     const auto png = history_png(bars, fmt::format("Model error, fit by fit: {}", o.model));
-    write_file_atomic(o.png, std::string(reinterpret_cast<const char*>(png.data()), png.size()));
+    outputs.stage(o.png, png);
     summary["png"] = o.png;
   }
-  print_summary(o.json, summary, text);
+  outputs.commit();
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace

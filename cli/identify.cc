@@ -6,7 +6,9 @@
 
 #include "cli/common.h"
 #include "cli/logs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
+#include "cli/responses.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/frd_csv.h"
 #include "formats/io/markov_csv.h"
@@ -110,32 +112,32 @@ void run(const IdentifyCliOptions& o) {
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
   options.validate();
   if (!(o.band_min > 0 && o.band_max > o.band_min))
-    throw InputError(fmt::format("--band {} .. {} rad/s: need 0 < min < max", o.band_min, o.band_max));
+    throw InputError(fmt::format("--band-min {} is not below --band-max {} (rad/s); give --band-min below --band-max",
+                                 o.band_min, o.band_max));
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
-  std::vector<std::string> inputs = o.logs;
-  inputs.push_back(o.controller);
-  if (!o.truth.empty()) inputs.push_back(o.truth);
-  ensure_directory(o.out);
+  // Every output is checked before anything is read; the directory is created
+  // only when the files are published.
+  OutputSet outputs;
+  outputs.inputs(o.logs);
+  outputs.input(o.controller);
+  outputs.input(o.truth);
+  outputs.directory("--out", o.out);
   for (const char* name : {"closed_loop.json", "plant.json", "plant_frd.csv", "markov.csv", "hankel_sv.csv",
                            "hankel_sv.png", "bode.png", "report.json"})
-    check_not_overwriting(inputs, join_path(o.out, name));
+    outputs.file_in(o.out, name);
+  outputs.check();
 
-  const StateSpace controller = read_state_space(o.controller);
+  const StateSpace controller = read_controller(o.controller);
   std::optional<StateSpace> truth;
   if (!o.truth.empty()) truth = read_state_space(o.truth);
   Eigen::VectorXd weights = Eigen::VectorXd::Ones(static_cast<Index>(output.size()));
   if (!o.weights.empty()) {
-    const auto w = split_names(o.weights, "--error-weights");
+    const auto w = split_numbers(o.weights, "--error-weights", "an output weight");
     if (w.size() != output.size())
-      throw InputError(fmt::format("--error-weights has {} values for {} outputs", w.size(), output.size()));
-    for (std::size_t i = 0; i < w.size(); ++i) {
-      try {
-        weights(static_cast<Index>(i)) = std::stod(w[i]);
-      } catch (const std::exception&) {
-        throw InputError(fmt::format("--error-weights: '{}' is not a number", w[i]));
-      }
-    }
+      throw InputError(fmt::format("--error-weights has {} values for {} outputs; give one weight per --output",
+                                   w.size(), output.size()));
+    for (std::size_t i = 0; i < w.size(); ++i) weights(static_cast<Index>(i)) = w[i];
   }
   const ExperimentSet set = read_experiments(o.logs, excitation, output);
   check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
@@ -198,7 +200,7 @@ void run(const IdentifyCliOptions& o) {
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
   if (truth) {
     if (truth->num_inputs() != r.plant.num_inputs() || truth->num_outputs() != r.plant.num_outputs())
-      throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}", o.truth,
+      throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}; give the true plant of these outputs and inputs", o.truth,
                                    truth->num_outputs(), truth->num_inputs(), r.plant.num_outputs(),
                                    r.plant.num_inputs()));
     const auto est = evaluate_response(r.plant, band);
@@ -254,7 +256,7 @@ void run(const IdentifyCliOptions& o) {
   const nlohmann::json provenance = {{"command", "lpvid identify"}, {"logs", set.paths}, {"controller", o.controller}};
   // All files are staged and renamed into place together at the end: a failure
   // while writing leaves none of them.
-  AtomicOutputSet files;
+  OutputSet& files = outputs;
   files.stage(join_path(o.out, "markov.csv"), markov_csv_text(mf, join_path(o.out, "markov.csv")));
   std::string written = "closed_loop.json, plant.json, plant_frd.csv, markov.csv, bode.png, report.json";
   if (era) {
@@ -271,16 +273,16 @@ void run(const IdentifyCliOptions& o) {
     write_table_csv(files.stage(join_path(o.out, "hankel_sv.csv")), {"index", "singular_value", "above_noise_floor"},
                     table, {"lpvid identify: Hankel singular values of G (scaled channels)", "rule: " + sel.reason});
     files.stage(join_path(o.out, "hankel_sv.png"),
-                std::string_view(reinterpret_cast<const char*>(sv_bytes.data()), sv_bytes.size()));
+                sv_bytes);
     written += ", hankel_sv.csv, hankel_sv.png";
   }
   write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), plant_frd, "P",
                 {"lpvid identify: identified plant u -> q",
                  era ? "no variance: --method era has no covariance" : "var_<i>_<j>: E|P^ - P|^2 from the fit's covariance (delta method)"});
-  files.stage(join_path(o.out, "bode.png"), std::string_view(reinterpret_cast<const char*>(bode_bytes.data()), bode_bytes.size()));
+  files.stage(join_path(o.out, "bode.png"), bode_bytes);
   files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
-  files.stage(join_path(o.out, "report.json"), report.dump(2) + "\n");
+  files.stage(join_path(o.out, "report.json"), json_text(report));
   files.commit();
 
   std::string text = fmt::format("identify ({}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
@@ -319,18 +321,25 @@ Command make_identify_command() {
             app->add_option("--method", o->method,
                             "structured (default: the plant fitted with the known controller, every setting from the "
                             "data, with bands) or era (the paper's recipe: Markov, ERA, unloop)");
-            app->add_option("--lags", o->lags, "Markov lags (default: from the data; era: --horizon-s / Ts, at most N/4)");
-            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds (default: from the data; era: 2 s)");
-            app->add_option("--order", o->order, "era: closed-loop order (default: automatic)");
+            app->add_option("--lags", o->lags, "Markov lags (default: from the data; era: --horizon-s / Ts, at most N/4)")
+                ->check(integer_in(10, kMaxLags, "the number of Markov lags"));
+            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds (default: from the data; era: 2 s)")
+                ->check(positive_up_to(kMaxHorizonS, "the impulse-response length in s"));
+            app->add_option("--order", o->order, "era: closed-loop order (default: automatic)")
+                ->check(integer_in(1, kMaxModelStates, "the closed-loop order"));
             app->add_option("--plant-order", o->plant_order,
-                            "plant order (default: structured from the data; era closed-loop minus controller)");
+                            "plant order (default: structured from the data; era closed-loop minus controller)")
+                ->check(integer_in(1, kMaxModelStates, "the plant order"));
             app->add_option("--fit-band-max", o->fit_band_max,
-                            "structured: upper edge of the fitted band in rad/s (default: from the data)");
+                            "structured: upper edge of the fitted band in rad/s (default: from the data)")
+                ->check(positive_up_to(1e9, "the upper edge of the fitted band in rad/s"));
             app->add_option("--truth", o->truth, "a known plant to compare with (state-space JSON)");
             app->add_option("--error-weights", o->weights,
                             "output weights W for the error |W(P^-P)W| / |WPW| (comma separated, default 1)");
-            app->add_option("--band-min", o->band_min, "lower end of the error band, rad/s");
-            app->add_option("--band-max", o->band_max, "upper end of the error band, rad/s");
+            app->add_option("--band-min", o->band_min, "lower end of the error band, rad/s")
+                ->check(positive_up_to(kMaxFrequency, "the lower end of the band in rad/s"));
+            app->add_option("--band-max", o->band_max, "upper end of the error band, rad/s")
+                ->check(positive_up_to(kMaxFrequency, "the upper end of the band in rad/s"));
             app->add_flag("--json", o->json, "print the report as JSON");
             app->callback([o] { run(*o); });
           }};

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <sys/stat.h>
+
 #include <cmath>
 
 #include "formats/io/csv_log.h"
@@ -19,6 +21,17 @@ std::vector<ExperimentView> ExperimentSet::views() const {
 ExperimentSet read_experiments(const std::vector<std::string>& paths, const std::vector<std::string>& excitation,
                                const std::vector<std::string>& output) {
   if (paths.empty()) throw InputError("no logs given; pass one or more CSV logs (one file per experiment)");
+  // One experiment given twice would count twice (and stdin can be read once).
+  for (std::size_t i = 0; i < paths.size(); ++i)
+    for (std::size_t k = 0; k < i; ++k) {
+      struct stat a, b;
+      const bool both_stdin = paths[i] == "-" && paths[k] == "-";
+      const bool same_file = paths[i] != "-" && paths[k] != "-" && ::stat(paths[i].c_str(), &a) == 0 &&
+                             ::stat(paths[k].c_str(), &b) == 0 && a.st_dev == b.st_dev && a.st_ino == b.st_ino;
+      if (both_stdin || same_file)
+        throw InputError(fmt::format("log '{}' is given twice (also as '{}'); give each experiment once", paths[i],
+                                     paths[k]));
+    }
   // Relative difference of sample periods tolerated between logs of one set.
   constexpr double kSamePeriodTolerance = 1e-6;
   ExperimentSet set;
@@ -30,7 +43,7 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
       set.sample_period_s = log.sample_period_s;
     } else if (std::abs(log.sample_period_s - set.sample_period_s) > kSamePeriodTolerance * set.sample_period_s) {
       throw InputError(fmt::format(
-          "{}: sampled every {:.6g} s but {} every {:.6g} s; logs of one identification must share the sample rate",
+          "{}: sampled every {:.6g} s but {} every {:.6g} s; give logs of one sample rate (resample, or identify them separately)",
           path, log.sample_period_s, set.paths.front(), set.sample_period_s));
     }
     set.paths.push_back(path);

@@ -5,6 +5,7 @@
 
 #include "cli/common.h"
 #include "cli/logs.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/markov_csv.h"
@@ -49,7 +50,10 @@ void run(const MarkovCliOptions& o) {
   }
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
-  check_not_overwriting(o.logs, o.out);
+  OutputSet outputs;
+  outputs.inputs(o.logs);
+  outputs.file("--out", o.out);
+  outputs.check();
   const ExperimentSet set = read_experiments(o.logs, excitation, output);
   Index shortest = set.excitations.front().rows();
   for (const auto& e : set.excitations) shortest = std::min<Index>(shortest, e.rows());
@@ -64,7 +68,8 @@ void run(const MarkovCliOptions& o) {
   file.noise_std = r.noise_std;
   file.input_rms = r.excitation_rms;
   file.output_rms = r.output_rms;
-  write_markov_csv(o.out, file);
+  outputs.stage(o.out, markov_csv_text(file, o.out));
+  outputs.commit();
 
   nlohmann::json summary = {{"lags", options.num_lags},
                             {"sample_period_s", set.sample_period_s},
@@ -79,7 +84,7 @@ void run(const MarkovCliOptions& o) {
                                  options.num_lags, set.paths.size(), r.total_samples, set.sample_period_s, o.method,
                                  r.report.termination);
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
-  if (o.out != "-") print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -94,8 +99,10 @@ Command make_markov_command() {
                 ->required();
             app->add_option("--output", o->output, "output columns, comma separated (e.g. q1,q2,q3)")->required();
             app->add_option("--out", o->out, "Markov parameter CSV to write ('-' = stdout)")->required();
-            app->add_option("--lags", o->lags, "number of lags L (default: --horizon-s / Ts, at most N/4)");
-            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds when --lags is not given");
+            app->add_option("--lags", o->lags, "number of lags L (default: --horizon-s / Ts, at most N/4)")
+                ->check(integer_in(10, kMaxLags, "the number of Markov lags"));
+            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds when --lags is not given")
+                ->check(positive_up_to(kMaxHorizonS, "the impulse-response length in s"));
             app->add_option("--method", o->method, "ls (least squares, default) or correlation (the paper's)");
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });

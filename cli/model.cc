@@ -7,16 +7,16 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <memory>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/history.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 #include "idlib/physical/evaluate.h"
 
@@ -56,14 +56,8 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
     if (eq == std::string::npos || eq == 0)
       throw InputError(fmt::format("--set '{}': write NAME=VALUE, e.g. --set k_torque_low_Nm_per_rad=45", s));
     const std::string name = s.substr(0, eq), text = s.substr(eq + 1);
-    size_t used = 0;
     double v = NAN;
-    try {
-      v = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (text.empty() || used != text.size() || !std::isfinite(v))
+    if (!parse_decimal(text, v))
       throw InputError(fmt::format("--set '{}': '{}' is not a number; give the value in the parameter's unit", s, text));
     PhysicalParameter& p = m.parameter(name);
     if (v < p.lower || v > p.upper)
@@ -75,83 +69,110 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
 }
 
 void run_init(const ModelCliOptions& o) {
+  OutputSet outputs;
+  outputs.file("--out", o.out);
+  outputs.check();
   PhysicalModel m = o.bare ? PhysicalModel::bare(o.base) : PhysicalModel::initial(o.base);
   apply_sets(m, o.sets);
-  write_physical_model(o.out, m);
-  if (o.out != "-")
+  outputs.stage(o.out, physical_model_to_json(m));
+  outputs.commit();
+  if (!outputs.to_stdout())
     print_summary(o.json,
                   {{"out", o.out}, {"base", m.base}, {"effects", m.effects}, {"parameters", m.parameters.size()}},
                   fmt::format("model init: wrote {} (base {}; effects: {})\n", o.out, m.base,
                               m.effects.empty() ? std::string("none") : fmt::format("{}", fmt::join(m.effects, ", "))));
 }
 
-// Writes the changed model to --out (a new file with the lineage) or in place.
-std::string write_changed(const ModelCliOptions& o, const PhysicalModel& m) {
-  const std::string target = o.out.empty() ? o.model : o.out;
-  if (o.out.empty() || o.out == o.model) {
-    write_physical_model(o.model, m);
-    return o.model;
+// add/remove/define: every input and output, checked before the model is read.
+// The model is rewritten in place unless --out names a new file; then the
+// source's fit history, if any, continues beside --out (a file; '-' prints the
+// model alone).
+void check_changed(const ModelCliOptions& o, OutputSet& outputs) {
+  const bool in_place = o.out.empty() || o.out == o.model;
+  if (in_place && o.model == "-")
+    throw InputError("--model '-' is read from standard input and cannot be rewritten in place; give --out FILE "
+                     "(or --out - to print the result)");
+  outputs.input(o.model);
+  outputs.input(o.from);
+  if (in_place) {
+    outputs.rewrite("--model", o.model);
+  } else {
+    outputs.input(history_path_for(o.model));
+    outputs.file("--out", o.out);
+    if (o.out != "-") outputs.file("--out (its history)", history_path_for(o.out));
   }
-  check_not_overwriting({o.model, history_path_for(o.model)}, o.out);
-  check_not_overwriting({o.model, history_path_for(o.model)}, history_path_for(o.out));
-  AtomicOutputSet outputs;
-  outputs.stage(o.out, physical_model_to_json(m));
+  outputs.check();
+}
+
+// Stages the changed model (in place or --out, with the lineage) and commits;
+// returns the file written.
+std::string write_changed(const ModelCliOptions& o, OutputSet& outputs, const PhysicalModel& m) {
+  const std::string target = o.out.empty() ? o.model : o.out;
+  outputs.stage(target, physical_model_to_json(m));
   // the lineage: the source's fit history continues in the new file's
-  if (std::filesystem::exists(history_path_for(o.model))) {
-    read_history(history_path_for(o.model));  // never continue a broken history
-    std::ifstream in(history_path_for(o.model), std::ios::binary);
-    std::stringstream text;
-    text << in.rdbuf();
-    outputs.stage(history_path_for(o.out), text.str());
+  if (target != o.model && target != "-" && std::filesystem::exists(history_path_for(o.model))) {
+    std::string text;  // never continue a broken history: every record checked, then copied byte for byte
+    read_history(history_path_for(o.model), &text);
+    outputs.stage(history_path_for(o.out), text);
   }
   outputs.commit();
   return target;
 }
 
 void run_add(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
   PhysicalModel m = read_physical_model(o.model);
   m.add_effect(o.effect);
-  const std::string written = write_changed(o, m);
-  print_summary(o.json, {{"model", written}, {"added", o.effect}, {"effects", m.effects}},
-                fmt::format("model add: {} added{} (effects now: {})\n", o.effect,
-                            written == o.model ? " to " + o.model : fmt::format(" to {} from {}", written, o.model),
-                            fmt::join(m.effects, ", ")));
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"added", o.effect}, {"effects", m.effects}},
+                  fmt::format("model add: {} added{} (effects now: {})\n", o.effect,
+                              written == o.model ? " to " + o.model : fmt::format(" to {} from {}", written, o.model),
+                              fmt::join(m.effects, ", ")));
 }
 
 void run_remove(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
   PhysicalModel m = read_physical_model(o.model);
   m.remove_effect(o.effect);
-  const std::string written = write_changed(o, m);
-  print_summary(o.json, {{"model", written}, {"removed", o.effect}, {"effects", m.effects}},
-                fmt::format("model remove: {} removed{} (effects now: {})\n", o.effect,
-                            written == o.model ? " from " + o.model : fmt::format(", wrote {} from {}", written, o.model),
-                            m.effects.empty() ? std::string("none") : fmt::format("{}", fmt::join(m.effects, ", "))));
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"removed", o.effect}, {"effects", m.effects}},
+                  fmt::format("model remove: {} removed{} (effects now: {})\n", o.effect,
+                              written == o.model ? " from " + o.model : fmt::format(", wrote {} from {}", written, o.model),
+                              m.effects.empty() ? std::string("none") : fmt::format("{}", fmt::join(m.effects, ", "))));
 }
 
 void run_define(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
   PhysicalModel m = read_physical_model(o.model);
   const EffectInfo e = read_effect_definition(o.from);
   m.define_effect(e);
   if (o.add_defined) m.add_effect(e.name);
-  const std::string written = write_changed(o, m);
-  print_summary(o.json, {{"model", written}, {"defined", e.name}, {"added", o.add_defined}, {"effects", m.effects}},
-                fmt::format("model define: {} defined{} in {} ({} block(s), {} parameter(s))\n", e.name,
-                            o.add_defined ? " and added" : "", written, e.blocks.size(), e.parameters.size()));
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout())
+    print_summary(o.json, {{"model", written}, {"defined", e.name}, {"added", o.add_defined}, {"effects", m.effects}},
+                  fmt::format("model define: {} defined{} in {} ({} block(s), {} parameter(s))\n", e.name,
+                              o.add_defined ? " and added" : "", written, e.blocks.size(), e.parameters.size()));
 }
 
 void run_export(const ModelCliOptions& o) {
-  if (!std::isfinite(o.rate_hz) || o.rate_hz < 0)
-    throw InputError(fmt::format("--rate-hz {}: give the sample rate in Hz (> 0), or omit it for continuous time",
-                                 o.rate_hz));
-  check_not_overwriting({o.model}, o.out);
+  OutputSet outputs;
+  outputs.input(o.model);
+  outputs.file("--out", o.out);
+  outputs.check();
   const PhysicalModel m = read_physical_model(o.model);
   const double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
   const PhysicalStateSpace ss = physical_state_space(m, o.xb, ts);
-  write_state_space(o.out, ss.system,
-                    {{"provenance",
-                      {{"command", "lpvid model export"}, {"model", o.model}, {"x_b_m", o.xb},
-                       {"effects", m.effects}, {"input_delay_s", ss.input_delay_s},
-                       {"delay_in_matrices_samples", ss.delay_samples}}}});
+  outputs.stage(o.out, state_space_to_json(ss.system, {{"provenance",
+                                                        {{"command", "lpvid model export"}, {"model", o.model},
+                                                         {"x_b_m", o.xb}, {"effects", m.effects},
+                                                         {"input_delay_s", ss.input_delay_s},
+                                                         {"delay_in_matrices_samples", ss.delay_samples}}}}));
+  outputs.commit();
   std::string text = fmt::format("model export: {} at x_b = {} m, order {}, {}\n", o.model, o.xb, ss.system.order(),
                                  ts > 0 ? fmt::format("sampled (ZOH) at {} Hz", o.rate_hz) : "continuous");
   double largest = 0;
@@ -161,7 +182,7 @@ void run_export(const ModelCliOptions& o) {
                                  fmt::join(ss.input_delay_s, ", "), ss.delay_samples + 1)
                    : fmt::format("note: input delays {} s are not in the continuous matrices; apply exp(-s tau)\n",
                                  fmt::join(ss.input_delay_s, ", "));
-  if (o.out != "-")
+  if (!outputs.to_stdout())
     print_summary(o.json, {{"out", o.out}, {"order", ss.system.order()}, {"sample_period_s", ts},
                            {"input_delay_s", ss.input_delay_s}, {"delay_samples", ss.delay_samples}},
                   text);
@@ -230,8 +251,11 @@ Command make_model_command() {
             def->callback([o] { run_define(*o); });
             auto* exp = app->add_subcommand("export", "the model at one x_b as a state-space JSON");
             exp->add_option("--model", o->model, "model file")->required();
-            exp->add_option("--xb", o->xb, "beam position x_b in m")->required();
-            exp->add_option("--rate-hz", o->rate_hz, "sample (ZOH) at this rate (default: continuous)");
+            exp->add_option("--xb", o->xb, "beam position x_b in m")
+                ->required()
+                ->check(number_in(-1e3, 1e3, "the beam position in m"));
+            exp->add_option("--rate-hz", o->rate_hz, "sample (ZOH) at this rate (default: continuous)")
+                ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it for continuous time)"));
             exp->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
             exp->add_flag("--json", o->json, "print the summary as JSON");
             exp->callback([o] { run_export(*o); });

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/markov_csv.h"
@@ -29,8 +30,10 @@ struct RealizeOptions {
 };
 
 void run(const RealizeOptions& o) {
-  if (o.order < 0) throw InputError(fmt::format("--order {}: must be positive (omit it for automatic)", o.order));
-  check_not_overwriting({o.markov}, o.out);
+  OutputSet outputs;
+  outputs.input(o.markov);
+  outputs.file("--out", o.out);
+  outputs.check();
   const MarkovFile file = read_markov_csv(o.markov);
   EraOptions options = era_options_from(file);
   options.order = o.order;
@@ -43,15 +46,17 @@ void run(const RealizeOptions& o) {
                                     {"block_rows", era.block_rows},
                                     {"block_cols", era.block_cols},
                                     {"stride", era.stride}};
-  write_state_space(o.out, era.model,
-                    {{"provenance", {{"command", "lpvid realize"}, {"markov", o.markov}, {"selection", selection}}}});
+  outputs.stage(o.out, state_space_to_json(era.model, {{"provenance", {{"command", "lpvid realize"},
+                                                                        {"markov", o.markov},
+                                                                        {"selection", selection}}}}));
+  outputs.commit();
   nlohmann::json summary = selection;
   summary["warnings"] = era.report.warnings;
   summary["out"] = o.out;
   std::string text = fmt::format("realize: order {} ({}); Hankel {} x {} blocks, stride {}\n", era.selection.order,
                                  era.selection.reason, era.block_rows, era.block_cols, era.stride);
   for (const auto& w : era.report.warnings) text += "warning: " + w + "\n";
-  if (o.out != "-") print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -63,8 +68,10 @@ Command make_realize_command() {
                                                              std::string(kExample));
             app->add_option("markov", o->markov, "Markov parameter CSV written by 'lpvid markov'")->required();
             app->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
-            app->add_option("--order", o->order, "model order (default: automatic)");
-            app->add_option("--max-order", o->max_order, "largest order the automatic rule considers");
+            app->add_option("--order", o->order, "model order (default: automatic)")
+                ->check(integer_in(1, kMaxModelStates, "the model order"));
+            app->add_option("--max-order", o->max_order, "largest order the automatic rule considers")
+                ->check(integer_in(1, kMaxModelStates, "the largest order"));
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });
           }};

@@ -7,6 +7,7 @@
 #include "formats/io/frd_csv.h"
 #include "formats/io/frd_mat.h"
 #include "formats/io/model_json.h"
+#include "formats/io/response_file.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
 
@@ -19,24 +20,33 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 
 }  // namespace
 
-bool is_model_path(const std::string& path) { return ends_with(path, ".json"); }
-
 LoadedResponse load_response(const std::string& path) {
-  LoadedResponse r;
-  r.path = path;
-  if (is_model_path(path)) {
-    r.model = read_state_space(path);
-  } else if (ends_with(path, ".mat")) {
-    r.frd = read_frd_mat(path);
-  } else {
-    r.frd = read_frd_csv(path);
-  }
-  return r;
+  ResponseFile file = read_response_file(path);
+  return {path, std::move(file.model), std::move(file.frd)};
+}
+
+StateSpace read_controller(const std::string& path) {
+  StateSpace c = read_state_space(path);
+  const bool zero = c.D.isZero(0.0) && (c.B.isZero(0.0) || c.C.isZero(0.0));
+  if (zero)
+    throw InputError(fmt::format("{}: the controller is zero at every frequency (D = 0 and B or C = 0), as if the loop "
+                                 "were open, so no plant can be recovered through it; give the controller that ran",
+                                 path == "-" ? "<stdin>" : path));
+  return c;
 }
 
 FrequencyResponse load_frd_merged(const std::vector<std::string>& paths) {
-  if (paths.empty()) throw InputError("no frequency-response file given");
-  if (paths.size() == 1) return load_response(paths.front()).frd.value_or(FrequencyResponse{});
+  if (paths.empty()) throw InputError("no frequency-response file given; give one or more FRD files (.csv, .mat)");
+  for (const auto& p : paths)
+    if (ends_with(p, ".json"))
+      throw InputError(fmt::format("'{}' is a model file; give frequency-response data (FRD .csv or .mat) here", p));
+  if (paths.size() == 1) {
+    LoadedResponse r = load_response(paths.front());
+    if (!r.frd)  // stdin holding a model
+      throw InputError(fmt::format("'{}' holds a model; give frequency-response data (FRD .csv or .mat) here",
+                                   paths.front() == "-" ? "<stdin>" : paths.front()));
+    return std::move(*r.frd);
+  }
   std::vector<FrdPart> parts;
   for (const auto& p : paths) {
     if (ends_with(p, ".mat")) {

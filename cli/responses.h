@@ -1,5 +1,6 @@
 // Files that hold a frequency response: a state-space model (.json) or
-// frequency-response data (.mat, or CSV otherwise).  Shared by bode, compare and unloop.
+// frequency-response data (.mat, or CSV otherwise); "-" (stdin) by its content
+// (formats/io/response_file.h).  Shared by bode, compare and unloop.
 #pragma once
 
 #include <optional>
@@ -22,10 +23,14 @@ LoadedResponse load_response(const std::string& path);
 // file, as analyzers export them) merged into one response; one file passes through.
 FrequencyResponse load_frd_merged(const std::vector<std::string>& paths);
 
+// The controller that ran (state-space JSON; "-" = stdin).  A controller whose
+// response is zero at every frequency (D = 0 and B = 0 or C = 0) means the loop
+// was open: no plant can be recovered through it, so it is refused
+// ("ctl.json: the controller is zero at every frequency (...); give the controller that ran").
+StateSpace read_controller(const std::string& path);
+
 // The response on omega: a model is evaluated there; FRD data must already be on
 // that grid (relative 1e-9), else InputError naming the file.
 FrequencyResponse response_on(const LoadedResponse& r, const Eigen::VectorXd& omega_rad_s);
-
-bool is_model_path(const std::string& path);
 
 }  // namespace lpvid::cli

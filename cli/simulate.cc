@@ -4,6 +4,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <fmt/ranges.h>
+
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -11,10 +14,12 @@
 
 #include "cli/beam_commands.h"
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "cli/simulate_analyzer.h"
 #include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
+#include "formats/io/text.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/io/platform_json.h"
@@ -72,13 +77,11 @@ double parse_position(const std::string& text) {
   if (text == "left") return kBeamLeft_m;
   if (text == "middle") return kBeamMiddle_m;
   if (text == "right") return kBeamRight_m;
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(text, &used);
-    if (used == text.size() && std::isfinite(v)) return v;
-  } catch (const std::exception&) {
-  }
-  throw InputError(fmt::format("--positions: '{}' is not left, middle, right or a number in metres", text));
+  double v = 0;
+  if (parse_decimal(text, v)) return v;
+  throw InputError(fmt::format("--positions: '{}' is not left, middle, right or a number in metres; give e.g. "
+                               "left,middle,0.05",
+                               text.size() <= 40 ? text : text.substr(0, 40) + "..."));
 }
 
 std::string position_label(const std::string& text) {
@@ -89,34 +92,59 @@ std::string position_label(const std::string& text) {
 }
 
 void run(const SimulateOptions& o) {
-  if (!(o.duration_s > 0)) throw InputError(fmt::format("--duration-s {}: must be positive", o.duration_s));
-  if (!(o.noise_scale >= 0)) throw InputError(fmt::format("--noise-scale {}: must be >= 0", o.noise_scale));
-  for (double r : o.rates_hz)
-    if (!(r > 0)) throw InputError(fmt::format("--rate-hz {}: must be positive", r));
+  check_simulated_samples(o.duration_s, o.rates_hz);
   check_analyzer_options(o.analyzer, o.rates_hz);
   std::vector<double> positions_m;
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
+  if (!o.truth_model.empty() && !o.overrides.empty())
+    throw InputError("--set and --truth-model both given: put the values in the model file (lpvid model) or use --set alone");
+
+  // Every file of every folder, checked before anything is read or simulated;
+  // the folders are created when the files are published, after the last simulation.
+  static const char* const kInputs[] = {"T_psi", "T_theta", "F_z"};
+  OutputSet outputs;
+  outputs.input(o.truth_model);
+  outputs.directory("--out", o.out_dir);
+  std::vector<std::string> dirs;
+  for (std::size_t ip = 0; ip < positions_m.size(); ++ip)
+    for (std::size_t ir = 0; ir < o.rates_hz.size(); ++ir) {
+      const std::string dir =
+          join_path(o.out_dir, fmt::format("{}_{}hz", position_label(o.positions[ip]), std::llround(o.rates_hz[ir])));
+      if (std::find(dirs.begin(), dirs.end(), dir) != dirs.end())
+        throw InputError(fmt::format("--positions {} and --rate-hz {} give the folder '{}' twice; give each position "
+                                     "and rate once",
+                                     fmt::join(o.positions, ","), fmt::join(o.rates_hz, ","), dir));
+      dirs.push_back(dir);
+      const std::string folder = fmt::format("{}_{}hz", position_label(o.positions[ip]), std::llround(o.rates_hz[ir]));
+      for (const char* name : {"controller.json", "truth_plant.json", "truth_plant_continuous.json", "truth_closed_loop.json"})
+        outputs.file_in(o.out_dir, join_path(folder, name));
+      if (o.simultaneous) {
+        outputs.file_in(o.out_dir, join_path(folder, "exp_all.csv"));
+      } else {
+        for (const char* input : kInputs) outputs.file_in(o.out_dir, join_path(folder, fmt::format("exp_{}.csv", input)));
+      }
+      register_analyzer_files(outputs, o.analyzer, o.out_dir, folder);
+    }
+  outputs.check();
 
   // The truth: the documented platform with --set overrides, or a physical model
   // file with its effects (a hidden effect for the model-error loop; the PI gains
   // are designed on its rigid-body terms, as for --set).
   std::optional<PhysicalModel> truth;
-  if (!o.truth_model.empty()) {
-    if (!o.overrides.empty())
-      throw InputError("--set and --truth-model both given: put the values in the model file (lpvid model) or use --set alone");
-    truth = read_physical_model(o.truth_model);
-  }
+  if (!o.truth_model.empty()) truth = read_physical_model(o.truth_model);
   const PlatformParameters params = truth ? platform_parameters(*truth) : parameters_with(o.overrides);
+  for (std::size_t ip = 0; ip < positions_m.size(); ++ip)
+    if (!(std::abs(positions_m[ip]) <= params.beam_stroke_m))
+      throw InputError(fmt::format("--positions {}: x_b = {} m is outside the stroke |x_b| <= {} m (beam_stroke_m); "
+                                   "give a position within the stroke, or left, middle, right",
+                                   o.positions[ip], positions_m[ip], params.beam_stroke_m));
   const auto gains = default_pi_gains(params);
   nlohmann::json summary = nlohmann::json::array();
   std::string text;
-  ensure_directory(o.out_dir);
   for (std::size_t ip = 0; ip < positions_m.size(); ++ip) {
     for (std::size_t ir = 0; ir < o.rates_hz.size(); ++ir) {
       const double ts = 1.0 / o.rates_hz[ir];
-      const std::string dir =
-          join_path(o.out_dir, fmt::format("{}_{}hz", position_label(o.positions[ip]), std::llround(o.rates_hz[ir])));
-      ensure_directory(dir);
+      const std::string dir = dirs[ip * o.rates_hz.size() + ir];
       // With a truth model the discrete plant carries its effects (an input delay as
       // whole-sample shift states); the continuous file holds the delay-free part.
       const StateSpace plant_c =
@@ -128,10 +156,11 @@ void run(const SimulateOptions& o) {
       const nlohmann::json provenance = {
           {"command", "lpvid simulate platform"}, {"beam_position_m", positions_m[ip]}, {"seed", o.seed},
           {"truth_model", o.truth_model}};
-      write_state_space(join_path(dir, "controller.json"), controller, {{"provenance", provenance}});
-      write_state_space(join_path(dir, "truth_plant.json"), plant_d, {{"provenance", provenance}});
-      write_state_space(join_path(dir, "truth_plant_continuous.json"), plant_c, {{"provenance", provenance}});
-      write_state_space(join_path(dir, "truth_closed_loop.json"), closed_loop, {{"provenance", provenance}});
+      outputs.stage(join_path(dir, "controller.json"), state_space_to_json(controller, {{"provenance", provenance}}));
+      outputs.stage(join_path(dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", provenance}}));
+      outputs.stage(join_path(dir, "truth_plant_continuous.json"),
+                    state_space_to_json(plant_c, {{"provenance", provenance}}));
+      outputs.stage(join_path(dir, "truth_closed_loop.json"), state_space_to_json(closed_loop, {{"provenance", provenance}}));
 
       ExcitationOptions ex;
       ex.duration_s = o.duration_s;
@@ -144,7 +173,7 @@ void run(const SimulateOptions& o) {
         ex.seed = o.seed * 1000003ULL + ip * 1009ULL + ir * 101ULL + static_cast<std::uint64_t>(input);
         const SimulatedLog log = simulate_excitation(plant_d, controller, ex);
         const std::string name = o.simultaneous ? "exp_all.csv" : fmt::format("exp_{}.csv", plant_c.input_names[input]);
-        write_log(join_path(dir, name), log.names, log.data,
+        write_log(outputs.stage(join_path(dir, name)), log.names, log.data,
                   {fmt::format("lpvid simulate platform: beam_position_m={} sample_period_s={} excited={} seed={}",
                                positions_m[ip], ts, o.simultaneous ? "all" : plant_c.input_names[input], ex.seed)});
       }
@@ -152,10 +181,11 @@ void run(const SimulateOptions& o) {
       text += fmt::format("wrote {} (x_b = {} m, {} Hz, {} s)\n", dir, positions_m[ip], o.rates_hz[ir], o.duration_s);
       if (o.analyzer.enabled)
         summary.back()["analyzer"] =
-            write_analyzer_files(o.analyzer, dir, plant_d, controller, ex.sensor_noise_std,
+            write_analyzer_files(outputs, o.analyzer, dir, plant_d, controller, ex.sensor_noise_std,
                                  o.seed * 1000003ULL + ip * 1009ULL + ir * 101ULL + 7ULL, positions_m[ip], text);
     }
   }
+  outputs.commit();
   print_summary(o.json, summary, text);
 }
 
@@ -170,12 +200,16 @@ Command make_simulate_command() {
                 "platform", "3-DOF LPV platform (seed 000) under three discrete PI controllers" + std::string(kExample));
             platform->add_option("--out", opts->out_dir, "output directory (one folder per position and rate)")
                 ->required();
-            platform->add_option("--positions", opts->positions, "beam positions: left, middle, right or metres")
+            auto* positions = platform->add_option("--positions", opts->positions, "beam positions: left, middle, right or metres")
                 ->delimiter(',');
-            platform->add_option("--rate-hz", opts->rates_hz, "sampling rates in Hz (e.g. 1000,10000)")->delimiter(',');
-            platform->add_option("--duration-s", opts->duration_s, "length of each experiment in seconds");
-            platform->add_option("--seed", opts->seed, "random seed (same seed, same logs)");
-            platform->add_option("--noise-scale", opts->noise_scale, "multiplies the default sensor noise (0 = none)");
+            platform->add_option("--rate-hz", opts->rates_hz, "sampling rates in Hz (e.g. 1000,10000)")
+                ->delimiter(',')
+                ->check(positive_up_to(kMaxRateHz, "each sample rate in Hz"));
+            platform->add_option("--duration-s", opts->duration_s, "length of each experiment in seconds")
+                ->check(positive_up_to(kMaxDurationS, "the length of each experiment in s"));
+            platform->add_option("--seed", opts->seed, "random seed (same seed, same logs)")->check(seed_value());
+            platform->add_option("--noise-scale", opts->noise_scale, "multiplies the default sensor noise (0 = none)")
+                ->check(number_in(0, kMaxScale, "the noise scale"));
             platform->add_flag("--simultaneous", opts->simultaneous,
                                "excite all three inputs at once in one experiment (default: one input per experiment)");
             platform->add_option("--truth-model", opts->truth_model,
@@ -188,8 +222,18 @@ Command make_simulate_command() {
             add_analyzer_options(*platform, opts->analyzer);
             auto beam = std::make_shared<TrajectoryCliOptions>();
             add_trajectory_options(platform, *beam);
-            platform->callback([opts, beam] {
+            platform->callback([opts, beam, positions] {
               if (!beam->active()) return run(*opts);
+              // Flags of the fixed-position experiments do not apply to a moving beam.
+              const char* ignored = positions->count() > 0       ? "--positions"
+                                    : opts->analyzer.enabled     ? "--analyzer"
+                                    : !opts->truth_model.empty() ? "--truth-model"
+                                    : opts->simultaneous         ? "--simultaneous"
+                                                                 : nullptr;
+              if (ignored != nullptr)
+                throw InputError(fmt::format("{} does not apply to a moving beam (--profile/--trajectory); leave it "
+                                             "out, or drop --profile/--trajectory",
+                                             ignored));
               run_simulate_trajectory(*beam, parameters_with(opts->overrides),
                                       {opts->out_dir, opts->rates_hz, opts->duration_s, opts->seed, opts->noise_scale,
                                        opts->json});

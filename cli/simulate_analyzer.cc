@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/frd_csv.h"
 #include "formats/io/frd_mat.h"
@@ -21,11 +22,15 @@ void add_analyzer_options(CLI::App& platform, AnalyzerCliOptions& o) {
                     "(one excited input each), truth_S.csv");
   platform.add_option("--analyzer-band-hz", o.band_hz, "analyzer sweep: lowest,highest frequency in Hz")
       ->delimiter(',')
-      ->expected(2);
-  platform.add_option("--analyzer-points", o.points, "analyzer sweep: number of log-spaced frequencies");
+      ->expected(2)
+      ->check(positive_up_to(kMaxFrequency, "each end of the sweep in Hz"));
+  platform.add_option("--analyzer-points", o.points, "analyzer sweep: number of log-spaced frequencies")
+      ->check(integer_in(1, kMaxFrequencyPoints, "the number of frequencies"));
   platform.add_option("--analyzer-integration-s", o.integration_s,
-                      "analyzer: measurement time per frequency and input in s (noise falls as 1/sqrt)");
-  platform.add_option("--analyzer-averages", o.averages, "analyzer: blocks averaged per frequency (>= 2)");
+                      "analyzer: measurement time per frequency and input in s (noise falls as 1/sqrt)")
+      ->check(positive_up_to(kMaxDurationS, "the measurement time per frequency in s"));
+  platform.add_option("--analyzer-averages", o.averages, "analyzer: blocks averaged per frequency (>= 2)")
+      ->check(integer_in(2, 1'000'000, "the number of averages"));
   platform.add_flag("--analyzer-mat", o.mat, "analyzer: also write the whole S as S.mat (MATLAB v5)");
 }
 
@@ -37,15 +42,19 @@ void check_analyzer_options(const AnalyzerCliOptions& o, const std::vector<doubl
   for (double r : rates_hz)
     if (!(o.band_hz[1] < r / 2))
       throw InputError(fmt::format("--analyzer-band-hz {}: the highest frequency must be below the Nyquist frequency "
-                                   "{} Hz of --rate-hz {}",
+                                   "{} Hz of --rate-hz {}; lower the band or raise --rate-hz",
                                    fmt::join(o.band_hz, ","), r / 2, r));
-  if (o.points < 1) throw InputError(fmt::format("--analyzer-points {}: must be >= 1", o.points));
-  if (!(o.integration_s > 0) || !std::isfinite(o.integration_s))
-    throw InputError(fmt::format("--analyzer-integration-s {}: must be positive", o.integration_s));
-  if (o.averages < 2) throw InputError(fmt::format("--analyzer-averages {}: must be >= 2", o.averages));
 }
 
-nlohmann::json write_analyzer_files(const AnalyzerCliOptions& o, const std::string& dir, const StateSpace& plant_d,
+void register_analyzer_files(OutputSet& outputs, const AnalyzerCliOptions& o, const std::string& out_dir,
+                             const std::string& folder) {
+  if (!o.enabled) return;
+  for (const char* name : {"S_v1.csv", "S_v2.csv", "S_v3.csv", "truth_S.csv"})
+    outputs.file_in(out_dir, join_path(folder, name));
+  if (o.mat) outputs.file_in(out_dir, join_path(folder, "S.mat"));
+}
+
+nlohmann::json write_analyzer_files(OutputSet& files, const AnalyzerCliOptions& o, const std::string& dir, const StateSpace& plant_d,
                                     const StateSpace& controller, const Eigen::Vector3d& sensor_noise_std,
                                     std::uint64_t seed, double beam_position_m, std::string& text) {
   AnalyzerOptions a;
@@ -62,7 +71,6 @@ nlohmann::json write_analyzer_files(const AnalyzerCliOptions& o, const std::stri
       fmt::format("lpvid simulate platform --analyzer: stepped sine, beam_position_m={} sample_period_s={} "
                   "integration_s={} averages={} seed={}",
                   beam_position_m, a.sample_period_s, a.integration_s, a.averages, seed);
-  AtomicOutputSet files;
   nlohmann::json written = nlohmann::json::array();
   for (Index j = 0; j < 3; ++j) {
     // Column j of S: what the analyzer records while input j is excited.
@@ -82,13 +90,12 @@ nlohmann::json write_analyzer_files(const AnalyzerCliOptions& o, const std::stri
   const std::string truth = join_path(dir, "truth_S.csv");
   write_frd_csv(files.stage(truth), m.exact_sensitivity, "S", {"lpvid simulate platform --analyzer: exact S (truth)"});
   written.push_back(truth);
-  files.commit();
   if (o.mat) {
     const std::string mat = join_path(dir, "S.mat");
     FrequencyResponse whole = m.sensitivity;
     whole.flagged.clear();
     whole.averages = a.averages;
-    write_frd_mat(mat, whole, "S");
+    write_frd_mat(files.stage(mat), whole, "S");
     written.push_back(mat);
   }
   text += fmt::format("  analyzer: S at {} frequencies, noise on S {:.3g} % (mean relative), in {}\n",

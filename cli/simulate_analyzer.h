@@ -14,6 +14,8 @@
 
 namespace lpvid::cli {
 
+class OutputSet;
+
 struct AnalyzerCliOptions {
   bool enabled = false;
   std::vector<double> band_hz = {0.15, 65.0};  // 0.94 .. 408 rad/s: the model's band
@@ -31,11 +33,15 @@ void add_analyzer_options(CLI::App& platform, AnalyzerCliOptions& options);
 // including that the sweep stays below the Nyquist frequency of every rate.
 void check_analyzer_options(const AnalyzerCliOptions& options, const std::vector<double>& rates_hz);
 
-// Measures S of the loop (plant_d, controller) and writes dir/S_v1.csv,
+// Registers the analyzer's files in out_dir/folder (when --analyzer is on).
+void register_analyzer_files(OutputSet& outputs, const AnalyzerCliOptions& options, const std::string& out_dir,
+                             const std::string& folder);
+
+// Measures S of the loop (plant_d, controller) and stages dir/S_v1.csv,
 // S_v2.csv, S_v3.csv (column j of S each; coherence), dir/truth_S.csv (the exact
 // S on the same grid) and, with --analyzer-mat, dir/S.mat (the whole matrix).
 // Returns the JSON summary entry; appends a line to text.
-nlohmann::json write_analyzer_files(const AnalyzerCliOptions& options, const std::string& dir,
+nlohmann::json write_analyzer_files(OutputSet& outputs, const AnalyzerCliOptions& options, const std::string& dir,
                                     const StateSpace& plant_d, const StateSpace& controller,
                                     const Eigen::Vector3d& sensor_noise_std, std::uint64_t seed,
                                     double beam_position_m, std::string& text);

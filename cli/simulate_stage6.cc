@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
@@ -67,17 +68,23 @@ std::vector<unsigned char> plot(const Eigen::VectorXd& t, const Eigen::MatrixXd&
 
 void run(const Stage6Options& o) {
   using namespace lpvid::stage6;
-  if (!(o.excitation_scale >= 0) || !std::isfinite(o.excitation_scale))
-    throw InputError(fmt::format("--excitation-scale {}: must be >= 0", o.excitation_scale));
-  if (!(o.noise_scale >= 0) || !std::isfinite(o.noise_scale))
-    throw InputError(fmt::format("--noise-scale {}: must be >= 0", o.noise_scale));
-  if (o.duration_s < 0 || !std::isfinite(o.duration_s))
-    throw InputError(fmt::format("--duration-s {}: must be positive", o.duration_s));
+  const double duration_s = o.duration_s > 0 ? o.duration_s : (o.experiment ? 2.0 : 8.0);
+  check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
+  // Every output, checked before anything is simulated; the folder is created
+  // when the files are published.
+  OutputSet out;
+  out.directory("--out", o.out_dir);
+  for (const char* name : o.experiment ? std::vector<const char*>{"exp_stage6.csv", "truth_plant_continuous.json",
+                                                                 "truth_plant.json"}
+                                       : std::vector<const char*>{"stage6_run.csv", "fig6a_xyz.png", "fig6b_angles.png",
+                                                                  "fig6c_forces.png", "fig6d_torques.png"})
+    out.file_in(o.out_dir, name);
+  out.check();
   StageEffects effects;
   for (const auto& e : o.effects) {
     if (e == "gap") effects.gap_dependence = true;
     else if (e == "lag") effects.electrical_lag = true;
-    else throw InputError(fmt::format("--effects: unknown effect '{}'; known: gap, lag", e));
+    else throw InputError(fmt::format("--effects: unknown effect '{}'; use gap or lag", e));
   }
   SlidingModeOptions smc;
   smc.gain_K = o.gain_K;
@@ -86,7 +93,7 @@ void run(const Stage6Options& o) {
   smc.inertia_scale = o.inertia_scale;
   smc.control_rate_hz = o.rate_hz;
   SimulationOptions sim;
-  sim.duration_s = o.duration_s > 0 ? o.duration_s : (o.experiment ? 2.0 : 8.0);
+  sim.duration_s = duration_s;
   sim.integration_step_s = o.step_s;
   sim.seed = o.seed;
   const StageParameters truth;
@@ -103,14 +110,12 @@ void run(const Stage6Options& o) {
     q0(2) = 250e-6;
   }
   const StageRun r = simulate_regulation(truth, effects, q0, qr, smc, sim);  // before any output
-  ensure_directory(o.out_dir);
   nlohmann::json summary = {{"dir", o.out_dir}, {"duration_s", sim.duration_s}, {"rate_hz", o.rate_hz}};
   std::string text;
   const std::string provenance = fmt::format(
       "lpvid simulate stage6{}: K={} delta={} lambda={} inertia_scale={} rate_hz={} step_s={} seed={} effects={}",
       o.experiment ? " --experiment" : "", o.gain_K, o.delta, o.lambda, o.inertia_scale, o.rate_hz, o.step_s, o.seed,
       effects.gap_dependence ? (effects.electrical_lag ? "gap,lag" : "gap") : (effects.electrical_lag ? "lag" : "none"));
-  AtomicOutputSet out;
   if (o.experiment) {
     const StageLog log = experiment_log(r);
     const StateSpace plant_c = linearize_hover(truth, qr(2));
@@ -138,7 +143,7 @@ void run(const Stage6Options& o) {
     Eigen::MatrixXd angles(r.q.rows(), 3);  // the paper's order phi, theta, psi
     angles << r.q.col(5), r.q.col(4), r.q.col(3);
     auto stage_png = [&](const std::string& name, const std::vector<unsigned char>& bytes) {
-      out.stage(join_path(o.out_dir, name), std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+      out.stage(join_path(o.out_dir, name), bytes);
     };
     stage_png("fig6a_xyz.png", plot(r.t_s, xyz_um, "Fig. 6(a): states x, y, z (time in s)", {"x [um]", "y [um]", "z [um]"}));
     stage_png("fig6b_angles.png", plot(r.t_s, angles, "Fig. 6(b): states phi, theta, psi (time in s)",
@@ -167,19 +172,28 @@ void install_simulate_stage6(CLI::App& simulate) {
   c->add_option("--out", opts->out_dir, "output directory")->required();
   c->add_flag("--experiment", opts->experiment,
               "closed-loop identification experiment instead of the paper's regulation run");
-  c->add_option("--duration-s", opts->duration_s, "simulated time in s (default 8, or 2 with --experiment)");
-  c->add_option("--rate-hz", opts->rate_hz, "control (and log) rate in Hz");
-  c->add_option("--step-s", opts->step_s, "RK4 step in s; must divide the control period");
-  c->add_option("--K", opts->gain_K, "sliding-mode gain K (m/s^2, rad/s^2)");
-  c->add_option("--delta", opts->delta, "boundary layer delta (units of sigma)");
-  c->add_option("--lambda", opts->lambda, "sliding-surface slope Lambda = lambda I (1/s)");
-  c->add_option("--inertia-scale", opts->inertia_scale, "controller's inertia estimate M0 = scale * M");
+  c->add_option("--duration-s", opts->duration_s, "simulated time in s (default 8, or 2 with --experiment)")
+      ->check(positive_up_to(kMaxDurationS, "the simulated time in s"));
+  c->add_option("--rate-hz", opts->rate_hz, "control (and log) rate in Hz")
+      ->check(positive_up_to(kMaxRateHz, "the control rate in Hz"));
+  c->add_option("--step-s", opts->step_s, "RK4 step in s; must divide the control period")
+      ->check(positive_up_to(1.0, "the RK4 step in s"));
+  c->add_option("--K", opts->gain_K, "sliding-mode gain K (m/s^2, rad/s^2)")
+      ->check(positive_up_to(1e12, "the sliding-mode gain K"));
+  c->add_option("--delta", opts->delta, "boundary layer delta (units of sigma)")
+      ->check(positive_up_to(1e12, "the boundary layer delta"));
+  c->add_option("--lambda", opts->lambda, "sliding-surface slope Lambda = lambda I (1/s)")
+      ->check(positive_up_to(1e12, "the sliding-surface slope in 1/s"));
+  c->add_option("--inertia-scale", opts->inertia_scale, "controller's inertia estimate M0 = scale * M")
+      ->check(positive_up_to(kMaxScale, "the inertia scale"));
   c->add_option("--excitation-scale", opts->excitation_scale,
-                "--experiment: multiplies the white excitation (2 N, 0.1 N m per channel)");
-  c->add_option("--noise-scale", opts->noise_scale, "--experiment: multiplies the sensor noise (0 = none)");
+                "--experiment: multiplies the white excitation (2 N, 0.1 N m per channel)")
+      ->check(number_in(0, kMaxScale, "the excitation scale"));
+  c->add_option("--noise-scale", opts->noise_scale, "--experiment: multiplies the sensor noise (0 = none)")
+      ->check(number_in(0, kMaxScale, "the noise scale"));
   c->add_option("--effects", opts->effects, "effects in the simulated stage, hidden from the controller: gap, lag")
       ->delimiter(',');
-  c->add_option("--seed", opts->seed, "random seed (same seed, same log)");
+  c->add_option("--seed", opts->seed, "random seed (same seed, same log)")->check(seed_value());
   c->add_flag("--json", opts->json, "print the summary as JSON");
   c->callback([opts] { run(*opts); });
 }

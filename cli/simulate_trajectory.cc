@@ -2,12 +2,15 @@
 // closed loop while the beam moves along x_b(t) (seed 000, Fig. 14).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
 #include "cli/beam_commands.h"
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
@@ -26,7 +29,8 @@ void add_trajectory_options(CLI::App* platform, TrajectoryCliOptions& o) {
                        "0.6 s moves, 1.4 s rests; --duration-s long)");
   platform->add_option("--excite", o.excite,
                        "with --trajectory/--profile: white excitation on none, all, T_psi, T_theta or F_z (default none)");
-  platform->add_option("--substeps", o.substeps, "with --trajectory/--profile: integration pieces per sample (1..1000)");
+  platform->add_option("--substeps", o.substeps, "with --trajectory/--profile: integration pieces per sample (1..1000)")
+      ->check(integer_in(1, 1000, "the integration pieces per sample"));
 }
 
 void run_simulate_trajectory(const TrajectoryCliOptions& o, const PlatformParameters& params,
@@ -34,11 +38,7 @@ void run_simulate_trajectory(const TrajectoryCliOptions& o, const PlatformParame
   if (!o.trajectory.empty() && !o.profile.empty())
     throw InputError("give either --trajectory FILE or --profile NAME, not both");
   if (!o.profile.empty() && o.profile != "sweep")
-    throw InputError(fmt::format("--profile '{}': unknown profile; known: sweep", o.profile));
-  if (!(shared.duration_s > 0)) throw InputError(fmt::format("--duration-s {}: must be positive", shared.duration_s));
-  if (!(shared.noise_scale >= 0)) throw InputError(fmt::format("--noise-scale {}: must be >= 0", shared.noise_scale));
-  for (double r : shared.rates_hz)
-    if (!(r > 0)) throw InputError(fmt::format("--rate-hz {}: must be positive", r));
+    throw InputError(fmt::format("--profile '{}': unknown profile; use sweep", o.profile));
   MovingBeamOptions base;
   base.substeps = o.substeps;
   base.sensor_noise_std *= shared.noise_scale;
@@ -54,21 +54,39 @@ void run_simulate_trajectory(const TrajectoryCliOptions& o, const PlatformParame
     base.excitation_std(i) = ex_defaults.excitation_std(i);
   }
   base.validate();
+  if (o.profile == "sweep") check_simulated_samples(shared.duration_s, shared.rates_hz);
 
-  // The trajectory: read (and checked against the stroke) before any output.
-  std::string name = o.profile;
+  // Every output, checked before the trajectory is read; folders are created
+  // when the files are published, after the last simulation.
+  const std::string name = o.trajectory.empty() ? o.profile : std::filesystem::path(o.trajectory).stem().string();
+  OutputSet outputs;
+  outputs.input(o.trajectory);
+  outputs.directory("--out", shared.out_dir);
+  std::vector<std::string> dirs;
+  for (const double rate : shared.rates_hz) {
+    const std::string folder = fmt::format("{}_{}hz", name, std::llround(rate));
+    const std::string dir = join_path(shared.out_dir, folder);
+    if (std::find(dirs.begin(), dirs.end(), dir) != dirs.end())
+      throw InputError(fmt::format("--rate-hz {} gives the folder '{}' twice; give each rate once",
+                                   fmt::join(shared.rates_hz, ","), dir));
+    dirs.push_back(dir);
+    for (const char* file : {"run.csv", "controller.json", "truth_parameters.json"})
+      outputs.file_in(shared.out_dir, join_path(folder, file));
+  }
+  outputs.check();
+
+  // The trajectory: read (and checked against the stroke) before any simulation.
   BeamTrajectory traj = BeamTrajectory::constant(0.0, 0.0, 1.0);
   if (!o.trajectory.empty()) {
     const BeamSamples s = read_beam_samples(o.trajectory, params.beam_stroke_m);
     traj = BeamTrajectory::from_samples(s.t_s, s.x_b_m);
-    name = std::filesystem::path(o.trajectory).stem().string();
+    check_simulated_samples(traj.end_s() - traj.start_s(), shared.rates_hz);
   } else {
     traj = BeamTrajectory::sweep({}, shared.duration_s);
   }
   const auto gains = default_pi_gains(params);
   nlohmann::json summary = nlohmann::json::array();
   std::string text;
-  ensure_directory(shared.out_dir);
   for (std::size_t ir = 0; ir < shared.rates_hz.size(); ++ir) {
     const double ts = 1.0 / shared.rates_hz[ir];
     MovingBeamOptions mo = base;
@@ -76,25 +94,22 @@ void run_simulate_trajectory(const TrajectoryCliOptions& o, const PlatformParame
     mo.seed = shared.seed * 1000003ULL + ir * 101ULL;
     const StateSpace controller = discrete_pi_controller(gains, ts);
     const SimulatedLog log = simulate_moving_beam(params, controller, traj, mo);
-    const std::string dir =
-        join_path(shared.out_dir, fmt::format("{}_{}hz", name, std::llround(shared.rates_hz[ir])));
-    if (!o.trajectory.empty()) check_not_overwriting({o.trajectory}, join_path(dir, "run.csv"));
-    ensure_directory(dir);
+    const std::string& dir = dirs[ir];
     const nlohmann::json provenance = {{"command", "lpvid simulate platform"},
                                        {"trajectory", o.trajectory.empty() ? o.profile : o.trajectory},
                                        {"seed", mo.seed}};
-    AtomicOutputSet out;
+    OutputSet& out = outputs;
     write_log(out.stage(join_path(dir, "run.csv")), log.names, log.data,
               {fmt::format("lpvid simulate platform: moving beam ({}) sample_period_s={} excite={} seed={}", name, ts,
                            o.excite, mo.seed)});
     out.stage(join_path(dir, "controller.json"), state_space_to_json(controller, {{"provenance", provenance}}));
     out.stage(join_path(dir, "truth_parameters.json"),
               platform_parameters_to_json(params, {{"provenance", provenance}}));
-    out.commit();
     const double duration = traj.end_s() - traj.start_s();
     summary.push_back({{"dir", dir}, {"rate_hz", shared.rates_hz[ir]}, {"duration_s", duration}, {"samples", log.data.rows()}});
     text += fmt::format("wrote {} (moving beam: {}, {} Hz, {} s)\n", dir, name, shared.rates_hz[ir], duration);
   }
+  outputs.commit();
   print_summary(shared.json, summary, text);
 }
 

@@ -12,6 +12,7 @@
 #include <memory>
 
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
@@ -50,7 +51,7 @@ stage6::StageFitModel model_of(const std::vector<std::string>& effects) {
     if (e == "com") m.com_offset = true;
     else if (e == "gap") m.gap_dependence = true;
     else if (e == "lag") m.electrical_lag = true;
-    else throw InputError(fmt::format("--effects: unknown stage effect '{}'; known: com, gap, lag", e));
+    else throw InputError(fmt::format("--effects: unknown stage effect '{}'; use com, gap or lag", e));
   }
   return m;
 }
@@ -120,10 +121,18 @@ std::string result_text(const stage6::StageFitResult& r) {
 
 void run_fit(const Stage6IdOptions& o) {
   const stage6::StageFitModel model = model_of(o.effects);
+  // The history beside --out is read (if it exists) and rewritten with one more line.
+  if (o.out == "-")
+    throw InputError("stage6 fit --out '-': the fit history is written beside --out, so --out must be a file; give a "
+                     "file path (or --json to print the estimates)");
+  OutputSet outputs;
+  outputs.input(o.log);
+  outputs.file("--out", o.out);
   if (!o.out.empty()) {
-    check_not_overwriting({o.log}, o.out);
-    check_not_overwriting({o.log, o.out}, history_path_for(o.out));
+    outputs.input(history_path_for(o.out));
+    outputs.rewrite("--out (its history)", history_path_for(o.out));
   }
+  outputs.check();
   const LoadedStageLog log = load(o.log);
   stage6::StageFitOptions fo;
   fo.fix_mass = !o.fit_mass;
@@ -150,13 +159,12 @@ void run_fit(const Stage6IdOptions& o) {
     std::string lines;
     for (const auto& old : records) lines += history_line(old) + "\n";
     lines += history_line(rec) + "\n";
-    AtomicOutputSet outputs;
-    outputs.stage(o.out, summary.dump(2) + "\n");
+    outputs.stage(o.out, json_text(summary));
     outputs.stage(history_path_for(o.out), lines);
     outputs.commit();
     text += fmt::format("wrote {} (history: {})\n", o.out, history_path_for(o.out));
   }
-  print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 void run_diagnose(const Stage6IdOptions& o) {

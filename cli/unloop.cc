@@ -4,7 +4,11 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <cmath>
+#include <optional>
+
 #include "cli/common.h"
+#include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/model_json.h"
@@ -44,13 +48,9 @@ struct UnloopCliOptions {
   bool json = false;
 };
 
-// Per-frequency route: S (or G) data and the controller -> plant FRD.
-void run_frd(const UnloopCliOptions& o) {
-  std::vector<std::string> inputs = o.sensitivity;
-  if (!o.closed_loop.empty()) inputs.push_back(o.closed_loop);
-  inputs.push_back(o.controller);
-  check_not_overwriting(inputs, o.out);
-  const StateSpace c = read_state_space(o.controller);
+// Per-frequency route: S (or G: closed_loop) data and the controller -> plant FRD.
+void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyResponse* closed_loop) {
+  const StateSpace c = read_controller(o.controller);
   SensitivityUnloopOptions options;
   options.max_condition = o.max_condition;
   options.min_coherence = o.min_coherence;
@@ -75,7 +75,7 @@ void run_frd(const UnloopCliOptions& o) {
     warnings = r.report.warnings;
     route = "P = C^-1 (S^-1 - I)";
   } else {
-    plant = plant_from_closed_loop_frd(load_frd_merged({o.closed_loop}), c);
+    plant = plant_from_closed_loop_frd(*closed_loop, c);
     for (bool f : plant.flagged) flagged += f ? 1 : 0;
     route = "P = G (I - C G)^-1";
   }
@@ -83,13 +83,14 @@ void run_frd(const UnloopCliOptions& o) {
   // errors e = -q, conventionally named e_<q> (as lpvid simulate writes them).
   for (auto& name : plant.output_names)
     if (name.rfind("e_", 0) == 0) name = name.substr(2);
-  write_frd_csv(o.out, plant, "P", {"lpvid unloop: " + route + " per frequency"});
+  write_frd_csv(outputs.stage(o.out), plant, "P", {"lpvid unloop: " + route + " per frequency"});
+  outputs.commit();
   nlohmann::json summary = {{"route", route}, {"frequencies", plant.num_frequencies()}, {"flagged", flagged},
                             {"warnings", warnings}, {"out", o.out}};
   std::string text = fmt::format("unloop: {} at {} frequencies, {} flagged as untrustworthy\n", route,
                                  plant.num_frequencies(), flagged);
   for (const auto& w : warnings) text += "warning: " + w + "\n";
-  if (o.out != "-") print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 void run(const UnloopCliOptions& o) {
@@ -97,17 +98,25 @@ void run(const UnloopCliOptions& o) {
     throw InputError("give either --sensitivity (S data) or --closed-loop (G), not both");
   if (o.sensitivity.empty() && o.closed_loop.empty())
     throw InputError("give --closed-loop G.json (or G data) or --sensitivity S.csv");
-  if (!o.sensitivity.empty() || !is_model_path(o.closed_loop)) return run_frd(o);
-  if (o.order < 0) throw InputError(fmt::format("--order {}: must be positive (omit it for automatic)", o.order));
-  check_not_overwriting({o.closed_loop, o.controller}, o.out);
-  const StateSpace g = read_state_space(o.closed_loop);
-  const StateSpace c = read_state_space(o.controller);
+  OutputSet outputs;
+  outputs.inputs(o.sensitivity);
+  outputs.input(o.closed_loop);
+  outputs.input(o.controller);
+  outputs.file("--out", o.out);
+  outputs.check();
+  // G as a model or as data; "-" (stdin) by its content.
+  std::optional<LoadedResponse> loaded;
+  if (!o.closed_loop.empty()) loaded = load_response(o.closed_loop);
+  if (!loaded || !loaded->model) return run_frd(o, outputs, loaded ? &*loaded->frd : nullptr);
+  const StateSpace& g = *loaded->model;
+  const StateSpace c = read_controller(o.controller);
   UnloopOptions options;
   options.plant_order = o.order;
   const UnloopResult r = plant_from_closed_loop(g, c, options);
-  write_state_space(o.out, r.plant,
-                    {{"provenance",
-                      {{"command", "lpvid unloop"}, {"closed_loop", o.closed_loop}, {"controller", o.controller}}}});
+  outputs.stage(o.out, state_space_to_json(r.plant, {{"provenance", {{"command", "lpvid unloop"},
+                                                                     {"closed_loop", o.closed_loop},
+                                                                     {"controller", o.controller}}}}));
+  outputs.commit();
   const bool stable = is_stable(r.plant);
   nlohmann::json summary = {{"order", r.plant.order()},
                             {"interconnection_order", r.interconnection_order},
@@ -119,7 +128,7 @@ void run(const UnloopCliOptions& o) {
   std::string text = fmt::format("unloop: plant of order {} from an interconnection of order {} ({} modes removed); {}\n",
                                  r.plant.order(), r.interconnection_order, r.removed_poles.size(), r.report.termination);
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
-  if (o.out != "-") print_summary(o.json, summary, text);
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
 }  // namespace
@@ -134,14 +143,18 @@ Command make_unloop_command() {
             app->add_option("--sensitivity", o->sensitivity,
                             "input sensitivity S (v -> u) FRD file(s) (.csv, .mat); several are merged");
             app->add_option("--max-condition", o->max_condition,
-                            "flag frequencies where C or S^-1 - I has a larger condition number");
-            app->add_option("--min-coherence", o->min_coherence, "flag frequencies with lower coherence");
+                            "flag frequencies where C or S^-1 - I has a larger condition number")
+                ->check(number_in(1, INFINITY, "the largest condition number", true));
+            app->add_option("--min-coherence", o->min_coherence, "flag frequencies with lower coherence")
+                ->check(number_in(0, 1, "the smallest coherence"));
             app->add_option("--min-loop-gain", o->min_loop_gain,
-                            "flag frequencies where sigma_min(S^-1 - I) = sigma_min(C P) is below this (0 = off)");
+                            "flag frequencies where sigma_min(S^-1 - I) = sigma_min(C P) is below this (0 = off)")
+                ->check(number_in(0, INFINITY, "the smallest loop gain"));
             app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON")->required();
             app->add_option("--out", o->out, "plant to write: model JSON, or FRD CSV for data ('-' = stdout)")
                 ->required();
-            app->add_option("--order", o->order, "plant order (default: closed-loop order minus controller order)");
+            app->add_option("--order", o->order, "plant order (default: closed-loop order minus controller order)")
+                ->check(integer_in(1, kMaxModelStates, "the plant order"));
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });
           }};

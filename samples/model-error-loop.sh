@@ -1,34 +1,73 @@
 #!/usr/bin/env bash
-# The model-error loop on data with a hidden effect (docs/model-error-walkthrough.md):
-# a platform whose controller output reaches the coils one sample (1 ms) late is
-# measured by a simulated analyzer at three beam positions; a model without the
-# delay is fitted, diagnose names what is missing, the effect is added, the model
-# refitted, and the history shows the error falling.  Writes samples/loop/.
+# The model-error loop on a plant that is not lpvid's own (docs/model-error-walkthrough.md).
+# The "rig" is tests/support's independent simulator (indep_sim: the platform's
+# physics written apart from lpvid, coil by coil, with its own parameter values),
+# standing in for your lab.  Three cases, each from the same drawn platform (seed 27):
+#   1. a hidden coil lag: fit the model, diagnose names the missing effect, add it,
+#      refit, watch the error fall to the noise floor;
+#   2. a hidden theta-sensor resonance no library effect contains: diagnose says so,
+#      describes it, writes it as a user-defined effect; define it, refit;
+#   3. case 1 again from time-domain logs through `lpvid frf` instead of an analyzer.
+# Writes samples/loop/.  LPVID and INDEP_SIM override the programs' paths.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 lpvid="${LPVID:-$here/../build/lpvid}"
+indep_sim="${INDEP_SIM:-$here/../build/indep_sim}"
 rm -rf "$here/loop" && mkdir -p "$here/loop" && cd "$here/loop"
 run() { echo "\$ lpvid $*"; "$lpvid" "$@"; echo; }
+sim() { echo "\$ indep_sim $*"; "$indep_sim" "$@"; echo; }
 
-# 1. The truth, with the hidden effect (a user edits the value in the file; here sed).
-run model init --out truth.json
-run model add input_delay --model truth.json
-sed -i 's/"input_delay_s": {"value": [^,]*,/"input_delay_s": {"value": 0.001,/' truth.json
-grep -q '"input_delay_s": {"value": 0.001,' truth.json
-# 2. Analyzer measurements of S at three beam positions (16 averages, 4 s per frequency).
-run simulate platform --out data --truth-model truth.json --duration-s 1 --seed 5 \
-    --analyzer --analyzer-averages 16 --analyzer-integration-s 4
-S() { echo "data/$1_1000hz/S_v1.csv,data/$1_1000hz/S_v2.csv,data/$1_1000hz/S_v3.csv@$2"; }
-DATA=(--target S --controller data/middle_1000hz/controller.json
-      --data "$(S left -0.1)" --data "$(S middle 0)" --data "$(S right 0.1)")
-# 3. The documented model, without the delay, fitted to the data.
-run model init --out model.json
-run fit --model model.json "${DATA[@]}" --out fit1.json --plot fit1.png
-# 4. Where does it fail, and what is missing?
-run diagnose --model fit1.json "${DATA[@]}" --averages 16 --png where-it-fails.png
-# 5. Add what diagnose named, refit, and look at the error falling.
-run model add input_delay --model fit1.json
-run fit --model fit1.json "${DATA[@]}" --out fit2.json --plot fit2.png
+# The data sets, written once: three beam positions, each with three analyzer
+# files (one per excited input v_j) of S = (I + C P)^-1, v -> u.
+manifest() {  # $1: file, $2: the files of one position with {p} for left/middle/right
+  local f="${2//\{p\}/left}" m="${2//\{p\}/middle}" r="${2//\{p\}/right}"
+  cat > "$1" <<EOF
+{"format": "lpvid-datasets", "target": "S", "controller": "middle/controller.json",
+ "datasets": [
+  {"beam_position_m": -0.1, "files": [$f]},
+  {"beam_position_m": 0, "files": [$m]},
+  {"beam_position_m": 0.1, "files": [$r]}]}
+EOF
+  echo "\$ cat $1"; cat "$1"; echo
+}
+
+# ---- 1. a hidden coil lag -------------------------------------------------------
+mkdir -p lag && cd lag
+sim --out . --seed 27 --hidden coil_lag --no-logs
+manifest data.json '"{p}/S_v1.csv", "{p}/S_v2.csv", "{p}/S_v3.csv"'
+# the design values we know: the rods' bending stiffness (datasheet) and the beam height
+run model init --out model.json --set k_torque_low_Nm_per_rad=55 --set beam_height_m=0.08
+run fit --model model.json --datasets data.json --out fit1.json --plot fit1.png
+run diagnose --model fit1.json --datasets data.json --png where-it-fails.png
+run model add actuator_lag --model fit1.json --out start2.json
+run fit --model start2.json --datasets data.json --out fit2.json --plot fit2.png
 run history --model fit2.json --png history.png
-# 6. Anything left?
-run diagnose --model fit2.json "${DATA[@]}" --averages 16
+run diagnose --model fit2.json --datasets data.json
+cd ..
+
+# ---- 2. an effect no library contains ---------------------------------------------
+mkdir -p sensor && cd sensor
+sim --out . --seed 27 --hidden sensor_resonance --no-logs
+manifest data.json '"{p}/S_v1.csv", "{p}/S_v2.csv", "{p}/S_v3.csv"'
+run model init --out model.json --set k_torque_low_Nm_per_rad=55 --set beam_height_m=0.08
+run fit --model model.json --datasets data.json --out fit1.json
+run diagnose --model fit1.json --datasets data.json --png where-it-fails.png --out-effect theta_sensor.json
+echo "\$ cat theta_sensor.json"; cat theta_sensor.json; echo
+run model define --model fit1.json --from theta_sensor.json --add --out start2.json
+run fit --model start2.json --datasets data.json --out fit2.json --plot fit2.png
+run history --model fit2.json --png history.png
+run diagnose --model fit2.json --datasets data.json
+cd ..
+
+# ---- 3. case 1 from time-domain logs ----------------------------------------------
+mkdir -p logs && cd logs
+sim --out . --seed 27 --hidden coil_lag --no-analyzer
+for p in left middle right; do
+  run frf --excitation v1,v2,v3 --output u1,u2,u3 --quantity S --out "S_$p.csv" \
+      "$p/exp_v1.csv" "$p/exp_v2.csv" "$p/exp_v3.csv"
+done
+manifest data.json '"S_{p}.csv"'
+run model init --out model.json --set k_torque_low_Nm_per_rad=55 --set beam_height_m=0.08
+run fit --model model.json --datasets data.json --out fit1.json
+run diagnose --model fit1.json --datasets data.json --out fit2.json
+cd ..

@@ -1,12 +1,15 @@
 #include "formats/io/atomic_file.h"
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <filesystem>
 #include <system_error>
@@ -40,18 +43,88 @@ int write_all(int fd, const char* data, size_t size) {
   return 0;
 }
 
+// Whether name is ".<target>.tmp.<pid>.<n>" (digits only) of a process other
+// than this one that no longer exists.
+bool stale_temporary(std::string_view name, std::string_view prefix) {
+  if (name.size() <= prefix.size() || name.substr(0, prefix.size()) != prefix) return false;
+  const std::string_view rest = name.substr(prefix.size());
+  const size_t dot = rest.find('.');
+  if (dot == std::string_view::npos || dot == 0 || dot + 1 == rest.size()) return false;
+  long pid = 0;
+  const auto [end, ec] = std::from_chars(rest.data(), rest.data() + dot, pid);
+  if (ec != std::errc() || end != rest.data() + dot || pid <= 0) return false;
+  for (const char c : rest.substr(dot + 1))
+    if (c < '0' || c > '9') return false;
+  if (pid == static_cast<long>(::getpid())) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+}
+
+// Removes the temporaries of `target_name` in `dir` that a killed run left.
+// Best effort: a failure to list or remove is ignored (the write goes on).
+void remove_stale_temporaries(const std::string& dir, const std::string& target_name) {
+  DIR* d = ::opendir(dir.empty() ? "." : dir.c_str());
+  if (d == nullptr) return;
+  const std::string prefix = "." + target_name + ".tmp.";
+  std::vector<std::string> stale;
+  while (const dirent* e = ::readdir(d))
+    if (stale_temporary(e->d_name, prefix)) stale.emplace_back(e->d_name);
+  ::closedir(d);
+  for (const std::string& name : stale) ::unlink((dir.empty() ? name : (fs::path(dir) / name).string()).c_str());
+}
+
 }  // namespace
 
-AtomicFileWriter::AtomicFileWriter(const std::string& path, bool fsync) : path_(path), fsync_(fsync) {
-  if (path == "-") {
-    to_stdout_ = true;
-    return;
+OutputTargetKind output_target_kind(const std::string& path) {
+  if (path == "-") return OutputTargetKind::kStdout;
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) return OutputTargetKind::kAbsent;
+  if (S_ISREG(st.st_mode)) return OutputTargetKind::kRegular;
+  if (S_ISDIR(st.st_mode)) return OutputTargetKind::kDirectory;
+  if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode)) return OutputTargetKind::kStream;
+  return OutputTargetKind::kOther;
+}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path, bool fsync)
+    : AtomicFileWriter(path, AtomicWriteOptions{fsync, false}) {}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path, const AtomicWriteOptions& options)
+    : path_(path), fsync_(options.fsync) {
+  kind_ = output_target_kind(path);
+  switch (kind_) {
+    case OutputTargetKind::kStdout:
+    case OutputTargetKind::kStream:
+      return;  // kept in memory, written at commit
+    case OutputTargetKind::kDirectory:
+      throw InputError(fmt::format("cannot write '{}': it is a directory; give a file path", path));
+    case OutputTargetKind::kOther:
+      throw InputError(fmt::format("cannot write '{}': it is a device or socket, not a file; give a file path (or a "
+                                   "FIFO, or /dev/null)",
+                                   path));
+    default:
+      break;
   }
   const fs::path target(path);
-  if (path.empty() || !target.has_filename())
+  if (path.empty() || !target.has_filename() || target.filename() == "." || target.filename() == "..")
     throw InputError(fmt::format("cannot write '{}': the path names no file; give a file path such as out/model.json", path));
-  const fs::path dir = target.parent_path();
+  // The directory the temporary goes to: the target's own, or with
+  // create_directories the nearest one that exists.
+  fs::path dir = target.parent_path();
+  if (options.create_directories) {
+    while (!dir.empty()) {
+      struct stat st;
+      if (::stat(dir.c_str(), &st) == 0) {
+        if (!S_ISDIR(st.st_mode))
+          throw InputError(fmt::format("cannot write '{}': '{}' is a file, not a directory; choose another output "
+                                       "directory",
+                                       path, dir.string()));
+        break;
+      }
+      create_dirs_.insert(create_dirs_.begin(), dir.string());
+      dir = dir.parent_path();
+    }
+  }
   const std::string name = target.filename().string();
+  remove_stale_temporaries(dir.string(), name);
   const std::string temp_name = fmt::format(".{}.tmp.{}.{}", name, static_cast<long>(::getpid()), temp_counter.fetch_add(1));
   temp_ = dir.empty() ? temp_name : (dir / temp_name).string();
   fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
@@ -75,6 +148,7 @@ void AtomicFileWriter::discard() noexcept {
     ::unlink(temp_.c_str());
     temp_.clear();
   }
+  memory_.clear();
 }
 
 void AtomicFileWriter::fail(int err) {
@@ -84,38 +158,60 @@ void AtomicFileWriter::fail(int err) {
 
 void AtomicFileWriter::write(std::string_view bytes) {
   LPVID_ASSERT(!prepared_ && !committed_);
-  if (to_stdout_) {
-    stdout_bytes_.append(bytes);
+  if (temp_.empty()) {
+    memory_.append(bytes);
     return;
   }
   LPVID_ASSERT(fd_ >= 0);
   if (const int err = write_all(fd_, bytes.data(), bytes.size())) fail(err);
 }
 
-void AtomicFileWriter::prepare() {
-  LPVID_ASSERT(!committed_);
-  if (prepared_) return;
-  if (!to_stdout_) {
-    LPVID_ASSERT(fd_ >= 0);
-    if (fsync_ && ::fsync(fd_) != 0) fail(errno);
+void AtomicFileWriter::release_descriptor() {
+  LPVID_ASSERT(!prepared_ && !temp_.empty());
+  if (fd_ >= 0) {
     const int rc = ::close(fd_);
     fd_ = -1;
     if (rc != 0) fail(errno);
-    struct stat st;
-    if (::stat(path_.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) fail(EISDIR);
+  }
+}
+
+void AtomicFileWriter::prepare() {
+  LPVID_ASSERT(!committed_);
+  if (prepared_) return;
+  if (!temp_.empty()) {
+    if (fd_ >= 0) {
+      if (fsync_ && ::fsync(fd_) != 0) fail(errno);
+      const int rc = ::close(fd_);
+      fd_ = -1;
+      if (rc != 0) fail(errno);
+    }
+    if (output_target_kind(path_) == OutputTargetKind::kDirectory) fail(EISDIR);
   }
   prepared_ = true;
 }
 
 void AtomicFileWriter::publish() {
   LPVID_ASSERT(prepared_ && !committed_);
-  if (to_stdout_) {
-    if (const int err = write_all(STDOUT_FILENO, stdout_bytes_.data(), stdout_bytes_.size()))
-      throw InputError(write_error(path_, err));
-    stdout_bytes_.clear();
+  if (kind_ == OutputTargetKind::kStdout) {
+    if (const int err = write_all(STDOUT_FILENO, memory_.data(), memory_.size())) throw InputError(write_error(path_, err));
+    memory_.clear();
     committed_ = true;
     return;
   }
+  if (kind_ == OutputTargetKind::kStream) {
+    // Written into, never replaced: no O_CREAT (a FIFO that vanished is an error,
+    // not a new regular file), no O_TRUNC.
+    const int fd = ::open(path_.c_str(), O_WRONLY | O_NOCTTY | O_CLOEXEC);
+    if (fd < 0) throw InputError(write_error(path_, errno));
+    const int err = write_all(fd, memory_.data(), memory_.size());
+    const int rc = ::close(fd);
+    if (err != 0 || rc != 0) throw InputError(write_error(path_, err != 0 ? err : errno));
+    memory_.clear();
+    committed_ = true;
+    return;
+  }
+  for (const std::string& dir : create_dirs_)
+    if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST) fail(errno);
   if (::rename(temp_.c_str(), path_.c_str()) != 0) fail(errno);
   temp_.clear();
   committed_ = true;
@@ -134,15 +230,17 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
 
 void check_not_overwriting(const std::vector<std::string>& inputs, const std::string& output) {
   if (output == "-") return;
+  struct stat out;
+  if (::stat(output.c_str(), &out) != 0) return;
   for (const std::string& input : inputs) {
-    if (input == "-") continue;
-    std::error_code ec;
-    if (fs::equivalent(input, output, ec) && !ec)
+    struct stat in;
+    if (input == "-" || ::stat(input.c_str(), &in) != 0) continue;
+    if (in.st_dev == out.st_dev && in.st_ino == out.st_ino)
       throw InputError(fmt::format("refusing to overwrite input '{}' with output; choose another output path", input));
   }
 }
 
-AtomicFileWriter& AtomicOutputSet::stage(const std::string& path) {
+AtomicFileWriter& AtomicOutputSet::stage(const std::string& path, const AtomicWriteOptions& options) {
   LPVID_ASSERT(!committed_);
   if (path != "-") {
     std::error_code ec;
@@ -154,11 +252,13 @@ AtomicFileWriter& AtomicOutputSet::stage(const std::string& path) {
         throw InputError(fmt::format("output '{}' is given twice (also as '{}'); give each output its own path", path, file->path()));
     }
   }
-  files_.push_back(std::make_unique<AtomicFileWriter>(path));
+  files_.push_back(std::make_unique<AtomicFileWriter>(path, options));
   return *files_.back();
 }
 
-void AtomicOutputSet::stage(const std::string& path, std::string_view bytes) { stage(path).write(bytes); }
+void AtomicOutputSet::stage(const std::string& path, std::string_view bytes, const AtomicWriteOptions& options) {
+  stage(path, options).write(bytes);
+}
 
 void AtomicOutputSet::commit() {
   LPVID_ASSERT(!committed_);

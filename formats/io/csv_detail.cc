@@ -12,6 +12,7 @@
 #include <bit>
 #include <cerrno>
 #include <cmath>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
@@ -21,6 +22,7 @@
 #include <new>
 #include <optional>
 #include <thread>
+#include <unordered_map>
 
 #include "idlib/core/error.h"
 
@@ -28,14 +30,36 @@ namespace lpvid::detail {
 
 std::string display_path(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 
+std::string one_line_message(std::string_view what) {
+  // Bounds of the readers' messages (fuzz/readers.h allows 1000 bytes with the path).
+  constexpr size_t kMaxWhat = 900, kHead = 450, kTail = 400;
+  std::string shown;
+  for (const char c : what) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+      shown += fmt::format("\\x{:02X}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+    else
+      shown += c;
+  }
+  if (shown.size() > kMaxWhat) shown = shown.substr(0, kHead) + " ... " + shown.substr(shown.size() - kTail);
+  return shown;
+}
+
 void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what) {
-  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, what));
+  throw InputError(fmt::format("{}:{}:{}: {}", display_path(path), line, column, one_line_message(what)));
 }
 
 std::string quote_cell(std::string_view text) {
   constexpr size_t kMaxShown = 40;  // keeps the message on one readable line
-  if (text.size() <= kMaxShown) return fmt::format("'{}'", text);
-  return fmt::format("'{}...'", text.substr(0, kMaxShown));
+  std::string shown = "'";
+  for (const char c : text.substr(0, kMaxShown)) {
+    // Control bytes (NUL, line breaks, escapes) would cut or break the line: shown as \xNN.
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+      shown += fmt::format("\\x{:02X}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+    else
+      shown += c;
+  }
+  shown += text.size() > kMaxShown ? "...'" : "'";
+  return shown;
 }
 
 void advise_huge_pages(void* data, size_t bytes) {
@@ -153,6 +177,10 @@ class Source {
       size_ = static_cast<uint64_t>(st.st_size);
     }
   }
+  // Text already in memory (stdin read whole to detect its content): read as
+  // a regular file of that size.
+  Source(const std::string& path, std::string_view text)
+      : path_(path), memory_(text), in_memory_(true), regular_(true), size_(text.size()) {}
   ~Source() {
     if (fd_ > STDIN_FILENO) ::close(fd_);
   }
@@ -165,6 +193,12 @@ class Source {
   // Reads up to size bytes at offset (a regular file) or the next bytes (else);
   // 0 at end of file.
   size_t fetch(char* into, size_t size, uint64_t offset) {
+    if (in_memory_) {
+      if (offset >= memory_.size()) return 0;
+      const size_t n = std::min<size_t>(size, memory_.size() - offset);
+      std::memcpy(into, memory_.data() + offset, n);
+      return n;
+    }
     for (;;) {
       const ssize_t n = regular_ ? ::pread(fd_, into, size, static_cast<off_t>(offset)) : ::read(fd_, into, size);
       if (n >= 0) return static_cast<size_t>(n);
@@ -175,6 +209,8 @@ class Source {
 
  private:
   std::string path_;
+  std::string_view memory_;
+  bool in_memory_ = false;
   int fd_ = -1;
   bool regular_ = false;
   uint64_t size_ = 0;
@@ -223,6 +259,19 @@ class PooledBuffer {
 
 constexpr uint64_t kToEnd = std::numeric_limits<uint64_t>::max();
 
+// Thrown by scan_lines for a line longer than kMaxCsvLineBytes; the caller
+// knows the line number and turns it into an InputError.
+struct LineTooLong {
+  uint64_t line_start;  // file offset of the line's first byte
+};
+
+[[noreturn]] void fail_line_too_long(const std::string& path, int64_t line) {
+  fail_at(path, line, 1,
+          fmt::format("line longer than {} MiB; a CSV line holds one row of numbers: check that this is the right "
+                      "file (not a binary or a device)",
+                      kMaxCsvLineBytes >> 20));
+}
+
 // Calls on_line(b, e) for every line of the bytes [begin, end) of source, without
 // its '\n' (a last line without '\n' included), reading in chunks through buffer.
 // on_line returns false to stop.  Returns the offset just after the line where
@@ -243,18 +292,23 @@ uint64_t scan_lines(Source& source, uint64_t begin, uint64_t end, std::vector<ch
     for (;;) {
       const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(stop - p)));
       if (nl == nullptr) break;
+      if (static_cast<size_t>(nl - p) > kMaxCsvLineBytes) throw LineTooLong{base_offset + static_cast<uint64_t>(p - base)};
       if (!on_line(p, nl)) return base_offset + static_cast<uint64_t>(nl + 1 - base);
       p = nl + 1;
     }
     const size_t rest = static_cast<size_t>(stop - p);
     if (n == 0) {  // end of file (or of the range)
+      if (rest > kMaxCsvLineBytes) throw LineTooLong{base_offset + static_cast<uint64_t>(p - base)};
       if (rest > 0) on_line(p, stop);
       return base_offset + have;
     }
     std::memmove(buffer.data(), p, rest);
     base_offset += have - rest;
     have = rest;
-    if (have == buffer.size() - kPadBytes) buffer.resize(buffer.size() * 2);  // a line longer than the buffer
+    if (have == buffer.size() - kPadBytes) {  // a line longer than the buffer
+      if (have > kMaxCsvLineBytes) throw LineTooLong{base_offset};
+      buffer.resize(buffer.size() * 2);
+    }
   }
 }
 
@@ -351,9 +405,9 @@ class HeaderParser {
   // At the end of the input without a header: throws.
   [[noreturn]] void fail_no_header(bool file_empty) const {
     if (file_empty)
-      fail_at(out_.path, 1, 1, "the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'");
+      fail_at(out_.path, 1, 1, "the file is empty; give a file that starts with a header row naming the columns, e.g. 't,v1,q1'");
     fail_at(out_.path, line_ + 1, 1,
-            "no header row, only comments and blank lines; the first other line must name the columns, e.g. 't,v1,q1'");
+            "no header row, only comments and blank lines; add a header row naming the columns, e.g. 't,v1,q1'");
   }
 
  private:
@@ -374,10 +428,16 @@ class HeaderParser {
       if (name.find('"') != std::string_view::npos)
         fail_at(out_.path, line_, column,
                 fmt::format("column name {} holds a quote; write names without quotes (or quote a whole name)", quote_cell(name)));
-      for (size_t k = 0; k < out_.names.size(); ++k)
-        if (out_.names[k] == name)
-          fail_at(out_.path, line_, column,
-                  fmt::format("duplicate column name '{}' (also column {}); give every column its own name", name, k + 1));
+      if (out_.names.size() == kMaxCsvColumns)
+        fail_at(out_.path, line_, column,
+                fmt::format("the header has more than {} columns; lpvid reads at most {}: check that this is the "
+                            "right file, or split it",
+                            kMaxCsvColumns, kMaxCsvColumns));
+      const auto [seen, fresh] = seen_.emplace(std::string(name), out_.names.size());
+      if (!fresh)
+        fail_at(out_.path, line_, column,
+                fmt::format("duplicate column name '{}' (also column {}); give every column its own name", name,
+                            seen->second + 1));
       out_.names.emplace_back(name);
       out_.name_columns.push_back(column);
       if (q == e) break;
@@ -396,6 +456,7 @@ class HeaderParser {
   NumericCsv& out_;
   const std::string& key_name_;
   const std::string& key_hint_;
+  std::unordered_map<std::string, size_t> seen_;  // name -> column (duplicates in O(1))
   bool have_header_ = false;
   int64_t line_ = 0;
 };
@@ -435,9 +496,9 @@ class RowParser {
     const int64_t column = cell - b + 1;
     if (text.empty())
       fail_at(csv_.path, line_, column,
-              fmt::format("empty cell in column '{}'; every cell after the header must be a number", csv_.names[j]));
+              fmt::format("empty cell in column '{}'; write a number there (every cell after the header is a number)", csv_.names[j]));
     fail_at(csv_.path, line_, column,
-            fmt::format("cannot parse {} as a number in column '{}'; every cell after the header must be a number",
+            fmt::format("cannot parse {} as a number in column '{}'; write a number there (every cell after the header is a number)",
                         quote_cell(text), csv_.names[j]));
   }
 
@@ -450,7 +511,7 @@ class RowParser {
 
   [[noreturn]] void not_finite(const char* b, const char* cell, const char* e, size_t j) const {
     fail_at(csv_.path, line_, cell - b + 1,
-            fmt::format("{} in column '{}' is not a finite number; NaN/Inf not allowed, every cell must be a finite number",
+            fmt::format("{} in column '{}' is not a finite number; write a finite number there (NaN/Inf not allowed)",
                         quote_cell(cell_text(cell, e)), csv_.names[j]));
   }
 
@@ -528,16 +589,21 @@ void read_stream(Source& source, NumericCsv& out, HeaderParser& header) {
   PooledBuffer buffer;
   std::unique_ptr<ColumnStore> store;
   std::optional<RowParser> rows;
-  const uint64_t read = scan_lines(source, 0, kToEnd, buffer.get(), [&](const char* b, const char* e) {
-    if (rows) {
-      rows->line(b, e);
-    } else if (header.line(b, e)) {
-      store = std::make_unique<ColumnStore>(out.names.size());
-      rows.emplace(out, header.lines() + 1, 0, out.runs);
-      rows->grow_into(store.get());
-    }
-    return true;
-  });
+  uint64_t read = 0;
+  try {
+    read = scan_lines(source, 0, kToEnd, buffer.get(), [&](const char* b, const char* e) {
+      if (rows) {
+        rows->line(b, e);
+      } else if (header.line(b, e)) {
+        store = std::make_unique<ColumnStore>(out.names.size());
+        rows.emplace(out, header.lines() + 1, 0, out.runs);
+        rows->grow_into(store.get());
+      }
+      return true;
+    });
+  } catch (const LineTooLong&) {
+    fail_line_too_long(out.path, (rows ? rows->last_line() : header.lines()) + 1);
+  }
   if (!rows) header.fail_no_header(read == 0);
   out.end_line = rows->last_line() + 1;
   const size_t n = rows->rows();
@@ -665,19 +731,53 @@ void read_file(Source& source, NumericCsv& out, HeaderParser& header, const CsvR
   out.end_line = lines + 1;
 }
 
+// The 1-based line number of the line starting at file offset `at` (error path:
+// counts the line breaks before it).
+int64_t line_at(Source& source, uint64_t at) {
+  int64_t line = 1;
+  char probe[65536];
+  for (uint64_t p = 0; p < at;) {
+    const size_t n = source.fetch(probe, static_cast<size_t>(std::min<uint64_t>(sizeof probe, at - p)), p);
+    if (n == 0) break;
+    line += std::count(probe, probe + n, '\n');
+    p += n;
+  }
+  return line;
+}
+
+}  // namespace
+
+namespace {
+
+NumericCsv read_from(Source& source, const std::string& path, const std::string& key_name,
+                     const std::string& key_hint, const CsvReadTuning& tuning) {
+  NumericCsv out;
+  out.path = path;
+  HeaderParser header(out, key_name, key_hint);
+  if (source.regular()) {
+    try {
+      read_file(source, out, header, tuning);
+    } catch (const LineTooLong& e) {
+      fail_line_too_long(path, line_at(source, e.line_start));
+    }
+  } else {
+    read_stream(source, out, header);
+  }
+  return out;
+}
+
 }  // namespace
 
 NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint,
                             const CsvReadTuning& tuning) {
-  NumericCsv out;
-  out.path = path;
   Source source(path);
-  HeaderParser header(out, key_name, key_hint);
-  if (source.regular())
-    read_file(source, out, header, tuning);
-  else
-    read_stream(source, out, header);
-  return out;
+  return read_from(source, path, key_name, key_hint, tuning);
+}
+
+NumericCsv read_numeric_csv_text(const std::string& text, const std::string& path, const std::string& key_name,
+                                 const std::string& key_hint) {
+  Source source(path, text);
+  return read_from(source, path, key_name, key_hint, CsvReadTuning{});
 }
 
 void check_header_names(const std::string& path, const std::vector<std::string>& names) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "formats/io/atomic_file.h"
+#include "formats/io/text.h"
 #include "idlib/core/types.h"
 
 namespace lpvid::detail {
@@ -17,11 +18,24 @@ namespace lpvid::detail {
 // "-" is shown as "<stdin>" in messages.
 std::string display_path(const std::string& path);
 
-// Throws InputError "path:line:column: what".
+// A reader's message made one line of bounded length whatever the file holds:
+// control bytes (a name echoed from the file by a rule) shown as \xNN, and a text
+// longer than 900 bytes kept to its first 450 and its last 400 bytes (the rule and
+// the remedy) around " ... ".
+std::string one_line_message(std::string_view what);
+
+// Throws InputError "path:line:column: what" (what through one_line_message).
 [[noreturn]] void fail_at(const std::string& path, int64_t line, int64_t column, const std::string& what);
 
-// Quotes a cell for a message: at most 40 bytes, longer text cut with "...".
+// Quotes a cell for a message: at most 40 bytes, longer text cut with "...",
+// control bytes (NUL, line breaks, ESC) shown as \xNN.
 std::string quote_cell(std::string_view text);
+
+// What a CSV file may ask of the reader (docs/formats.md, "Limits"): bounded
+// so that a wrong file (/dev/zero, a binary, a runaway header) fails at once
+// with a message instead of exhausting memory or time.
+inline constexpr size_t kMaxCsvLineBytes = size_t{16} << 20;
+inline constexpr size_t kMaxCsvColumns = 65536;
 
 // Asks the kernel to back a large buffer with transparent huge pages: on the
 // target VMs the first touch of a 4 KiB page costs ~11 us (BUILD-NOTES.md), which
@@ -73,6 +87,8 @@ struct CsvReadTuning {
 };
 
 // Reads path ("-": stdin) in 4 MiB chunks and parses it with fast_float.
+// A line longer than kMaxCsvLineBytes or a header of more than kMaxCsvColumns
+// columns is an error at its line.
 // A regular file is read in two passes: its rows are counted (one memchr per
 // line), then parsed straight into `data`; large files are split at line starts
 // into parts that are counted and parsed on parallel threads, with the line
@@ -84,6 +100,9 @@ struct CsvReadTuning {
 // "path: the file changed while it was read; read it again once it is complete".
 NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name, const std::string& key_hint,
                             const CsvReadTuning& tuning = {});
+// The same from text already in memory (path for messages only).
+NumericCsv read_numeric_csv_text(const std::string& text, const std::string& path, const std::string& key_name,
+                                 const std::string& key_hint);
 
 // Checks names for a CSV header: non-empty, unique, no ',', '"', '#' at the start,
 // or line breaks.  what = "cannot write 'x.csv'" prefix for messages.

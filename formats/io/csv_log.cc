@@ -37,7 +37,7 @@ Log read_log(const std::string& path, const LogReadOptions& options) {
   const Index n = csv.data.rows();
   if (n < 2)
     detail::fail_at(path, csv.end_line, 1,
-                    fmt::format("the log has {} sample{}; a log needs at least 2 rows of samples after the header", n,
+                    fmt::format("the log has {} sample{}; a log needs at least 2 rows of samples after the header: record a longer log", n,
                                 n == 1 ? "" : "s"));
   const auto t = csv.data.col(csv.key);
   for (Index k = 1; k < n; ++k) {

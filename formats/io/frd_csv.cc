@@ -8,6 +8,7 @@
 #include <fstream>
 #include <numbers>
 #include <optional>
+#include <sstream>
 #include <string_view>
 
 #include "formats/io/csv_detail.h"
@@ -110,13 +111,16 @@ struct Axis {
 
 class FrdCsvReader {
  public:
-  FrdCsvReader(const std::string& path, const FrdReadOptions& options) : path_(path), options_(options) {}
+  FrdCsvReader(const std::string& path, const FrdReadOptions& options, const std::string* text = nullptr)
+      : path_(path), options_(options), text_(text) {}
 
   FrdPart read(bool allow_missing_pairs) {
     options_.validate();
-    csv_ = detail::read_numeric_csv(path_, "freq_hz",
-                                    "the header must name 'freq_hz' (Hz) and the response columns, e.g. "
-                                    "'freq_hz,S_1_1_re,S_1_1_im' (see docs/formats.md)");
+    const std::string hint =
+        "the header must name 'freq_hz' (Hz) and the response columns, e.g. 'freq_hz,S_1_1_re,S_1_1_im' (see "
+        "docs/formats.md)";
+    csv_ = text_ != nullptr ? detail::read_numeric_csv_text(*text_, path_, "freq_hz", hint)
+                            : detail::read_numeric_csv(path_, "freq_hz", hint);
     parse_metadata();
     classify_columns();
     resolve_axes();
@@ -173,6 +177,15 @@ class FrdCsvReader {
           detail::fail_at(path_, comment.line, column,
                           fmt::format("empty name in '{}'; list the names separated by commas, e.g. {}", key,
                                       key == "outputs" ? "psi,theta" : "u1,u2"));
+        if (!valid_utf8(name))
+          detail::fail_at(path_, comment.line, column,
+                          fmt::format("name {} in '{}' is not valid UTF-8; save the file as UTF-8",
+                                      detail::quote_cell(name), key));
+        if (meta->names.size() == static_cast<size_t>(frd_detail::kMaxChannels))
+          detail::fail_at(path_, comment.line, column,
+                          fmt::format("'{}' lists more than {} names; lpvid reads responses of at most {} outputs and "
+                                      "inputs: split the file",
+                                      key, frd_detail::kMaxChannels, frd_detail::kMaxChannels));
         if (std::find(meta->names.begin(), meta->names.end(), name) != meta->names.end())
           detail::fail_at(path_, comment.line, column,
                           fmt::format("name '{}' appears twice in '{}'; give every channel its own name", name, key));
@@ -237,7 +250,7 @@ class FrdCsvReader {
         if (it == kSuffix.end() || first == last || !frd_detail::quantity_allowed(std::string_view(name).substr(0, first)))
           fail_header(column, fmt::format("column '{}' is not an FRD column; the columns are freq_hz, "
                                           "<Q>_<output>_<input>_re and _im (or _db and _deg), coh_<output>_<input>, "
-                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...)",
+                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...): rename or remove the column",
                                           name));
         part = static_cast<Part>(it - kSuffix.begin());
         const std::string quantity = name.substr(0, first);
@@ -332,12 +345,21 @@ class FrdCsvReader {
         // Indices beyond this are surely typos (and would allocate huge responses).
         constexpr size_t kMaxIndexDigits = 5;
         const long index = token.size() > kMaxIndexDigits ? 0 : std::stol(token);
-        if (index < 1)
-          fail_header(c.column, fmt::format("{} index '{}' in column '{}' is not allowed; indices are 1, 2, ... up to "
-                                            "99999",
-                                            what, token, csv_.names[static_cast<size_t>(c.column)]));
+        if (index < 1 || index > frd_detail::kMaxChannels)
+          fail_header(c.column, fmt::format("{} index '{}' in column '{}' is not allowed; give an index from 1 to "
+                                            "{}",
+                                            what, token, csv_.names[static_cast<size_t>(c.column)],
+                                            frd_detail::kMaxChannels));
         axis.size = std::max<Index>(axis.size, index);
       } else if (std::find(axis.names.begin(), axis.names.end(), token) == axis.names.end()) {
+        if (!valid_utf8(token))
+          fail_header(c.column, fmt::format("{} name {} in column '{}' is not valid UTF-8; save the file as UTF-8",
+                                            what, detail::quote_cell(token), csv_.names[static_cast<size_t>(c.column)]));
+        if (static_cast<Index>(axis.names.size()) == frd_detail::kMaxChannels)
+          fail_header(c.column, fmt::format("column '{}' names a {} beyond the first {}; lpvid reads responses of at "
+                                            "most {} outputs and inputs: split the file",
+                                            csv_.names[static_cast<size_t>(c.column)], what, frd_detail::kMaxChannels,
+                                            frd_detail::kMaxChannels));
         axis.names.push_back(token);
         axis.size = static_cast<Index>(axis.names.size());
       }
@@ -462,11 +484,17 @@ class FrdCsvReader {
 
   // Byte column of cell `column` on line `line` (re-reads the file: error path only).
   int64_t cell_column(int64_t line, Index column) const {
-    if (path_ == "-") return 1;  // stdin cannot be read twice
-    std::ifstream in(path_, std::ios::binary);
     std::string text;
-    for (int64_t k = 0; k < line; ++k)
-      if (!std::getline(in, text)) return 1;
+    if (text_ != nullptr) {
+      std::istringstream in(*text_);
+      for (int64_t k = 0; k < line; ++k)
+        if (!std::getline(in, text)) return 1;
+    } else {
+      if (path_ == "-") return 1;  // stdin cannot be read twice
+      std::ifstream in(path_, std::ios::binary);
+      for (int64_t k = 0; k < line; ++k)
+        if (!std::getline(in, text)) return 1;
+    }
     if (line == 1 && text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
     size_t p = 0;
     for (Index c = 0; c < column; ++c) {
@@ -492,7 +520,7 @@ class FrdCsvReader {
       if (!(f[k] > 0)) {
         const detail::CellPosition at = csv_.key_position(k);
         detail::fail_at(path_, at.line, at.column,
-                        fmt::format("frequency {} Hz is not positive; freq_hz must be > 0", f[k]));
+                        fmt::format("frequency {} Hz is not positive; give freq_hz > 0 in Hz", f[k]));
       }
       if (k > 0 && !(f[k] > f[k - 1])) {
         const detail::CellPosition at = csv_.key_position(k);
@@ -502,6 +530,11 @@ class FrdCsvReader {
                                     f[k], f[k - 1]));
       }
     }
+    if (nf > frd_detail::kMaxEntries / std::max<Index>(1, outs_.size * ins_.size))
+      detail::fail_at(path_, csv_.header_line, 1,
+                      fmt::format("{} frequencies of a {}×{} response are more than the {} entries lpvid reads; split "
+                                  "the file or use fewer frequencies",
+                                  nf, outs_.size, ins_.size, frd_detail::kMaxEntries));
     FrequencyResponse frd;
     frd.omega_rad_s.resize(nf);
     for (Index k = 0; k < nf; ++k) frd.omega_rad_s[k] = frd_detail::omega_from_hz(f[k]);
@@ -525,7 +558,7 @@ class FrdCsvReader {
         if (s.coh >= 0) {
           const double c = csv_.data(k, s.coh);
           if (!(c >= 0 && c <= 1))
-            fail_cell(k, s.coh, fmt::format("coherence {} in column '{}' is outside [0, 1]; coherence is a fraction "
+            fail_cell(k, s.coh, fmt::format("coherence {} in column '{}' is outside [0, 1]; write a coherence "
                                             "between 0 and 1",
                                             c, name_of(s.coh)));
           frd.coherence[static_cast<size_t>(k)](i, j) = c;
@@ -533,7 +566,7 @@ class FrdCsvReader {
         if (s.var >= 0) {
           const double v = csv_.data(k, s.var);
           if (!(v >= 0))
-            fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; a variance is >= 0", v,
+            fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; write a variance >= 0", v,
                                             name_of(s.var)));
           frd.variance[static_cast<size_t>(k)](i, j) = v;
         }
@@ -555,6 +588,7 @@ class FrdCsvReader {
 
   const std::string& path_;
   const FrdReadOptions& options_;
+  const std::string* text_;
   detail::NumericCsv csv_;
   AxisMeta outs_meta_, ins_meta_;
   std::vector<ResponseColumn> columns_;
@@ -592,7 +626,7 @@ void check_channel_names(const std::string& path, const std::vector<std::string>
 
 void FrdReadOptions::validate() const {
   if (!quantity.empty() && !frd_detail::quantity_allowed(quantity))
-    throw InputError(fmt::format("quantity {} is not allowed; a quantity is letters and digits (not 'coh'), e.g. S",
+    throw InputError(fmt::format("quantity {} is not allowed; use letters and digits (not 'coh'), e.g. S",
                                  detail::quote_cell(quantity)));
 }
 
@@ -682,7 +716,7 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
                    const std::vector<std::string>& comments) {
   const std::string path = detail::display_path(out.path());
   if (!frd_detail::quantity_allowed(quantity))
-    throw InputError(fmt::format("cannot write '{}': quantity {} is not allowed; a quantity is letters and digits "
+    throw InputError(fmt::format("cannot write '{}': quantity {} is not allowed; use letters and digits "
                                  "(not 'coh'), e.g. S",
                                  path, detail::quote_cell(quantity)));
   frd_detail::check_frd_for_writing(path, frd);
@@ -776,6 +810,10 @@ FrequencyResponse read_frd_csv(const std::string& path, const FrdReadOptions& op
   return FrdCsvReader(path, options).read(false).frd;
 }
 
+FrequencyResponse parse_frd_csv(const std::string& text, const std::string& path, const FrdReadOptions& options) {
+  return FrdCsvReader(path, options, &text).read(false).frd;
+}
+
 // ---- merging ---------------------------------------------------------------
 
 FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMergeOptions& options) {
@@ -787,17 +825,17 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
   const Index nf = first.frd.num_frequencies();
   for (const FrdPart& p : parts) {
     if (p.quantity != first.quantity)
-      throw InputError(fmt::format("{}: '{}' holds quantity '{}' but '{}' holds '{}'; merge files of one quantity",
+      throw InputError(fmt::format("{}: '{}' holds quantity '{}' but '{}' holds '{}'; give files of one quantity",
                                    kFail, shown(first), first.quantity, shown(p), p.quantity));
     if (p.frd.num_frequencies() != nf)
-      throw InputError(fmt::format("{}: '{}' has {} frequencies but '{}' has {}; merge files measured on the same "
+      throw InputError(fmt::format("{}: '{}' has {} frequencies but '{}' has {}; give files measured on the same "
                                    "frequency grid",
                                    kFail, shown(first), nf, shown(p), p.frd.num_frequencies()));
     for (Index k = 0; k < nf; ++k) {
       const double a = first.frd.omega_rad_s[k], b = p.frd.omega_rad_s[k];
       if (std::abs(a - b) > options.frequency_tolerance * std::max(std::abs(a), std::abs(b)))
         throw InputError(fmt::format("{}: frequency {} is {} Hz in '{}' but {} Hz in '{}' (relative difference {:.3g}, "
-                                     "above the tolerance {}); merge files measured on the same frequency grid",
+                                     "above the tolerance {}); give files measured on the same frequency grid",
                                      kFail, k + 1, frd_detail::hz_from_omega(a), shown(first),
                                      frd_detail::hz_from_omega(b), shown(p), std::abs(a - b) / std::max(a, b),
                                      options.frequency_tolerance));
@@ -817,7 +855,7 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
                                    kFail, shown(with), shown(without)));
     }
     if (p.frd.averages != first.frd.averages)
-      throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; merge files measured with the "
+      throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; give files measured with the "
                                    "same number of averages (0 = not stated)",
                                    kFail, shown(first), first.frd.averages, shown(p), p.frd.averages));
   }

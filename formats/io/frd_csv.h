@@ -64,6 +64,8 @@ struct FrdReadOptions {
 //   "s.csv:3:19: no column 'S_2_1_im' for the imaginary part of output 2, input 1 (its real part is column 'S_2_1_re');
 //    give both 'S_2_1_re' and 'S_2_1_im', or 'S_2_1_db' and 'S_2_1_deg'"
 FrequencyResponse read_frd_csv(const std::string& path, const FrdReadOptions& options = {});
+// The same from text already read (path for messages only).
+FrequencyResponse parse_frd_csv(const std::string& text, const std::string& path, const FrdReadOptions& options = {});
 
 // Writes frd atomically (atomic_file.h; "-" is stdout): comments as "# ..."
 // lines, then "# outputs:"/"# inputs:" metadata for the named axes, then the

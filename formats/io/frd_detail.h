@@ -14,6 +14,12 @@ namespace lpvid::frd_detail {
 // so a CSV and a .mat file holding the same freq_hz give identical omegas).
 inline constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
+// Limits of both readers (docs/formats.md, "Limits"): outputs and inputs per
+// response, and entries (frequencies x outputs x inputs) of one response, so
+// that a wrong or hostile file cannot ask for gigabytes.
+inline constexpr Index kMaxChannels = 256;
+inline constexpr Index kMaxEntries = Index{1} << 26;
+
 // A quantity prefix: letters and digits, not "coh".
 bool quantity_allowed(std::string_view quantity);
 

@@ -1,6 +1,11 @@
 // lpvid — frequency-response (FRD) data in MATLAB .mat files (docs/formats.md,
-// "FRD files").  Data layout: idlib/core/types.h.  Read and written with
-// libmatio: v5 (MATLAB's default '-v7' save, compressed or not) and v7.3 (HDF5).
+// "FRD files").  Data layout: idlib/core/types.h.  v5 (MATLAB's default '-v7'
+// save, compressed or not) is read by lpvid itself, every size checked against
+// the bytes present (a truncated or damaged file is an error, never a value read
+// from nowhere); v7.3 (HDF5) is read through libmatio; both are written with
+// libmatio.  Limits: a regular file (not a pipe) of at most 512 MiB, variables
+// of at most 512 MiB uncompressed, responses of at most 256 outputs and inputs
+// and 2^26 entries.
 //
 // Variables (MATLAB names):
 //   frequency (one of)  freq_hz, f, freq   in Hz:    omega_rad_s = 2*pi*f
@@ -42,6 +47,10 @@ enum class MatVersion { kV5, kV73 };
 // the target when complete.  Throws InputError on the rules of write_frd_csv,
 // for "-" (a .mat file cannot go to stdout) and when the file cannot be written.
 void write_frd_mat(const std::string& path, const FrequencyResponse& frd, const std::string& quantity,
+                   MatVersion version = MatVersion::kV5);
+// The same into a staged file (AtomicOutputSet::stage); the caller commits.  A
+// file that streams ("-", a FIFO, a device) is refused: matio writes by name.
+void write_frd_mat(AtomicFileWriter& out, const FrequencyResponse& frd, const std::string& quantity,
                    MatVersion version = MatVersion::kV5);
 
 }  // namespace lpvid

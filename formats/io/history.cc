@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <sys/stat.h>
+
+#include <cerrno>
 #include <ctime>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -10,6 +13,7 @@
 
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_detail.h"
+#include "formats/io/json_detail.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -30,28 +34,17 @@ bool nonneg(double v) { return std::isfinite(v) && v >= 0; }
 
 json number_or_null(double v) { return std::isnan(v) ? json(nullptr) : json(v); }
 
+// The whole file (at most 64 MiB: detail::JsonLimits); exists = false when there is none.
 std::string read_all(const std::string& path, bool& exists) {
-  std::ifstream in(path, std::ios::binary);
-  exists = static_cast<bool>(in);
+  struct stat st;
+  exists = !(::stat(path.c_str(), &st) != 0 && errno == ENOENT);
   if (!exists) return {};
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return detail::read_json_text(path, "a fit history");
 }
 
 // The record on one line; throws "path:line:column: ..." for anything wrong.
 HistoryRecord parse_line(const std::string& path, int64_t line, const std::string& text) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    std::string what = e.what();
-    const size_t column = what.find("column ");
-    const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    detail::fail_at(path, line, static_cast<int64_t>(e.byte == 0 ? 1 : e.byte),
-                    fmt::format("invalid JSON: {}; each line of a history file is one JSON object", what));
-  }
+  const json j = detail::parse_json(path, text, {}, line);
   auto fail = [&](const std::string& what) { detail::fail_at(path, line, 1, what); };
   if (!j.is_object()) fail(fmt::format("the line holds {} where a JSON object (one fit record) is expected", j.type_name()));
   static const std::set<std::string> known = {"timestamp", "model", "effects", "free_parameters", "cost", "error_mean",
@@ -59,36 +52,37 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
                                               "note"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key))
-      fail(fmt::format("unknown key '{}'; a fit record has timestamp, model, effects, free_parameters, cost, "
-                       "error_mean, error_max, error, noise_floor, channels, aic, bic, note",
-                       key));
+      fail(fmt::format("unknown key {}; remove it (a fit record has timestamp, model, effects, free_parameters, "
+                       "cost, error_mean, error_max, error, noise_floor, channels, aic, bic, note)",
+                       detail::quote_cell(key)));
   auto need = [&](const char* key) -> const json& {
     if (!j.contains(key)) fail(fmt::format("no key '{}'; every fit record needs it (docs/formats.md, \"Fit history\")", key));
     return j.at(key);
   };
   auto string_at = [&](const json& v, const std::string& key) {
-    if (!v.is_string()) fail(fmt::format("key '{}' must be a string, got {}", key, v.type_name()));
+    if (!v.is_string()) fail(fmt::format("key '{}' must be a string, got {}; write it as a quoted string", key, v.type_name()));
     return v.get<std::string>();
   };
   auto number_at = [&](const json& v, const std::string& key) {
-    if (!v.is_number()) fail(fmt::format("key '{}' must be a number, got {}", key, v.type_name()));
+    if (!v.is_number()) fail(fmt::format("key '{}' must be a number, got {}; write a number", key, v.type_name()));
     return v.get<double>();
   };
   HistoryRecord r;
   r.timestamp = string_at(need("timestamp"), "timestamp");
   r.model = string_at(need("model"), "model");
   const json& effects = need("effects");
-  if (!effects.is_array()) fail(fmt::format("key 'effects' must be an array of strings, got {}", effects.type_name()));
+  if (!effects.is_array()) fail(fmt::format("key 'effects' must be an array of strings, got {}; write e.g. [\"input_delay\"]", effects.type_name()));
   for (const json& e : effects) r.effects.push_back(string_at(e, "effects"));
   const json& fp = need("free_parameters");
-  if (!fp.is_number_integer()) fail(fmt::format("key 'free_parameters' must be an integer, got {}", fp.dump()));
+  if (!fp.is_number_integer())
+    fail(fmt::format("key 'free_parameters' must be an integer, got {}; write a whole number", detail::json_excerpt(fp)));
   r.free_parameters = fp.get<Index>();
   r.cost = number_at(need("cost"), "cost");
   r.error_mean = number_at(need("error_mean"), "error_mean");
   r.error_max = number_at(need("error_max"), "error_max");
   if (j.contains("channels")) {
     const json& ch = j.at("channels");
-    if (!ch.is_array()) fail(fmt::format("key 'channels' must be an array, got {}", ch.type_name()));
+    if (!ch.is_array()) fail(fmt::format("key 'channels' must be an array, got {}; write an array of channel records", ch.type_name()));
     for (const json& c : ch) {
       if (!c.is_object() || !c.contains("output") || !c.contains("input") || !c.contains("error_mean") ||
           !c.contains("error_max") || c.size() != 4)
@@ -116,21 +110,23 @@ HistoryRecord parse_line(const std::string& path, int64_t line, const std::strin
 
 void HistoryRecord::validate() const {
   if (!iso_utc(timestamp))
-    throw InputError(fmt::format("timestamp '{}' is not ISO 8601 UTC; write it as YYYY-MM-DDThh:mm:ssZ", timestamp));
+    throw InputError(fmt::format("timestamp {} is not ISO 8601 UTC; write it as YYYY-MM-DDThh:mm:ssZ",
+                                 detail::quote_cell(timestamp)));
   if (model.empty()) throw InputError("model is empty; name the model file the fit wrote");
   if (free_parameters < 0)
-    throw InputError(fmt::format("free_parameters is {}; it counts parameters, so >= 0", free_parameters));
-  if (!nonneg(cost)) throw InputError(fmt::format("cost is {}; a fit's cost is finite and >= 0", cost));
+    throw InputError(fmt::format("free_parameters is {}; write the number of free parameters (>= 0)", free_parameters));
+  if (!nonneg(cost)) throw InputError(fmt::format("cost is {}; write the fit's cost, finite and >= 0", cost));
   if (!nonneg(error_mean) || !nonneg(error_max) || error_max < error_mean)
-    throw InputError(fmt::format("error_mean {} and error_max {}; both finite, >= 0, and max >= mean", error_mean,
+    throw InputError(fmt::format("error_mean {} and error_max {}; write both finite and >= 0, with max >= mean", error_mean,
                                  error_max));
   for (const auto& c : channels)
     if (c.output.empty() || c.input.empty() || !nonneg(c.error_mean) || !nonneg(c.error_max))
-      throw InputError(fmt::format("channel '{}' <- '{}': names must not be empty and errors finite and >= 0",
+      throw InputError(fmt::format("channel '{}' <- '{}': give non-empty names and finite errors >= 0",
                                    c.output, c.input));
-  if (std::isinf(aic) || std::isinf(bic)) throw InputError("aic and bic are finite numbers or null (not computed)");
+  if (std::isinf(aic) || std::isinf(bic)) throw InputError("aic and bic are not finite; write finite numbers or null (not computed)");
   if (!(std::isnan(error) || nonneg(error)) || !(std::isnan(noise_floor) || nonneg(noise_floor)))
-    throw InputError(fmt::format("error {} and noise_floor {}: finite and >= 0, or null", error, noise_floor));
+    throw InputError(fmt::format("error {} and noise_floor {}: write finite numbers >= 0, or null (not recorded)",
+                                 error, noise_floor));
 }
 
 std::string history_path_for(const std::string& model_path) { return model_path + ".history.jsonl"; }
@@ -162,7 +158,8 @@ std::string history_line(const HistoryRecord& r) {
             {"aic", number_or_null(r.aic)},
             {"bic", number_or_null(r.bic)},
             {"note", r.note}};
-  return j.dump();
+  // Model paths and notes may not be UTF-8: written with U+FFFD.
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 void append_history(const std::string& path, const HistoryRecord& record) {
@@ -176,7 +173,7 @@ void append_history(const std::string& path, const HistoryRecord& record) {
   write_file_atomic(path, old + line + "\n");
 }
 
-std::vector<HistoryRecord> read_history(const std::string& path) {
+std::vector<HistoryRecord> read_history(const std::string& path, std::string* text_out) {
   bool exists = false;
   const std::string text = read_all(path, exists);
   if (!exists)
@@ -196,6 +193,7 @@ std::vector<HistoryRecord> read_history(const std::string& path) {
     out.push_back(parse_line(path, line, row));
     start = end + 1;
   }
+  if (text_out != nullptr) *text_out = text;
   return out;
 }
 

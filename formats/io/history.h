@@ -78,9 +78,10 @@ std::string utc_timestamp_now();
 //                     the file cannot be written.
 void append_history(const std::string& path, const HistoryRecord& record);
 
-// Every record, oldest first.  A missing file is an error ("no history ... fit a
-// model first").  @throws InputError "path:line:column: ..." for a bad line.
-std::vector<HistoryRecord> read_history(const std::string& path);
+// Every record, oldest first; text_out (if given) receives the file's bytes, to
+// copy a checked history unchanged.  A missing file is an error ("no history ... fit
+// a model first").  @throws InputError "path:line:column: ..." for a bad line.
+std::vector<HistoryRecord> read_history(const std::string& path, std::string* text_out = nullptr);
 
 // One record as its JSON line (without the newline).
 std::string history_line(const HistoryRecord& record);

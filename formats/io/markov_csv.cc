@@ -8,6 +8,8 @@
 #include <optional>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/model_json.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -64,7 +66,7 @@ class MarkovReader {
     out.sample_period_s = number(*meta_.sample_period, meta_.sample_period_line, "sample_period_s");
     if (!(out.sample_period_s > 0))
       detail::fail_at(path_, meta_.sample_period_line, meta_.sample_period->column,
-                      fmt::format("sample_period_s is {}; it must be a positive sample period in seconds",
+                      fmt::format("sample_period_s is {}; write the positive sample period in seconds",
                                   out.sample_period_s));
     out.inputs = names(*meta_.inputs, meta_.inputs_line, "inputs");
     out.outputs = names(*meta_.outputs, meta_.outputs_line, "outputs");
@@ -117,7 +119,7 @@ class MarkovReader {
     const Piece magic = trim({comments[first].text, comments[first].column});
     if (magic.text != kMagic)
       detail::fail_at(path_, comments[first].line, magic.column,
-                      fmt::format("unsupported format '{}'; this version reads '{}'", magic.text, kMagic));
+                      fmt::format("unsupported format '{}'; write the file with this lpvid's `lpvid markov` ('{}')", magic.text, kMagic));
     for (size_t c = first + 1; c < comments.size(); ++c) {
       const auto& comment = comments[c];
       const size_t colon = comment.text.find(':');
@@ -160,10 +162,9 @@ class MarkovReader {
     double value = 0;
     const char* b = piece.text.data();
     const char* e = b + piece.text.size();
-    const auto result = fast_float::from_chars(b, e, value);
-    if (result.ec != std::errc() || result.ptr != e || !std::isfinite(value))
+    if (!parse_decimal(std::string_view(b, static_cast<size_t>(e - b)), value))
       detail::fail_at(path_, line, piece.column,
-                      fmt::format("cannot parse {} as a finite number for '{}'; write a number such as 0.001",
+                      fmt::format("cannot parse {} as a finite number for '{}'; write a decimal number such as 0.001",
                                   detail::quote_cell(piece.text), key));
     return value;
   }
@@ -173,24 +174,36 @@ class MarkovReader {
     if (items.size() != count)
       detail::fail_at(path_, line, piece.column,
                       fmt::format("'{}' has {} values; it needs {} (comma separated, row-major over outputs then "
-                                  "inputs)",
+                                  "inputs): give that many",
                                   key, items.size(), count));
     std::vector<double> out;
     for (const Piece& item : items) {
       out.push_back(number(item, line, key));
       if (non_negative && out.back() < 0)
         detail::fail_at(path_, line, item.column,
-                        fmt::format("'{}' holds {}; it must be >= 0", key, out.back()));
+                        fmt::format("'{}' holds {}; write values >= 0", key, out.back()));
     }
     return out;
   }
 
   std::vector<std::string> names(Piece piece, int64_t line, const char* key) const {
+    // As many signals as a model may have (formats/io/model_json.h): realize
+    // builds a model with these inputs and outputs.
+    constexpr size_t kMaxNames = static_cast<size_t>(kMaxModelChannels);
     std::vector<std::string> out;
     for (const Piece& item : split(piece)) {
       if (item.text.empty())
         detail::fail_at(path_, line, item.column,
                         fmt::format("empty name in '{}'; list the names separated by commas, e.g. v1,v2", key));
+      if (!valid_utf8(item.text))
+        detail::fail_at(path_, line, item.column,
+                        fmt::format("name {} in '{}' is not valid UTF-8; save the file as UTF-8",
+                                    detail::quote_cell(item.text), key));
+      if (out.size() == kMaxNames)
+        detail::fail_at(path_, line, item.column,
+                        fmt::format("'{}' lists more than {} names; lpvid reads models of at most {} inputs and "
+                                    "outputs: use fewer channels",
+                                    key, kMaxNames, kMaxNames));
       if (std::find(out.begin(), out.end(), item.text) != out.end())
         detail::fail_at(path_, line, item.column,
                         fmt::format("name '{}' appears twice in '{}'; give every signal its own name", item.text, key));
@@ -208,7 +221,7 @@ class MarkovReader {
       if (names[j] != expected[j])
         detail::fail_at(path_, csv_.header_line, csv_.name_columns[j],
                         fmt::format("column {} is '{}' where '{}' is expected; the header is 'lag' then "
-                                    "g_<output>_<input> over outputs (outer) and inputs (inner) as listed in the metadata",
+                                    "g_<output>_<input> over outputs (outer) and inputs (inner) as listed in the metadata: write the file with `lpvid markov`",
                                     j + 1, names[j], expected[j]));
     if (names.size() != expected.size())
       detail::fail_at(path_, csv_.header_line, 1,

@@ -17,28 +17,6 @@ namespace {
 
 using nlohmann::json;
 
-std::string read_all(const std::string& path) {
-  const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
-  std::string text;
-  char chunk[65536];
-  for (;;) {
-    const ssize_t n = ::read(fd, chunk, sizeof chunk);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int err = errno;
-      if (fd != STDIN_FILENO) ::close(fd);
-      throw InputError(fmt::format("cannot read '{}': {}; give a readable file", detail::display_path(path),
-                                   std::strerror(err)));
-    }
-    if (n == 0) break;
-    text.append(chunk, static_cast<size_t>(n));
-  }
-  if (fd != STDIN_FILENO) ::close(fd);
-  return text;
-}
-
-
 class ModelReader {
  public:
   ModelReader(const std::string& path, const std::string& text) : path_(path), text_(text) {}
@@ -64,10 +42,13 @@ class ModelReader {
     const json* value = find(root, key);
     if (value == nullptr) return out;
     const std::string rule = fmt::format("key '{}' must be an array of unique, non-empty names", key);
-    if (!value->is_array()) fail(key, fmt::format("{}, got {}; e.g. \"{}\": [\"v1\", \"v2\"]", rule, value->type_name(), key));
+    if (!value->is_array()) fail(key, fmt::format("{}, got {}; write e.g. \"{}\": [\"v1\", \"v2\"]", rule, value->type_name(), key));
+    if (static_cast<Index>(value->size()) > kMaxModelChannels)
+      fail(key, fmt::format("key '{}' lists {} names: lpvid reads models of at most {} inputs and outputs; check the file",
+                            key, value->size(), kMaxModelChannels));
     for (const json& item : *value) {
       if (!item.is_string() || item.get_ref<const std::string&>().empty())
-        fail(key, fmt::format("{}, got an entry {}; write every name as a string", rule, item.dump()));
+        fail(key, fmt::format("{}, got an entry {}; write every name as a string", rule, detail::json_excerpt(item)));
       const std::string& name = item.get_ref<const std::string&>();
       if (std::find(out.begin(), out.end(), name) != out.end())
         fail(key, fmt::format("{}, '{}' appears twice; give every signal its own name", rule, name));
@@ -79,15 +60,30 @@ class ModelReader {
   // Shape of a nested array: rows and columns (columns = -1 when there are no rows).
   Eigen::MatrixXd matrix(const json& value, const std::string& key, const std::string& shape_words, Index& cols) const {
     const std::string rule = fmt::format("key '{}' must be a matrix ({}) written as an array of rows", key, shape_words);
-    if (!value.is_array()) fail(key, fmt::format("{}, got {}; e.g. [[1, 0], [0, 1]]", rule, value.type_name()));
+    if (!value.is_array()) fail(key, fmt::format("{}, got {}; write e.g. [[1, 0], [0, 1]]", rule, value.type_name()));
     const Index rows = static_cast<Index>(value.size());
+    // Rows and columns of A, B, C, D count states or channels: bounded before
+    // anything is allocated (model_json.h).
+    const bool rows_are_states = key == "A" || key == "B";
+    const bool cols_are_states = key == "A" || key == "C";
+    auto check_size = [&](Index size, bool states, const char* dimension) {
+      const Index limit = states ? kMaxModelStates : kMaxModelChannels;
+      if (size > limit)
+        fail(key, fmt::format("key '{}' has {} {}: lpvid reads models of at most {} states and {} inputs and outputs; "
+                              "reduce the model first (e.g. realize --order)",
+                              key, size, dimension, kMaxModelStates, kMaxModelChannels));
+    };
+    check_size(rows, rows_are_states, "rows");
     cols = -1;
     for (Index i = 0; i < rows; ++i) {
       const json& row = value[static_cast<size_t>(i)];
       if (!row.is_array())
         fail(key, fmt::format("{}, but row {} is {}; write each row as an array of numbers", rule, i + 1, row.type_name()));
       const Index len = static_cast<Index>(row.size());
-      if (cols < 0) cols = len;
+      if (cols < 0) {
+        check_size(len, cols_are_states, "columns");
+        cols = len;
+      }
       if (len != cols)
         fail(key, fmt::format("{}, but row {} has {} entries and row 1 has {}; give every row the same length", rule,
                               i + 1, len, cols));
@@ -99,7 +95,7 @@ class ModelReader {
         if (!entry.is_number())
           fail(key, fmt::format("{}, but entry ({}, {}) is {}; every entry must be a finite number (JSON has no NaN or "
                                 "Inf)",
-                                rule, i + 1, j + 1, entry.dump()));
+                                rule, i + 1, j + 1, detail::json_excerpt(entry)));
         out(i, j) = entry.get<double>();
         if (!std::isfinite(out(i, j)))
           fail(key, fmt::format("{}, but entry ({}, {}) is {}; every entry must be a finite number", rule, i + 1, j + 1,
@@ -122,32 +118,20 @@ class ModelReader {
   }
 
   StateSpace read() const {
-    json root;
-    try {
-      root = json::parse(text_);
-    } catch (const json::parse_error& e) {
-      const size_t offset = e.byte == 0 ? 0 : e.byte - 1;
-      std::string what = e.what();
-      // "[json.exception.parse_error.101] parse error at line 1, column 5: syntax error ..." -> "syntax error ..."
-      const size_t column = what.find("column ");
-      const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
-      if (colon != std::string::npos) what = what.substr(colon + 2);
-      const detail::CellPosition at = detail::text_position(text_, offset);
-      detail::fail_at(path_, at.line, at.column, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
-    }
+    const json root = detail::parse_json(path_, text_);
     if (!root.is_object())
       fail("", fmt::format("the file holds {} where a JSON object is expected; a model file is an object "
-                           "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}",
+                           "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}: check that this is a model file",
                            root.type_name()));
     const json& type = require(root, "type", "a model file starts with \"type\": \"state_space\"");
     if (!type.is_string() || type.get_ref<const std::string&>() != "state_space")
-      fail("type", fmt::format("key 'type' is {}; this reader knows only \"state_space\"", type.dump()));
+      fail("type", fmt::format("key 'type' is {}; write \"type\": \"state_space\" (the only type lpvid reads)", detail::json_excerpt(type)));
     const json& ts = require(root, "ts", "give the sample period in seconds, \"ts\": 0 for continuous time");
     if (!ts.is_number())
-      fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}", ts.type_name()));
+      fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}; write a number", ts.type_name()));
     const double sample_period_s = ts.get<double>();
     if (!(sample_period_s >= 0) || !std::isfinite(sample_period_s))
-      fail("ts", fmt::format("key 'ts' is {}; it must be 0 (continuous time) or a positive sample period in seconds",
+      fail("ts", fmt::format("key 'ts' is {}; write 0 (continuous time) or the positive sample period in seconds",
                              sample_period_s));
 
     StateSpace model;
@@ -210,15 +194,23 @@ void append_matrix(std::string& out, const char* key, const Eigen::MatrixXd& m, 
 }  // namespace
 
 StateSpace read_state_space(const std::string& path) {
-  const std::string text = read_all(path);
+  const std::string text = detail::read_json_text(path, "a model file");
   return ModelReader(path, text).read();
 }
+
+StateSpace parse_state_space(const std::string& text, const std::string& path) { return ModelReader(path, text).read(); }
 
 std::string state_space_to_json(const StateSpace& model, const nlohmann::json& extra) {
   model.validate();
   if (!extra.is_null() && !extra.is_object())
     throw InputError(fmt::format("extra model-file content must be a JSON object, got {}", extra.type_name()));
   static const char* const kSchemaKeys[] = {"type", "ts", "inputs", "outputs", "A", "B", "C", "D"};
+  for (const auto* names : {&model.input_names, &model.output_names})
+    for (const std::string& name : *names)
+      if (!valid_utf8(name))
+        throw InputError(fmt::format("cannot write a model with the signal name {}: it is not valid UTF-8; rename the "
+                                     "signal (names come from the log's header or the command line)",
+                                     detail::quote_cell(name)));
   std::string out = "{\n  \"type\": \"state_space\",\n";
   out += fmt::format("  \"ts\": {},\n", number(model.sample_period_s));
   if (!model.input_names.empty()) out += fmt::format("  \"inputs\": {},\n", json(model.input_names).dump());
@@ -234,11 +226,12 @@ std::string state_space_to_json(const StateSpace& model, const nlohmann::json& e
       for (const char* key : kSchemaKeys)
         if (it.key() == key)
           throw InputError(fmt::format("extra model-file key '{}' collides with the model schema; rename it", key));
-      std::string value = it.value().dump(2);
+      // Provenance may hold file names that are not UTF-8: shown with U+FFFD.
+      std::string value = it.value().dump(2, ' ', false, json::error_handler_t::replace);
       // Indent nested lines by two more spaces.
       for (size_t pos = value.find('\n'); pos != std::string::npos; pos = value.find('\n', pos + 1))
         value.insert(pos + 1, "  ");
-      out += fmt::format("  {}: {}{}\n", json(it.key()).dump(), value, k + 1 < extra.size() ? "," : "");
+      out += fmt::format("  {}: {}{}\n", json(it.key()).dump(-1, ' ', false, json::error_handler_t::replace), value, k + 1 < extra.size() ? "," : "");
     }
   }
   out += "}\n";

@@ -34,7 +34,18 @@ namespace lpvid {
 //   "ctl.json:3:14: invalid JSON: <what nlohmann found>; fix the JSON syntax"
 //   "ctl.json:7:3: key 'B' must be a 3×1 matrix (states × inputs), got 3×2; ..."
 // and whatever StateSpace::validate() rejects (prefixed with the path).
+// Limits (docs/formats.md, "Limits"): the file at most 64 MiB, nesting at most
+// 64 levels, at most kMaxModelStates states and kMaxModelChannels inputs and
+// outputs: "big.json:9:3: key 'A' has 1000 rows: lpvid reads models of at most
+// 400 states; reduce the model first (e.g. realize --order)".
 StateSpace read_state_space(const std::string& path);
+// The same from text already read (path for messages only; content detection of stdin).
+StateSpace parse_state_space(const std::string& text, const std::string& path);
+
+// Largest model a file may hold: unloop's interconnection of two such models
+// takes about 1 s at 400 + 400 states (2 cores; cubic in the order).
+inline constexpr Index kMaxModelStates = 400;
+inline constexpr Index kMaxModelChannels = 256;
 
 // The file text: pretty, one matrix row per line, numbers that read back to the
 // identical doubles.  extra must be null or an object; its keys are written after

@@ -4,9 +4,7 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <iostream>
-#include <sstream>
+#include <filesystem>
 
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_detail.h"
@@ -18,18 +16,6 @@ namespace {
 
 // ordered: a user-defined effect's parameters keep the order of the file
 using json = nlohmann::ordered_json;
-
-std::string read_text(const std::string& path) {
-  std::stringstream s;
-  if (path == "-") {
-    s << std::cin.rdbuf();
-    return s.str();
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
-  s << in.rdbuf();
-  return s.str();
-}
 
 // 1-based line and byte column of text[offset].
 std::pair<int64_t, int64_t> position_of(const std::string& text, size_t offset) {
@@ -46,6 +32,13 @@ size_t find_key(const std::string& text, const std::string& name, size_t from) {
     if (j < text.size() && text[j] == ':') return at;
   }
   return std::string::npos;
+}
+
+// The file's JSON, checked by the bounded reader (depth, syntax, range; errors at
+// file:line:column), then parsed again in the file's order (user-defined effects).
+json parse_ordered(const std::string& path, const std::string& text) {
+  detail::parse_json(path, text);
+  return json::parse(text);
 }
 
 class Reader {
@@ -67,16 +60,7 @@ class Reader {
   }
 
   PhysicalModel read() const {
-    json root;
-    try {
-      root = json::parse(text_);
-    } catch (const json::parse_error& e) {
-      std::string what = e.what();
-      const size_t column = what.find("column ");
-      const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
-      if (colon != std::string::npos) what = what.substr(colon + 2);
-      fail_at(e.byte == 0 ? 0 : e.byte - 1, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
-    }
+    const json root = parse_ordered(path_, text_);
     if (!root.is_object())
       fail_at(0, "a physical model file is a JSON object {\"format\": \"lpvid-physical-model\", ...}; see "
                  "docs/formats.md or run 'lpvid model init'");
@@ -91,7 +75,8 @@ class Reader {
         fail_at(top("version"), "this model file is version 1, written by an earlier lpvid whose platform base had "
                                 "no damping per DOF or bending tolerance; write a new one with 'lpvid model init' and "
                                 "copy your values into it");
-      fail_at(top("version"), fmt::format("key 'version' must be {}; this lpvid reads version {} model files",
+      fail_at(top("version"), fmt::format("key 'version' must be {}; write version {} (the version this lpvid "
+                                          "reads; 'lpvid model init' writes one)",
                                           kPhysicalModelVersion, kPhysicalModelVersion));
     }
     for (auto it = root.begin(); it != root.end(); ++it) {
@@ -99,9 +84,9 @@ class Reader {
       bool known = false;
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
-        fail_at(top(it.key()), fmt::format("unknown key '{}'; a model file has format, version, base, effects, "
-                                           "parameters and optionally definitions and fit",
-                                           it.key()));
+        fail_at(top(it.key()), fmt::format("unknown key {}; remove it (a model file has format, version, base, "
+                                           "effects, parameters and optionally definitions and fit)",
+                                           detail::quote_cell(it.key())));
     }
     PhysicalModel model;
     const auto base = root.find("base");
@@ -119,7 +104,7 @@ class Reader {
     const auto defs = root.find("definitions");
     if (defs != root.end()) {
       if (!defs->is_object())
-        fail_at(top("definitions"), "key 'definitions' must be an object: effect name -> {description, blocks, "
+        fail_at(top("definitions"), "key 'definitions' must be an object; write effect name -> {description, blocks, "
                                     "parameters} (docs/formats.md)");
       for (auto it = defs->begin(); it != defs->end(); ++it) {
         const size_t at = find_key(text_, it.key(), top("definitions"));
@@ -136,14 +121,16 @@ class Reader {
     if (effects == root.end() || !effects->is_array())
       fail_at(top("effects"), "missing key 'effects' (an array of effect names, [] for none); see 'lpvid model effects'");
     for (const json& e : *effects) {
-      if (!e.is_string()) fail_at(top("effects"), fmt::format("effects: {} is not a name; write names as strings", e.dump()));
+      if (!e.is_string())
+        fail_at(top("effects"), fmt::format("effects: {} is not a name; write names as strings", detail::json_excerpt(e)));
       const std::string name = e.get<std::string>();
       if (model.effect_info(name) == nullptr) {
         std::string names;
         for (const auto& x : effect_library(model.base)) names += (names.empty() ? "" : ", ") + x.name;
         for (const auto& x : model.definitions) names += ", " + x.name + " (defined in the file)";
         fail_at(find_key(text_, "effects", 0) == std::string::npos ? 0 : text_.find("\"" + name + "\"", top("effects")),
-                fmt::format("unknown effect '{}'; the library of base '{}' has {}", name, model.base, names));
+                fmt::format("unknown effect {}; use one of {} (the library of base '{}'; lpvid model effects)",
+                            detail::quote_cell(name), names, model.base));
       }
       for (const auto& prev : model.effects)
         if (prev == name)
@@ -153,6 +140,13 @@ class Reader {
     const auto params = root.find("parameters");
     if (params == root.end() || !params->is_object())
       fail_at(top("parameters"), "missing key 'parameters' (an object name -> {value, unit, lower, upper, free})");
+    // A model has a few dozen parameters; more is not a model file (and would
+    // make the ordering below quadratic).
+    constexpr std::size_t kMaxParameters = 1000;
+    if (params->size() > kMaxParameters)
+      fail_at(top("parameters"), fmt::format("'parameters' lists {} entries; a model has at most a few dozen: check "
+                                             "that this is the right file",
+                                             params->size()));
     // Canonical order first (base, then each effect's), then any unknown names
     // (validate() reports them).
     std::vector<std::string> order;
@@ -183,23 +177,24 @@ class Reader {
   // One user-defined effect: {"description", "blocks": [...], "parameters": {...}}.
   EffectInfo effect_definition(const std::string& name, const json& v, size_t at) const {
     if (!v.is_object())
-      fail_at(at, fmt::format("definition '{}' must be an object {{\"description\", \"blocks\", \"parameters\"}}",
+      fail_at(at, fmt::format("definition '{}' must be an object; write {{\"description\", \"blocks\", \"parameters\"}}",
                               name));
     for (auto it = v.begin(); it != v.end(); ++it) {
       static const char* const kFields[] = {"name", "description", "blocks", "parameters"};
       bool known = false;
       for (const char* k : kFields) known = known || it.key() == k;
       if (!known)
-        fail_at(at, fmt::format("definition '{}' has unknown field '{}'; the fields are description, blocks, "
-                                "parameters",
-                                name, it.key()));
+        fail_at(at, fmt::format("definition '{}' has unknown field {}; remove it (the fields are description, blocks, "
+                                "parameters)",
+                                name, detail::quote_cell(it.key())));
     }
     EffectInfo e;
     e.name = name;
     e.user_defined = true;
     const auto d = v.find("description");
     if (d != v.end()) {
-      if (!d->is_string()) fail_at(at, fmt::format("definition '{}': 'description' must be a string", name));
+      if (!d->is_string())
+        fail_at(at, fmt::format("definition '{}': 'description' must be a string; write it in double quotes", name));
       e.description = d->get<std::string>();
     }
     if (e.description.empty()) e.description = "user-defined effect";
@@ -207,33 +202,38 @@ class Reader {
     e.signature = "as its blocks say";
     const auto blocks = v.find("blocks");
     if (blocks == v.end() || !blocks->is_array() || blocks->empty())
-      fail_at(at, fmt::format("definition '{}' needs 'blocks': a non-empty array of {{\"kind\", \"side\", "
+      fail_at(at, fmt::format("definition '{}' needs 'blocks'; give a non-empty array of {{\"kind\", \"side\", "
                               "\"channels\", \"parameters\"}}",
                               name));
     for (const json& b : *blocks) {
-      if (!b.is_object()) fail_at(at, fmt::format("definition '{}': each block is an object", name));
+      if (!b.is_object())
+        fail_at(at, fmt::format("definition '{}': each block is an object; write {{\"kind\", \"side\", \"channels\", "
+                                "\"parameters\"}}",
+                                name));
       for (auto it = b.begin(); it != b.end(); ++it)
         if (it.key() != "kind" && it.key() != "side" && it.key() != "channels" && it.key() != "parameters")
-          fail_at(at, fmt::format("definition '{}': a block has unknown field '{}'; the fields are kind, side, "
-                                  "channels, parameters",
-                                  name, it.key()));
+          fail_at(at, fmt::format("definition '{}': a block has unknown field {}; remove it (the fields are kind, side, "
+                                  "channels, parameters)",
+                                  name, detail::quote_cell(it.key())));
       Block blk;
       auto text_field = [&](const char* field) {
         const auto f = b.find(field);
         if (f == b.end() || !f->is_string())
-          fail_at(at, fmt::format("definition '{}': a block needs '{}' as a string", name, field));
+          fail_at(at, fmt::format("definition '{}': a block needs '{}'; give it as a string", name, field));
         return f->get<std::string>();
       };
       auto names_field = [&](const char* field, bool required) {
         std::vector<std::string> out;
         const auto f = b.find(field);
         if (f == b.end()) {
-          if (required) fail_at(at, fmt::format("definition '{}': a block needs '{}' (an array of names)", name, field));
+          if (required) fail_at(at, fmt::format("definition '{}': a block needs '{}'; give an array of names", name, field));
           return out;
         }
-        if (!f->is_array()) fail_at(at, fmt::format("definition '{}': '{}' must be an array of names", name, field));
+        if (!f->is_array())
+          fail_at(at, fmt::format("definition '{}': '{}' must be an array; give an array of names", name, field));
         for (const json& x : *f) {
-          if (!x.is_string()) fail_at(at, fmt::format("definition '{}': '{}' holds {}, not a name", name, field, x.dump()));
+          if (!x.is_string()) fail_at(at, fmt::format("definition '{}': '{}' holds {}, not a name; write names as strings", name, field,
+                                    detail::json_excerpt(x)));
           out.push_back(x.get<std::string>());
         }
         return out;
@@ -250,7 +250,7 @@ class Reader {
     }
     const auto params = v.find("parameters");
     if (params == v.end() || !params->is_object())
-      fail_at(at, fmt::format("definition '{}' needs 'parameters': name -> {{value, unit, lower, upper, free}} (the "
+      fail_at(at, fmt::format("definition '{}' needs 'parameters'; give name -> {{value, unit, lower, upper, free}} (the "
                               "defaults)",
                               name));
     for (auto it = params->begin(); it != params->end(); ++it) e.parameters.push_back(parameter(it.key(), it.value(), at));
@@ -261,15 +261,15 @@ class Reader {
   PhysicalParameter parameter(const std::string& name, const json& v, size_t at_hint = std::string::npos) const {
     const size_t at = at_hint != std::string::npos ? at_hint : param(name);
     if (!v.is_object())
-      fail_at(at, fmt::format("parameter '{}' must be an object {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
+      fail_at(at, fmt::format("parameter '{}' must be an object; write {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
                               name));
     for (auto it = v.begin(); it != v.end(); ++it) {
       static const char* const kFields[] = {"value", "unit", "lower", "upper", "free"};
       bool known = false;
       for (const char* k : kFields) known = known || it.key() == k;
       if (!known)
-        fail_at(at, fmt::format("parameter '{}' has unknown field '{}'; the fields are value, unit, lower, upper, free",
-                                name, it.key()));
+        fail_at(at, fmt::format("parameter '{}' has unknown field {}; remove it (the fields are value, unit, lower, upper, free)",
+                                name, detail::quote_cell(it.key())));
     }
     PhysicalParameter p;
     p.name = name;
@@ -277,7 +277,7 @@ class Reader {
       const auto f = v.find(field);
       if (f == v.end()) fail_at(at, fmt::format("parameter '{}' has no field '{}'; give all of value, unit, lower, upper, free", name, field));
       if (!f->is_number())
-        fail_at(at, fmt::format("parameter '{}': field '{}' must be a number, got {}", name, field, f->dump()));
+        fail_at(at, fmt::format("parameter '{}': field '{}' must be a number, got {}; write a number", name, field, detail::json_excerpt(*f)));
       return f->get<double>();
     };
     p.value = number("value");
@@ -285,11 +285,11 @@ class Reader {
     p.upper = number("upper");
     const auto unit = v.find("unit");
     if (unit == v.end() || !unit->is_string())
-      fail_at(at, fmt::format("parameter '{}': field 'unit' must be a string (e.g. \"kg\")", name));
+      fail_at(at, fmt::format("parameter '{}': field 'unit' must be a string; write the library's unit, e.g. \"kg\"", name));
     p.unit = unit->get<std::string>();
     const auto free = v.find("free");
     if (free == v.end() || !free->is_boolean())
-      fail_at(at, fmt::format("parameter '{}': field 'free' must be true or false", name));
+      fail_at(at, fmt::format("parameter '{}': field 'free' must be true or false; write one of them", name));
     p.free = free->get<bool>();
     return p;
   }
@@ -325,13 +325,7 @@ std::string effect_definition_file(const EffectInfo& e) {
 }
 
 EffectInfo parse_effect_definition(const std::string& text, const std::string& path) {
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    const auto [line, column] = position_of(text, e.byte == 0 ? 0 : e.byte - 1);
-    detail::fail_at(path, line, column, "invalid JSON; fix the JSON syntax");
-  }
+  const json root = parse_ordered(path, text);
   if (!root.is_object() || !root.contains("name") || !root["name"].is_string())
     detail::fail_at(path, 1, 1, "an effect definition file is a JSON object with a 'name' (a string), 'description', "
                                 "'blocks' and 'parameters' (docs/formats.md; lpvid diagnose --out-effect writes one)");
@@ -339,23 +333,30 @@ EffectInfo parse_effect_definition(const std::string& text, const std::string& p
   return Reader(text, path).effect_definition(name, root, 0);
 }
 
-EffectInfo read_effect_definition(const std::string& path) { return parse_effect_definition(read_text(path), path); }
+EffectInfo read_effect_definition(const std::string& path) {
+  return parse_effect_definition(detail::read_json_text(path, "an effect definition file"), path);
+}
 
 PhysicalModel parse_physical_model(const std::string& text, const std::string& path) {
   return Reader(text, path).read();
 }
 
 bool is_physical_model_file(const std::string& path) {
-  if (path == "-") return false;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
-  std::stringstream s;
-  s << in.rdbuf();
-  const json j = json::parse(s.str(), nullptr, false);
-  return j.is_object() && j.contains("format") && j["format"] == kPhysicalModelFormat;
+  // Only a regular file is probed: a pipe or stdin would be consumed by the probe.
+  std::error_code ec;
+  if (path == "-" || !std::filesystem::is_regular_file(path, ec)) return false;
+  try {
+    const std::string text = detail::read_json_text(path, "a physical model file");
+    const nlohmann::json j = detail::parse_json(path, text);
+    return j.is_object() && j.contains("format") && j["format"] == kPhysicalModelFormat;
+  } catch (const InputError&) {
+    return false;  // not readable JSON: the caller's other reader says why
+  }
 }
 
-PhysicalModel read_physical_model(const std::string& path) { return parse_physical_model(read_text(path), path); }
+PhysicalModel read_physical_model(const std::string& path) {
+  return parse_physical_model(detail::read_json_text(path, "a physical model file"), path);
+}
 
 std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::json& fit_section) {
   model.validate();
@@ -381,7 +382,8 @@ std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::j
   }
   out += "  }";
   if (fit_section.is_object() && !fit_section.empty()) {
-    std::string fit = fit_section.dump(2);
+    // The fit section names data files, which may not be UTF-8: written with U+FFFD.
+    std::string fit = fit_section.dump(2, ' ', false, json::error_handler_t::replace);
     for (size_t pos = fit.find('\n'); pos != std::string::npos; pos = fit.find('\n', pos + 1)) fit.insert(pos + 1, "  ");
     out += ",\n  \"fit\": " + fit;
   }

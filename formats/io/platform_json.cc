@@ -10,21 +10,13 @@
 #include "formats/io/csv_detail.h"
 #include "formats/io/json_detail.h"
 #include "formats/io/csv_log.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
 namespace {
 
 using nlohmann::json;
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("cannot open '{}': {}; check the path", path, std::strerror(errno)));
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 
 std::string known_names(PlatformParameters& p) {
   std::string known;
@@ -53,25 +45,15 @@ std::vector<std::pair<std::string, double*>> platform_parameter_fields(PlatformP
 }
 
 PlatformParameters read_platform_parameters(const std::string& path) {
-  const std::string text = read_text(path);
+  const std::string text = detail::read_json_text(path, "a platform parameter file");
   auto fail = [&](const std::string& key, const std::string& what) {
     const detail::CellPosition at = detail::text_position(text, key.empty() ? 0 : detail::find_top_level_key(text, key));
     detail::fail_at(path, at.line, at.column, what);
   };
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    const detail::CellPosition at = detail::text_position(text, e.byte == 0 ? 0 : e.byte - 1);
-    std::string what = e.what();
-    const size_t column = what.find("column ");
-    const size_t colon = column == std::string::npos ? std::string::npos : what.find(": ", column);
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    detail::fail_at(path, at.line, at.column, fmt::format("invalid JSON: {}; fix the JSON syntax", what));
-  }
+  const json root = detail::parse_json(path, text);
   if (!root.is_object())
     fail("", fmt::format("the file holds {} where a JSON object of platform parameters is expected, e.g. "
-                         "{{\"beam_mass_kg\": 1.0}}",
+                         "{{\"beam_mass_kg\": 1.0}}: check that this is a parameter file",
                          root.type_name()));
   PlatformParameters p = PlatformParameters::defaults();
   auto fields = platform_parameter_fields(p);
@@ -80,14 +62,14 @@ PlatformParameters read_platform_parameters(const std::string& path) {
     if (key == "provenance") continue;
     if (key == "type") {
       if (!it->is_string() || it->get<std::string>() != "platform_parameters")
-        fail(key, fmt::format("key 'type' is {}; a parameter file has \"type\": \"platform_parameters\"", it->dump()));
+        fail(key, fmt::format("key 'type' is {}; write \"type\": \"platform_parameters\" (or leave it out)", detail::json_excerpt(*it)));
       continue;
     }
     if (key == "rod_axis_angles_rad") {
       if (!it->is_array() || it->size() != 3)
-        fail(key, "key 'rod_axis_angles_rad' must be an array of 3 angles in rad");
+        fail(key, "key 'rod_axis_angles_rad' must be an array of 3 angles in rad: write e.g. [1.5708, 3.6652, 5.7596]");
       for (size_t j = 0; j < 3; ++j) {
-        if (!(*it)[j].is_number()) fail(key, "key 'rod_axis_angles_rad' must hold 3 numbers (rad)");
+        if (!(*it)[j].is_number()) fail(key, "key 'rod_axis_angles_rad' must hold 3 numbers (rad): write e.g. [1.5708, 3.6652, 5.7596]");
         p.rod_axis_angles_rad[j] = (*it)[j].get<double>();
       }
       continue;
@@ -95,15 +77,15 @@ PlatformParameters read_platform_parameters(const std::string& path) {
     double* field = nullptr;
     for (auto& [n, f] : fields)
       if (n == key) field = f;
-    if (!field) fail(key, fmt::format("unknown parameter '{}'; known: {}", key, known_names(p)));
+    if (!field) fail(key, fmt::format("unknown parameter {}; use one of {}", detail::quote_cell(key), known_names(p)));
     if (!it->is_number())
-      fail(key, fmt::format("key '{}' must be a finite number in the units of its name, got {}", key, it->dump()));
+      fail(key, fmt::format("key '{}' must be a finite number in the units of its name, got {}; write a number", key, detail::json_excerpt(*it)));
     *field = it->get<double>();
   }
   try {
     p.validate();
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{}: {}", detail::display_path(path), e.what()));
+    throw InputError(fmt::format("{}: {}; fix the parameter file", detail::display_path(path), e.what()));
   }
   return p;
 }
@@ -118,14 +100,11 @@ void apply_parameter_overrides(PlatformParameters& params, const std::vector<std
     double* field = nullptr;
     for (auto& [n, f] : table)
       if (n == name) field = f;
-    if (!field) throw InputError(fmt::format("--set: unknown parameter '{}'; known: {}", name, known_names(params)));
-    try {
-      std::size_t used = 0;
-      *field = std::stod(value, &used);
-      if (used != value.size() || !std::isfinite(*field)) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("--set {}: '{}' is not a finite number", name, value));
-    }
+    if (!field)
+      throw InputError(fmt::format("--set: unknown parameter {}; use one of {}", detail::quote_cell(name), known_names(params)));
+    if (!parse_decimal(value, *field))
+      throw InputError(fmt::format("--set {}: {} is not a finite number; give a decimal number in the units of its name",
+                                   name, detail::quote_cell(value)));
   }
   params.validate();
 }
@@ -139,7 +118,8 @@ std::string platform_parameters_to_json(const PlatformParameters& params, const 
   out["rod_axis_angles_rad"] = p.rod_axis_angles_rad;
   if (extra.is_object())
     for (auto it = extra.begin(); it != extra.end(); ++it) out[it.key()] = *it;
-  return out.dump(2) + "\n";
+  // Provenance may hold file names that are not UTF-8: written with U+FFFD.
+  return out.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
 }
 
 void check_beam_stroke(const std::string& path, const Eigen::VectorXd& x_b_m, double stroke_m,

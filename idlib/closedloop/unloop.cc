@@ -77,7 +77,7 @@ UnloopResult plant_from_closed_loop(const StateSpace& closed_loop, const StateSp
   const Index m = closed_loop.num_inputs(), p = closed_loop.num_outputs();
   if (controller.num_inputs() != p || controller.num_outputs() != m)
     throw InputError(fmt::format("unloop: the controller is {}x{} (outputs x inputs) but the closed loop v → q is {}x{}; "
-                                 "the controller must map the {} outputs back to the {} inputs",
+                                 "give the controller that maps the {} outputs back to the {} inputs",
                                  controller.num_outputs(), controller.num_inputs(), p, m, p, m));
   const Index nG = closed_loop.order(), nC = controller.order(), N = nG + nC;
   const Index target = options.plant_order > 0 ? options.plant_order : nG - nC;

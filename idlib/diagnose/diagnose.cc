@@ -148,14 +148,18 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
   };
   constexpr std::size_t kPhenomenaSeeded = 3;  // the strongest few phenomena
   constexpr double kSeedDamping = 0.02;       // a lightly damped start
+  // the strongest few phenomena whose frequency the parameter's bounds admit
+  auto strongest_within = [&](const std::string& frequency_parameter) {
+    const auto [lo, hi] = bounds(frequency_parameter);
+    std::vector<const Phenomenon*> chosen;
+    for (const Phenomenon& ph : phenomena)
+      if (chosen.size() < kPhenomenaSeeded && ph.omega_rad_s >= lo && ph.omega_rad_s <= hi) chosen.push_back(&ph);
+    return chosen;
+  };
   for (const Block& b : effect.blocks) {
     if (b.kind == BlockKind::kMode) {
-      const auto [lo, hi] = bounds(b.parameters[0]);
-      std::size_t used = 0;
-      for (const Phenomenon& ph : phenomena) {
-        if (used >= kPhenomenaSeeded) break;
-        if (ph.omega_rad_s < lo || ph.omega_rad_s > hi) continue;
-        ++used;
+      for (const Phenomenon* p : strongest_within(b.parameters[0])) {
+        const Phenomenon& ph = *p;
         std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
                                                          {b.parameters[1], kSeedDamping}};
         // shape: φφᵀ ≈ Re(ΔP · 2jζω²) at the peak (a collocated mode at resonance)
@@ -189,16 +193,11 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
         out.push_back(std::move(seed));
       }
     } else if (b.kind == BlockKind::kResonance || b.kind == BlockKind::kSecondOrder) {
-      const auto [lo, hi] = bounds(b.parameters[0]);
-      std::size_t used = 0;
-      for (const Phenomenon& ph : phenomena) {
-        if (used >= kPhenomenaSeeded) break;
-        if (ph.omega_rad_s < lo || ph.omega_rad_s > hi) continue;
-        ++used;
-        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
+      for (const Phenomenon* ph : strongest_within(b.parameters[0])) {
+        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph->omega_rad_s},
                                                          {b.parameters[1], 0.05}};
         if (b.kind == BlockKind::kResonance) {
-          seed.emplace_back(b.parameters[2], ph.omega_rad_s * 1.15);
+          seed.emplace_back(b.parameters[2], ph->omega_rad_s * 1.15);
           seed.emplace_back(b.parameters[3], 0.1);
         }
         out.push_back(std::move(seed));
@@ -573,8 +572,13 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     else
       failed.push_back(std::move(c));
   }
+  // Significant ones by ΔBIC (the noise-weighted likelihood: between effects that
+  // both pass the criteria it is the better judge than the unweighted error figure,
+  // which a few noisy low-frequency lines of an frf estimate can sway), the rest
+  // by error.
   std::stable_sort(out.ranked.begin(), out.ranked.end(), [](const CandidateOutcome& a, const CandidateOutcome& b) {
     if (a.significant != b.significant) return a.significant;
+    if (a.significant) return a.delta_bic < b.delta_bic;
     return a.error < b.error;
   });
   for (CandidateOutcome& c : failed) out.ranked.push_back(std::move(c));
@@ -588,6 +592,10 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     out.explained = winner->error <= options.explained_ratio * f &&
                     static_cast<double>(winner->band_points) <=
                         kLeftBandShare * static_cast<double>(out.baseline_band_points);
+    if (out.explained)
+      for (std::size_t i = 1; i < out.ranked.size(); ++i)
+        if (out.ranked[i].significant && out.ranked[i].error <= options.explained_ratio * f)
+          out.indistinguishable.push_back(out.ranked[i].effect);
     const ModelErrorSet rest = model_errors(winner->fit.model, data, refit, options.model_error);
     out.remaining_failures = rest.failures;
     out.remaining_phenomena = group_phenomena(rest.failures, out.baseline.output_names, out.baseline.input_names);
@@ -649,6 +657,13 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     if (out.explained) {
       s.push_back(fmt::format("  explained: with it the error is within the noise ({} <= {:g} x {})",
                               percent(winner->error), options.explained_ratio, percent(f)));
+      if (!out.indistinguishable.empty())
+        s.push_back(fmt::format("  but these data hardly separate it from {}: {} the error within the noise too; {} "
+                                "has the better likelihood (ΔBIC {:.1f} against {:.1f}); a longer or less noisy "
+                                "measurement, or a wider band, would decide",
+                                fmt::join(out.indistinguishable, ", "),
+                                out.indistinguishable.size() == 1 ? "it explains" : "they explain", winner->effect,
+                                winner->delta_bic, out.ranked[1].delta_bic));
     } else {
       s.push_back(fmt::format("  partly explained: with it the error {} is still above {:g} x the noise floor; still "
                               "failing:",

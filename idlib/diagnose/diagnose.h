@@ -21,7 +21,9 @@
 //   - none of its own parameters ends on a bound (a "lightly damped mode" with its
 //     damping pinned at the 0.7 bound, a lag at its largest time constant, is the
 //     fit using the effect as a patch, not finding it).
-// Candidates are ranked: significant ones first, then by the error after refitting.
+// Candidates are ranked: significant ones first, by ΔBIC, then the rest by the error
+// after refitting.  Other significant candidates that also leave only noise are listed
+// as indistinguishable from the winner on these data.
 // The diagnosis is EXPLAINED when the winner is significant and its error e ≤
 // explained_ratio × f: what remains is noise.  Otherwise the winner (if any)
 // explains part ("explains 85 % of the excess; still failing: ...").
@@ -117,8 +119,12 @@ struct Diagnosis {
   // Per data set: the baseline's failing bands (after mark_differences_between_data).
   std::vector<std::vector<FailingBand>> baseline_failures;
   std::vector<Phenomenon> phenomena;       // the baseline's, distinct, strongest first
-  std::vector<CandidateOutcome> ranked;    // significant first, then by error; failed refits last
+  std::vector<CandidateOutcome> ranked;    // significant first (by ΔBIC), then by error; failed refits last
   bool explained = false;                  // the winner is significant and leaves only noise
+  // When explained: the other significant candidates that leave only noise too (the
+  // data do not separate them from the winner, e.g. a 0.5 ms delay and a 0.5 ms lag
+  // in an frf estimate whose floor is 1 %).
+  std::vector<std::string> indistinguishable;
   std::string missing;                     // the winner when significant, else ""
   // With a significant winner: its failing bands and phenomena (what is still wrong).
   std::vector<std::vector<FailingBand>> remaining_failures;

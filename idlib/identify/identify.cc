@@ -673,7 +673,7 @@ void check_controller_matches(const StateSpace& controller, double sample_period
   if (controller.num_inputs() != num_outputs || controller.num_outputs() != num_excitations)
     throw InputError(fmt::format(
         "controller has {} inputs and {} outputs, but the loop has {} measured outputs and {} excitations; "
-        "the controller must map the {} outputs (e = -q) to the {} plant inputs",
+        "give the controller that maps the {} outputs (e = -q) to the {} plant inputs",
         controller.num_inputs(), controller.num_outputs(), num_outputs, num_excitations, num_outputs, num_excitations));
 }
 

@@ -432,7 +432,7 @@ const PhysicalParameter& PhysicalModel::parameter(const std::string& name) const
   if (i < 0) {
     std::vector<std::string> names;
     for (const auto& q : parameters) names.push_back(q.name);
-    throw InputError(fmt::format("the model has no parameter '{}'; it has {}", name, join(names)));
+    throw InputError(fmt::format("the model has no parameter '{}'; give one of {}", name, join(names)));
   }
   return parameters[static_cast<std::size_t>(i)];
 }

@@ -44,11 +44,11 @@ Channel channel(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bool remove
         throw InputError(fmt::format(
             "estimate_frf: experiment {}: {}({}, {}) = {}; every sample must be finite: remove or "
             "interpolate the bad samples first",
-            experiment, what, t, c, x[t]));
+            experiment + 1, what, t + 1, c + 1, x[t]));
     throw InputError(fmt::format(
         "estimate_frf: experiment {}: {} column {} overflows a double when squared and summed; "
         "rescale the signal (e.g. to SI units)",
-        experiment, what, c));
+        experiment + 1, what, c + 1));
   }
   const double dn = static_cast<double>(n);
   if (remove_mean) {
@@ -119,7 +119,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   const Index p = experiments[0].output.cols();
   if (m == 0 || p == 0)
     throw InputError(fmt::format(
-        "estimate_frf: experiment 0 has {} excitation and {} output columns; each needs at least one",
+        "estimate_frf: experiment 1 has {} excitation and {} output columns; each needs at least one",
         m, p));
   Index n_min = 0;
   for (Index e = 0; e < E; ++e) {
@@ -128,12 +128,12 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
       throw InputError(fmt::format(
           "estimate_frf: experiment {}: excitation has {} samples and output has {}; both must "
           "cover the same N samples",
-          e, x.excitation.rows(), x.output.rows()));
+          e + 1, x.excitation.rows(), x.output.rows()));
     if (x.excitation.cols() != m || x.output.cols() != p)
       throw InputError(fmt::format(
-          "estimate_frf: experiment {} has {} excitation and {} output channels, experiment 0 has {} "
+          "estimate_frf: experiment {} has {} excitation and {} output channels, experiment 1 has {} "
           "and {}; every experiment must log the same channels",
-          e, x.excitation.cols(), x.output.cols(), m, p));
+          e + 1, x.excitation.cols(), x.output.cols(), m, p));
     n_min = e == 0 ? x.excitation.rows() : std::min(n_min, x.excitation.rows());
   }
   Index nseg = options.segment_length;
@@ -165,7 +165,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
       throw InputError(fmt::format(
           "estimate_frf: experiment {}: every excitation column is constant{}, so it carries no "
           "information about the response: drop the experiment",
-          e, options.remove_mean ? " (zero after mean removal)" : " zero"));
+          e + 1, options.remove_mean ? " (zero after mean removal)" : " zero"));
     for (Index a = 0; a < m; ++a)
       if (vs[e][a].rms >= kFrfExcitedFraction * rms_max) excited[e].push_back(a);
   }

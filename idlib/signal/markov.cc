@@ -61,11 +61,11 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
         throw InputError(fmt::format(
             "estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
             "remove or interpolate the bad samples first",
-            experiment, what, t, c, a(t, c)));
+            experiment + 1, what, t + 1, c + 1, a(t, c)));
     throw InputError(fmt::format(
         "estimate_markov: experiment {}: {} column {} overflows a double when squared and "
         "summed; rescale the signal (e.g. to SI units)",
-        experiment, what, c));
+        experiment + 1, what, c + 1));
   }
   const double dn = static_cast<double>(n);
   if (remove_mean) {
@@ -282,7 +282,7 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
   const Index p = experiments[0].output.cols();
   if (m == 0 || p == 0)
     throw InputError(fmt::format(
-        "estimate_markov: experiment 0 has {} excitation and {} output columns; each needs at "
+        "estimate_markov: experiment 1 has {} excitation and {} output columns; each needs at "
         "least one",
         m, p));
   Index total = 0;
@@ -292,17 +292,17 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
       throw InputError(fmt::format(
           "estimate_markov: experiment {}: excitation has {} samples and output has {}; both "
           "must cover the same N samples",
-          e, x.excitation.rows(), x.output.rows()));
+          e + 1, x.excitation.rows(), x.output.rows()));
     if (x.excitation.cols() != m || x.output.cols() != p)
       throw InputError(fmt::format(
           "estimate_markov: experiment {} has {} excitation and {} output channels, experiment "
-          "0 has {} and {}; every experiment must log the same channels",
-          e, x.excitation.cols(), x.output.cols(), m, p));
+          "1 has {} and {}; every experiment must log the same channels",
+          e + 1, x.excitation.cols(), x.output.cols(), m, p));
     if (x.excitation.rows() <= L)
       throw InputError(fmt::format(
           "estimate_markov: experiment {} has N = {} samples for num_lags = {}; each record "
           "needs N > num_lags: use fewer lags or a longer record",
-          e, x.excitation.rows(), L));
+          e + 1, x.excitation.rows(), L));
     total += x.excitation.rows();
   }
   if (total < 2 * m * (L + 1))
@@ -339,7 +339,7 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
           "estimate_markov: excitation input {} is constant{} in every experiment, so its "
           "Markov parameters are not identifiable: excite it in at least one experiment or "
           "drop the column",
-          a, options.remove_mean ? " (zero after mean removal)" : " zero"));
+          a + 1, options.remove_mean ? " (zero after mean removal)" : " zero"));
 
   MarkovResult res;
   res.total_samples = total;
@@ -420,7 +420,7 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
     if (eig.eigenvalues()(0) < kDependentInputsEigenvalue) {
       std::vector<Index> names;
       for (Index a = 0; a < m; ++a)
-        if (std::abs(eig.eigenvectors()(a, 0)) > kDependentInputComponent) names.push_back(a);
+        if (std::abs(eig.eigenvectors()(a, 0)) > kDependentInputComponent) names.push_back(a + 1);  // 1-based
       throw InputError(fmt::format(
           "estimate_markov: excitation inputs {} are linearly dependent over all experiments "
           "(e.g. identical): their Markov parameters cannot be separated; excite them "

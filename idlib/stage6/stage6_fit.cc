@@ -174,6 +174,16 @@ StageFitResult fit_stage(const StageParameters& nominal, const Eigen::MatrixXd& 
   if (!u.allFinite() || !q.allFinite()) throw InputError("stage fit: the log has non-finite values");
   if (!(sample_period_s > 0) || !std::isfinite(sample_period_s))
     throw InputError(fmt::format("stage fit: sample period {} s must be positive", sample_period_s));
+  // A column that never changes carries no information: a wrench channel that
+  // is never driven, or an axis that never moves, leaves the mass and inertia of
+  // that axis undetermined, and the fit would only return its start values.
+  for (int c = 0; c < 6; ++c)
+    for (const auto& [m, name] : {std::pair<const Eigen::MatrixXd*, char>{&u, 'u'}, {&q, 'q'}})
+      if (!(m->col(c).array() != (*m)(0, c)).any())
+        throw InputError(fmt::format("stage fit: {}{} is {} throughout the log, so it carries no information about the "
+                                     "stage's mass and inertia; give a closed-loop log with excitation (lpvid simulate "
+                                     "stage6 --experiment writes one)",
+                                     name, c + 1, (*m)(0, c)));
 
   Problem P{nominal, {}, {}, sample_period_s};
   const Eigen::Matrix<double, 8, 6> A_pinv = allocation_pseudo_inverse(nominal.lever_arms_m);

@@ -75,8 +75,10 @@ struct StageFitResult {
 // Fits the model to a log: u (N × 6) the commanded body wrench and q (N × 6) the
 // measured configuration, sampled every sample_period_s.  nominal supplies the
 // starting values, the lever arms r, z_ref and the allocation.
-// @throws InputError  N < 10, non-finite data, shapes not N × 6, or a
-//   non-positive sample period.
+// @throws InputError  N < 10, non-finite data, shapes not N × 6, a
+//   non-positive sample period, or a column of u or q that is constant over the
+//   whole log (an undriven wrench channel or an axis that never moves: nothing
+//   to fit, e.g. an all-zero log).
 // @throws NumericalError  Ceres fails to produce any usable solution.
 StageFitResult fit_stage(const StageParameters& nominal, const Eigen::MatrixXd& u, const Eigen::MatrixXd& q,
                          double sample_period_s, const StageFitModel& model = {}, const StageFitOptions& options = {});

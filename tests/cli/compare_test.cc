@@ -128,7 +128,7 @@ TEST_F(CompareCli, BadInputIsOneLineExitCode2AndNoOutput) {
     EXPECT_EQ(count_files(dir.path()), before) << args;
   }
   EXPECT_THAT(run_lpvid("compare --model " + (dir / "model.json") + " --data " + (dir / "model.json")).err,
-              HasSubstr("is a model; --data takes measured frequency-response data"));
+              HasSubstr("is a model; give measured frequency-response data (FRD .csv or .mat) to --data"));
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "tests/cli/effect_fixture.h"
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
@@ -215,13 +216,7 @@ TEST(ModelCli, DefineAddsAUserDefinedEffectFromAFile) {
   TempDir dir("model_define");
   ASSERT_EQ(run_lpvid(fmt::format("model init --out {}", dir / "m.json")).exit_code, 0);
   {
-    std::ofstream(dir / "mount.json") << R"({"name": "theta_mount", "description": "theta sensor mount",
- "blocks": [{"kind": "resonance", "side": "output", "channels": ["theta"],
-             "parameters": ["wp_rad_s", "zp", "wz_rad_s", "zz"]}],
- "parameters": {"wp_rad_s": {"value": 800, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
-                "zp": {"value": 0.05, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true},
-                "wz_rad_s": {"value": 900, "unit": "rad/s", "lower": 300, "upper": 3000, "free": true},
-                "zz": {"value": 0.1, "unit": "1", "lower": 0.001, "upper": 0.7, "free": true}}})";
+    std::ofstream(dir / "mount.json") << testing::kMountEffect;
   }
   const auto def = run_lpvid(fmt::format("model define --model {} --from {} --add", dir / "m.json", dir / "mount.json"));
   ASSERT_EQ(def.exit_code, 0) << def.err;

@@ -138,7 +138,7 @@ TEST_F(FrdCli, UnloopFlagsLowLoopGainOnRequestAndRejectsANegativeThreshold) {
   EXPECT_THAT(r.out, HasSubstr("low loop gain: 40 of 40 frequencies"));
   r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
                 " --min-loop-gain -1 --out " + (out / "Q.csv"));
-  expect_rejected(r, out / "Q.csv", "min_loop_gain = -1; it must be finite and >= 0");
+  expect_rejected(r, out / "Q.csv", "--min-loop-gain: '-1' is out of range; give the smallest loop gain >= 0");
 }
 
 TEST_F(FrdCli, UnloopRejectsAPairMissingFromEveryFile) {
@@ -228,7 +228,7 @@ TEST_F(FrdCli, BodeRejectsNaNNonIncreasingAndMismatchedChannels) {
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "order.csv")), png, (out / "order.csv") + ":3:1:");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "half.csv")), png, (out / "half.csv") + ":1:");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "one.csv") + " " + data("truth_plant.json")), png,
-                  "overlaid responses must have the same shape");
+                  "give responses of the same shape to overlay");
   expect_rejected(run_lpvid("bode --out " + png + " " + (out / "bad.mat")), png, "is not a MATLAB .mat file");
 }
 

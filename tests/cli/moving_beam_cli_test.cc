@@ -149,7 +149,7 @@ TEST(MovingBeamCliInput, UnknownProfileIsRejected) {
   TempDir dir("prof");
   const auto r = run_lpvid("simulate platform --out " + (dir / "out") + " --profile zigzag");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_THAT(r.err, HasSubstr("known: sweep"));
+  EXPECT_THAT(r.err, HasSubstr("use sweep"));
   EXPECT_EQ(count_files(dir / "out"), 0);
 }
 

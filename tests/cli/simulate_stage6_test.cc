@@ -64,7 +64,7 @@ TEST(SimulateStage6, NonPositiveBoundaryLayerIsBadInputWithNoOutput) {
   TempDir dir("stage6_bad2");
   const auto r = run_lpvid("simulate stage6 --out " + (dir / "x") + " --delta 0");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_THAT(r.err, HasSubstr("boundary_layer"));
+  EXPECT_THAT(r.err, HasSubstr("--delta: '0' is out of range; give the boundary layer delta > 0"));
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_FALSE(fs::exists(dir / "x/stage6_run.csv"));
 }

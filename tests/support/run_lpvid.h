@@ -43,11 +43,13 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-// Runs `lpvid ARGS` through the shell (args are passed verbatim: quote them).
-inline RunResult run_lpvid(const std::string& args, const std::string& stdin_file = "") {
+// Runs `lpvid ARGS` through the shell (args are passed verbatim: quote them),
+// in the directory `cwd` when given.
+inline RunResult run_lpvid(const std::string& args, const std::string& stdin_file = "", const std::string& cwd = "") {
   TempDir tmp("run");
-  const std::string cmd = std::string(LPVID_BINARY) + " " + args + (stdin_file.empty() ? "" : " < " + stdin_file) +
-                          " > " + (tmp / "out") + " 2> " + (tmp / "err");
+  const std::string cmd = (cwd.empty() ? std::string() : "cd '" + cwd + "' && ") + std::string(LPVID_BINARY) + " " +
+                          args + (stdin_file.empty() ? "" : " < " + stdin_file) + " > " + (tmp / "out") + " 2> " +
+                          (tmp / "err");
   const int status = std::system(cmd.c_str());
   RunResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);

@@ -1,7 +1,10 @@
 #include "formats/io/atomic_file.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <thread>
 
 #include "formats/io/csv_log.h"
 #include "tests/formats/io/test_util.h"
@@ -27,10 +30,10 @@ TEST_F(AtomicFile, MissingDirectory_SaysCheckTheDirectory) {
   EXPECT_TRUE(entries().empty());
 }
 
-TEST_F(AtomicFile, TargetIsADirectory_FailsAndRemovesTheTemporary) {
+TEST_F(AtomicFile, TargetIsADirectory_FailsBeforeCreatingATemporary) {
   std::filesystem::create_directory(path("sub"));
   EXPECT_EQ(input_error([&] { write_file_atomic(path("sub"), "x"); }),
-            "cannot write '" + path("sub") + "': Is a directory; check the directory exists and is writable");
+            "cannot write '" + path("sub") + "': it is a directory; give a file path");
   EXPECT_EQ(entries(), std::vector<std::string>{"sub"});
 }
 
@@ -106,11 +109,91 @@ TEST_F(AtomicFile, OutputSetWithADirectoryTarget_RenamesNothing) {
   {
     AtomicOutputSet out;
     out.stage(path("a.json"), "{}");
+    EXPECT_EQ(input_error([&] { out.stage(path("b"), "x"); }),
+              "cannot write '" + path("b") + "': it is a directory; give a file path");
+  }
+  EXPECT_EQ(entries(), std::vector<std::string>{"b"});
+}
+
+TEST_F(AtomicFile, DirectoryTurnedUpBeforeCommit_RenamesNothing) {
+  {
+    AtomicOutputSet out;
+    out.stage(path("a.json"), "{}");
     out.stage(path("b"), "x");
+    std::filesystem::create_directory(path("b"));  // appears after the check
     EXPECT_EQ(input_error([&] { out.commit(); }),
               "cannot write '" + path("b") + "': Is a directory; check the directory exists and is writable");
   }
   EXPECT_EQ(entries(), std::vector<std::string>{"b"});
+}
+
+}  // namespace
+}  // namespace lpvid
+
+namespace lpvid {
+namespace {
+
+class AtomicTargets : public test::TempDirTest {};
+
+TEST_F(AtomicTargets, StaleTemporaryOfADeadProcess_IsRemovedWhenTheTargetIsWrittenAgain) {
+  // A pid that cannot be alive (above pid_max on Linux: 2^22) and a live one (ours is skipped; pid 1 is alive).
+  write(".x.json.tmp.99999999.0", "half");
+  write(".x.json.tmp.1.3", "someone else's, still running");
+  write(".x.json.tmp.99999999.notanumber", "not our pattern");
+  write(".y.json.tmp.99999999.0", "another target's");
+  write_file_atomic(path("x.json"), "new\n");
+  EXPECT_EQ(entries(), (std::vector<std::string>{".x.json.tmp.1.3", ".x.json.tmp.99999999.notanumber",
+                                                 ".y.json.tmp.99999999.0", "x.json"}));
+}
+
+TEST_F(AtomicTargets, Fifo_IsWrittenIntoAndNeverReplaced) {
+  const std::string fifo = path("pipe");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string got;
+  std::thread reader([&] { got = read(fifo); });
+  write_file_atomic(fifo, "through the pipe\n");
+  reader.join();
+  EXPECT_EQ(got, "through the pipe\n");
+  struct stat st;
+  ASSERT_EQ(::stat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode));
+  EXPECT_EQ(entries(), std::vector<std::string>{"pipe"});  // no temporary, no regular file
+}
+
+TEST_F(AtomicTargets, DevNull_StaysACharacterDevice) {
+  EXPECT_EQ(output_target_kind("/dev/null"), OutputTargetKind::kStream);
+  write_file_atomic("/dev/null", "discarded\n");
+  struct stat st;
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+}
+
+TEST_F(AtomicTargets, MissingDirectories_AreCreatedAtCommitOnly) {
+  AtomicWriteOptions options;
+  options.create_directories = true;
+  {
+    AtomicOutputSet out;
+    out.stage(path("a/b/x.json"), "{}", options);
+    EXPECT_FALSE(std::filesystem::exists(path("a")));  // the temporary waits in the test's directory
+    EXPECT_EQ(entries().size(), 1u);
+  }
+  EXPECT_TRUE(entries().empty());  // not committed: nothing, not even the directories
+  AtomicOutputSet out;
+  out.stage(path("a/b/x.json"), "{}", options);
+  out.stage(path("a/y.json"), "[]", options);
+  out.commit();
+  EXPECT_EQ(read(path("a/b/x.json")), "{}");
+  EXPECT_EQ(read(path("a/y.json")), "[]");
+  EXPECT_EQ(entries(), std::vector<std::string>{"a"});
+}
+
+TEST_F(AtomicTargets, DirectoryUnderAFile_IsRefused) {
+  write("f", "a file");
+  AtomicWriteOptions options;
+  options.create_directories = true;
+  EXPECT_EQ(input_error([&] { AtomicFileWriter w(path("f/x.json"), options); }),
+            "cannot write '" + path("f/x.json") + "': '" + path("f") + "' is a file, not a directory; choose another "
+            "output directory");
 }
 
 }  // namespace

@@ -101,8 +101,8 @@ TEST_F(CsvDetail, ErrorInSecondPart_HasTheSerialLineAndColumn) {
   const std::string p = write("bad.csv", text);
   const std::string expected = outcome(p, serial());
   EXPECT_EQ(expected, "error: " + p +
-                          ":7:3: cannot parse 'x' as a number in column 'a'; every cell after the header must be a "
-                          "number");
+                          ":7:3: cannot parse 'x' as a number in column 'a'; write a number there (every cell after the "
+                          "header is a number)");
   for (uint64_t at = 0; at <= text.size(); ++at) EXPECT_EQ(outcome(p, split_at({at})), expected) << "split at " << at;
 }
 
@@ -133,7 +133,7 @@ TEST_F(CsvDetail, LargeFileOnParallelThreads_ReportsAnErrorNearTheEndAtItsLine) 
   EXPECT_EQ(csv.end_line, kRows + 3);
   const std::string q = write("big_bad.csv", text + "500000,1,2\n500001,1,2;\n");
   EXPECT_EQ(input_error([&] { read_numeric_csv(q, "t", kKeyHint); }),
-            q + ":500004:10: cannot parse '2;' as a number in column 'b'; every cell after the header must be a number");
+            q + ":500004:10: cannot parse '2;' as a number in column 'b'; write a number there (every cell after the header is a number)");
 }
 
 TEST_F(CsvDetail, Stdin_ReadsTheSameAsTheFile) {
@@ -196,6 +196,45 @@ TEST_F(CsvDetail, PlainDecimals_GiveTheDoublesOfStrtod) {
     const double got = csv.data(static_cast<Index>(k), 1);
     EXPECT_EQ(std::memcmp(&got, &expected, sizeof got), 0) << cells[k] << " read as " << got;
   }
+}
+
+}  // namespace
+}  // namespace lpvid::detail
+
+namespace lpvid::detail {
+namespace {
+
+class CsvLimits : public test::TempDirTest {};
+
+TEST_F(CsvLimits, EndlessLine_FromADevice_FailsAtTheLimit) {
+  // markov ... /dev/zero read until memory ran out.
+  EXPECT_EQ(test::input_error([&] { read_numeric_csv("/dev/zero", "t", "hint"); }),
+            "/dev/zero:1:1: line longer than 16 MiB; a CSV line holds one row of numbers: check that this is the "
+            "right file (not a binary or a device)");
+}
+
+TEST_F(CsvLimits, LongLineInARegularFile_NamesItsLine) {
+  const std::string p = write("long.csv", "t,a\n0,1\n1," + std::string(kMaxCsvLineBytes + 10, '1') + "\n");
+  EXPECT_EQ(test::input_error([&] { read_numeric_csv(p, "t", "hint"); }),
+            p + ":3:1: line longer than 16 MiB; a CSV line holds one row of numbers: check that this is the right file "
+                "(not a binary or a device)");
+}
+
+TEST_F(CsvLimits, WideHeader_IsLinearAndBounded) {
+  // 300,000 columns took more than 60 s (quadratic duplicate check).
+  std::string header = "t";
+  for (size_t j = 1; j <= kMaxCsvColumns; ++j) header += ",c" + std::to_string(j);
+  const std::string p = write("wide.csv", header + "\n");
+  EXPECT_EQ(test::input_error([&] { read_numeric_csv(p, "t", "hint"); }),
+            p + ":1:" + std::to_string(header.rfind(',') + 2) + ": the header has more than 65536 columns; lpvid reads at "
+                "most 65536: check that this is the right file, or split it");
+  std::string dup = "t";
+  for (size_t j = 1; j < 60000; ++j) dup += ",c" + std::to_string(j);
+  dup += ",c17\n0";
+  for (size_t j = 1; j <= 60000; ++j) dup += ",0";
+  const std::string q = write("dup.csv", dup + "\n");
+  EXPECT_NE(test::input_error([&] { read_numeric_csv(q, "t", "hint"); }).find("duplicate column name 'c17' (also column 18)"),
+            std::string::npos);
 }
 
 }  // namespace

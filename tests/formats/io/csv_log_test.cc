@@ -110,13 +110,13 @@ TEST_F(CsvLog, Directory_SaysGiveAFile) {
 TEST_F(CsvLog, EmptyFile_IsReportedAtLine1) {
   const std::string p = write("e.csv", "");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":1:1: the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'");
+            p + ":1:1: the file is empty; give a file that starts with a header row naming the columns, e.g. 't,v1,q1'");
 }
 
 TEST_F(CsvLog, OnlyComments_NoHeader) {
   const std::string p = write("c.csv", "# a\n\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":3:1: no header row, only comments and blank lines; the first other line must name the columns, "
+            p + ":3:1: no header row, only comments and blank lines; add a header row naming the columns, "
                 "e.g. 't,v1,q1'");
 }
 
@@ -158,36 +158,34 @@ TEST_F(CsvLog, TooManyCells_PointsAtFirstExtraCell) {
 TEST_F(CsvLog, NonNumericCell_NamesTextColumnAndRule) {
   const std::string p = write("n.csv", "t,q1,q2\n0,1,2\n0.001, 1,abc\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":3:10: cannot parse 'abc' as a number in column 'q2'; every cell after the header must be a number");
+            p + ":3:10: cannot parse 'abc' as a number in column 'q2'; write a number there (every cell after the header is a number)");
 }
 
 TEST_F(CsvLog, NumberWithTrailingText_IsRejected) {
   const std::string p = write("n.csv", "t,q1\n0,1.5x\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":2:3: cannot parse '1.5x' as a number in column 'q1'; every cell after the header must be a number");
+            p + ":2:3: cannot parse '1.5x' as a number in column 'q1'; write a number there (every cell after the header is a number)");
 }
 
 TEST_F(CsvLog, EmptyCell_IsRejected) {
   const std::string p = write("n.csv", "t,q1,q2\n0,,1\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":2:3: empty cell in column 'q1'; every cell after the header must be a number");
+            p + ":2:3: empty cell in column 'q1'; write a number there (every cell after the header is a number)");
 }
 
 TEST_F(CsvLog, NaNAndInf_AreRejected) {
   const std::string p = write("nan.csv", "t,q1\n0,1\n1,nan\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":3:3: 'nan' in column 'q1' is not a finite number; NaN/Inf not allowed, every cell must be a finite "
-                "number");
+            p + ":3:3: 'nan' in column 'q1' is not a finite number; write a finite number there (NaN/Inf not allowed)");
   const std::string q = write("inf.csv", "t,q1\n0,-inf\n");
   EXPECT_EQ(input_error([&] { read_log(q); }),
-            q + ":2:3: '-inf' in column 'q1' is not a finite number; NaN/Inf not allowed, every cell must be a finite "
-                "number");
+            q + ":2:3: '-inf' in column 'q1' is not a finite number; write a finite number there (NaN/Inf not allowed)");
 }
 
 TEST_F(CsvLog, SingleSample_IsTooFew) {
   const std::string p = write("one.csv", "t,a\n0,1\n");
   EXPECT_EQ(input_error([&] { read_log(p); }),
-            p + ":3:1: the log has 1 sample; a log needs at least 2 rows of samples after the header");
+            p + ":3:1: the log has 1 sample; a log needs at least 2 rows of samples after the header: record a longer log");
 }
 
 TEST_F(CsvLog, RepeatedTime_PointsAtTheRowAfterComments) {

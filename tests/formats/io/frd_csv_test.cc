@@ -68,7 +68,7 @@ TEST(FrdCsvOptions, BadQuantityAndToleranceAreRejected) {
   FrdReadOptions read;
   read.quantity = "S_1";
   EXPECT_EQ(input_error([&] { read.validate(); }),
-            "quantity 'S_1' is not allowed; a quantity is letters and digits (not 'coh'), e.g. S");
+            "quantity 'S_1' is not allowed; use letters and digits (not 'coh'), e.g. S");
   FrdMergeOptions merge;
   merge.frequency_tolerance = -1;
   EXPECT_EQ(input_error([&] { merge.validate(); }),
@@ -288,7 +288,7 @@ INSTANTIATE_TEST_SUITE_P(
     Rules, FrdCsvErrors,
     ::testing::Values(
         BadFile{"EmptyFile", "",
-                "1:1: the file is empty; it must start with a header row naming the columns, e.g. 't,v1,q1'"},
+                "1:1: the file is empty; give a file that starts with a header row naming the columns, e.g. 't,v1,q1'"},
         BadFile{"NoFrequencyColumn", "f,S_1_1_re,S_1_1_im\n1,2,3\n",
                 "1:1: no column 'freq_hz' in the header; the header must name 'freq_hz' (Hz) and the response columns, "
                 "e.g. 'freq_hz,S_1_1_re,S_1_1_im' (see docs/formats.md)"},
@@ -308,7 +308,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "1:18: columns 'S_1_1_re' and 'S_1_1_deg' mix re/im with db/deg for output 1, input 1; give both "
                 "'S_1_1_re' and 'S_1_1_im', or 'S_1_1_db' and 'S_1_1_deg'"},
         BadFile{"NegativeVariance", "freq_hz,S_1_1_re,S_1_1_im,var_1_1\n1,2,3,-4\n",
-                "2:7: variance -4 in column 'var_1_1' is negative; a variance is >= 0"},
+                "2:7: variance -4 in column 'var_1_1' is negative; write a variance >= 0"},
         BadFile{"VarianceOfAMissingPair", "freq_hz,S_1_1_re,S_1_1_im,var_1_2\n1,2,3,4\n",
                 "1:27: column 'var_1_2' is the variance of output 1, input 2, which have no response columns; give "
                 "variance only for pairs with a response"},
@@ -329,15 +329,13 @@ INSTANTIATE_TEST_SUITE_P(
                 "4:1: frequency 1 Hz is not above the previous row's 1 Hz; freq_hz must increase strictly from row "
                 "to row"},
         BadFile{"NonPositiveFrequency", "S_1_1_re,S_1_1_im,freq_hz\n1,2,0\n",
-                "2:5: frequency 0 Hz is not positive; freq_hz must be > 0"},
+                "2:5: frequency 0 Hz is not positive; give freq_hz > 0 in Hz"},
         BadFile{"NaN", "freq_hz,S_1_1_re,S_1_1_im\n1,nan,3\n",
-                "2:3: 'nan' in column 'S_1_1_re' is not a finite number; NaN/Inf not allowed, every cell must be a "
-                "finite number"},
+                "2:3: 'nan' in column 'S_1_1_re' is not a finite number; write a finite number there (NaN/Inf not allowed)"},
         BadFile{"Inf", "freq_hz,S_1_1_re,S_1_1_im\n1,2,-inf\n",
-                "2:5: '-inf' in column 'S_1_1_im' is not a finite number; NaN/Inf not allowed, every cell must be a "
-                "finite number"},
+                "2:5: '-inf' in column 'S_1_1_im' is not a finite number; write a finite number there (NaN/Inf not allowed)"},
         BadFile{"CoherenceAboveOne", "freq_hz,S_1_1_re,S_1_1_im,coh_1_1\n1,2,3,0.5\n2,2,3,  1.25\n",
-                "3:9: coherence 1.25 in column 'coh_1_1' is outside [0, 1]; coherence is a fraction between 0 and 1"},
+                "3:9: coherence 1.25 in column 'coh_1_1' is outside [0, 1]; write a coherence between 0 and 1"},
         BadFile{"CoherenceForSomePairs", "freq_hz,S_1_1_re,S_1_1_im,S_1_2_re,S_1_2_im,coh_1_2\n1,2,3,4,5,1\n",
                 "1:45: no column 'coh_1_1' for the coherence of output 1, input 1; give coherence for every pair or "
                 "for none"},
@@ -349,7 +347,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadFile{"UnknownColumn", "freq_hz,S_1_1_re,S_1_1_im,temp\n1,2,3,4\n",
                 "1:27: column 'temp' is not an FRD column; the columns are freq_hz, <Q>_<output>_<input>_re and _im "
                 "(or _db and _deg), coh_<output>_<input>, var_<output>_<input> and flag, with <Q> letters and digits (S, P, "
-                "G, ...)"},
+                "G, ...): rename or remove the column"},
         BadFile{"UnderscoreNameWithoutMetadata", "freq_hz,S_q_1_v_re,S_q_1_v_im\n1,2,3\n",
                 "1:9: cannot split 'q_1_v' of column 'S_q_1_v_re' into an output and an input; without '# outputs:' "
                 "and '# inputs:' metadata a channel is an index or a name without '_', so write <output>_<input> "
@@ -365,7 +363,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "1:27: column 'S_psi_1_re' names output 'psi' but column 'S_1_1_re' names output index '1'; name "
                 "all outputs by index or all by name"},
         BadFile{"IndexZero", "freq_hz,S_1_0_re,S_1_0_im\n1,2,3\n",
-                "1:9: input index '0' in column 'S_1_0_re' is not allowed; indices are 1, 2, ... up to 99999"},
+                "1:9: input index '0' in column 'S_1_0_re' is not allowed; give an index from 1 to 256"},
         BadFile{"MetadataTwice", "# outputs: a\n# outputs: b\nfreq_hz,S_a_1_re,S_a_1_im\n1,2,3\n",
                 "2:3: 'outputs' is given twice (also on line 1); give it once"},
         BadFile{"MetadataNameTwice", "# inputs: u, v,u\nfreq_hz,S_1_u_re,S_1_u_im\n1,2,3\n",
@@ -388,7 +386,7 @@ TEST_F(FrdCsv, WriterRejectsBadInput_AndLeavesNoFile) {
   FrequencyResponse frd = random_frd(3, 1, 2, kSeed + 6, false, false);
   const std::string p = path("w.csv");
   EXPECT_EQ(input_error([&] { write_frd_csv(p, frd, "coh"); }),
-            "cannot write '" + p + "': quantity 'coh' is not allowed; a quantity is letters and digits (not 'coh'), e.g. S");
+            "cannot write '" + p + "': quantity 'coh' is not allowed; use letters and digits (not 'coh'), e.g. S");
   EXPECT_EQ(input_error([&] { write_frd_csv(p, frd, "S", {"outputs: a"}); }),
             "cannot write '" + p + "': comment 'outputs: a' would be read as '# outputs:' metadata; reword it");
   FrequencyResponse names = frd;
@@ -484,14 +482,14 @@ TEST_F(FrdCsv, MergeErrors_NameThePartsAndThePair) {
                 "'; give every pair in exactly one file");
   EXPECT_EQ(input_error([&] { merge({a, d}); }),
             "cannot merge FRD parts: frequency 2 is 2 Hz in '" + a + "' but 2.001 Hz in '" + d +
-                "' (relative difference 0.0005, above the tolerance 1e-09); merge files measured on the same "
+                "' (relative difference 0.0005, above the tolerance 1e-09); give files measured on the same "
                 "frequency grid");
   EXPECT_EQ(input_error([&] { merge({a, e}); }),
             "cannot merge FRD parts: '" + a + "' has 2 frequencies but '" + e +
-                "' has 1; merge files measured on the same frequency grid");
+                "' has 1; give files measured on the same frequency grid");
   EXPECT_EQ(input_error([&] { merge({a, f}); }),
             "cannot merge FRD parts: '" + a + "' holds quantity 'S' but '" + f +
-                "' holds 'P'; merge files of one quantity");
+                "' holds 'P'; give files of one quantity");
   EXPECT_EQ(input_error([&] { merge({a, g}); }),
             "cannot merge FRD parts: '" + g + "' has coherence columns but '" + a +
                 "' has none; give coherence in every file or in none");

@@ -72,7 +72,8 @@ struct Var {
   std::vector<double> re, im;
 };
 
-void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft version = MAT_FT_MAT5) {
+void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft version = MAT_FT_MAT5,
+                matio_compression compression = MAT_COMPRESSION_NONE) {
   mat_t* mat = Mat_CreateVer(path.c_str(), nullptr, version);
   ASSERT_NE(mat, nullptr);
   for (const Var& v : vars) {
@@ -83,7 +84,7 @@ void write_vars(const std::string& path, const std::vector<Var>& vars, mat_ft ve
                                   dims.data(), im.empty() ? static_cast<void*>(re.data()) : &split,
                                   im.empty() ? 0 : MAT_F_COMPLEX);
     ASSERT_NE(var, nullptr);
-    ASSERT_EQ(Mat_VarWrite(mat, var, MAT_COMPRESSION_NONE), 0);
+    ASSERT_EQ(Mat_VarWrite(mat, var, compression), 0);
     Mat_VarFree(var);
   }
   Mat_Close(mat);
@@ -200,7 +201,7 @@ INSTANTIATE_TEST_SUITE_P(
                "no response variable; give one of S, P, G, H, frd, or choose one with the quantity option; the file "
                "holds: f, coh"},
         BadMat{"QuantityMissing", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}}, "T",
-               "no variable 'T' (the quantity asked for); the file holds: f, S"},
+               "no variable 'T' (the quantity asked for); choose one the file holds: f, S"},
         BadMat{"TwoResponses", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}, {"G", {1, 1}, {1}, {}}}, "",
                "several response variables (S, G); choose one with the quantity option"},
         BadMat{"WrongDims", {{"f", {4, 1}, {1, 2, 3, 4}, {}}, {"S", {2, 3, 5}, std::vector<double>(30, 1.0), {}}}, "",
@@ -210,11 +211,11 @@ INSTANTIATE_TEST_SUITE_P(
                "response 'S' is 2×2 but there are 2 frequencies; give an outputs × inputs × frequencies array (or a "
                "vector of 2 entries for one output and one input)"},
         BadMat{"NonIncreasingFrequency", {{"freq_hz", {3, 1}, {1, 3, 2}, {}}, {"S", {3, 1}, {1, 2, 3}, {}}}, "",
-               "frequency 'freq_hz'(3) = 2 is not above 'freq_hz'(2) = 3; frequencies must increase strictly"},
+               "frequency 'freq_hz'(3) = 2 is not above 'freq_hz'(2) = 3; give strictly increasing frequencies"},
         BadMat{"NonPositiveFrequency", {{"w", {2, 1}, {0, 3}, {}}, {"S", {2, 1}, {1, 2}, {}}}, "",
-               "frequency 'w'(1) = 0 is not a positive finite number; frequencies must be > 0"},
+               "frequency 'w'(1) = 0 is not a positive finite number; give frequencies > 0"},
         BadMat{"ComplexFrequency", {{"f", {1, 1}, {1}, {2}}, {"S", {1, 1}, {1}, {}}}, "",
-               "variable 'f' is complex; it must be real"},
+               "variable 'f' is complex; save it as a real array"},
         BadMat{"NaNResponse", {{"f", {2, 1}, {1, 2}, {}}, {"S", {2, 1}, {1, NAN}, {}}}, "",
                "response 'S' is nan at output 1, input 1, frequency 2; NaN/Inf not allowed"},
         BadMat{"CoherenceOutOfRange",
@@ -224,7 +225,7 @@ INSTANTIATE_TEST_SUITE_P(
                {{"f", {1, 1}, {1}, {}}, {"S", {1, 2}, {1, 2}, {}}, {"coh", {1, 1}, {1}, {}}}, "",
                "coherence 'coh' is 1×1 per frequency but response 'S' is 1×2; give coherence of the response's shape"},
         BadMat{"FlagNotBinary", {{"f", {1, 1}, {1}, {}}, {"S", {1, 1}, {1}, {}}, {"flag", {1, 1}, {3}, {}}}, "",
-               "'flag'(1) is 3; a flag is 0 or 1 (1 = untrusted frequency)"}),
+               "'flag'(1) is 3; write 0 or 1 (1 = untrusted frequency)"}),
     [](const ::testing::TestParamInfo<BadMat>& info) { return std::string(info.param.name); });
 
 TEST_F(FrdMat, WriterErrors_LeaveNoFile) {
@@ -237,6 +238,76 @@ TEST_F(FrdMat, WriterErrors_LeaveNoFile) {
                                                   "writable");
   EXPECT_EQ(input_error([&] { write_frd_mat("-", frd, "S"); }), "cannot write a .mat file to stdout; give a file path");
   EXPECT_TRUE(entries().empty());
+}
+
+// Issue 12, class 3: a truncated or damaged .mat file was accepted with values
+// read from uninitialised memory.  The v5 reader checks every size against the
+// bytes present: every prefix of a valid file is an error, or (cut between two
+// variables, which the format cannot tell from a complete file) the same
+// response without the optional variables that were cut off.
+TEST_F(FrdMat, EveryTruncation_IsAnErrorOrTheSameData) {
+  FrequencyResponse frd = random_frd(6, 2, 2, kSeed + 3);
+  frd.output_names = {"psi", "theta"};
+  const std::string p = path("whole.mat");
+  write_frd_mat(p, frd, "S");
+  const std::string bytes = read(p);
+  const FrequencyResponse whole = read_frd_mat(p);
+  int errors = 0;
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    const std::string cut = write("cut.mat", bytes.substr(0, n));
+    try {
+      FrequencyResponse got = read_frd_mat(cut);
+      // Optional variables after the response may be missing, never different.
+      if (got.flagged.empty()) got.flagged = whole.flagged;
+      if (got.coherence.empty()) got.coherence = whole.coherence;
+      if (got.output_names.empty()) got.output_names = whole.output_names;
+      expect_identical(got, whole);
+    } catch (const InputError& e) {
+      ++errors;
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+  EXPECT_GE(errors, static_cast<int>(bytes.size()) - 40);  // a few cuts between variables go unnoticed
+}
+
+TEST_F(FrdMat, CompressedVariables_AreInflatedAndChecked) {
+  const std::string p = path("z.mat");
+  write_vars(p, {{"f", {3, 1}, {1, 2, 3}, {}}, {"S", {3, 1}, {0.5, 0.25, 0.125}, {1, 2, 3}}}, MAT_FT_MAT5,
+             MAT_COMPRESSION_ZLIB);
+  const FrequencyResponse frd = read_frd_mat(p);
+  EXPECT_EQ(frd.response[2](0, 0), Complex(0.125, 3));
+  // A damaged byte inside the zlib stream: an error, never a value from nowhere.
+  std::string bytes = read(p);
+  bytes[bytes.size() - 12] = static_cast<char>(bytes[bytes.size() - 12] ^ 0x5A);
+  const std::string bad = write("zbad.mat", bytes);
+  const std::string message = input_error([&] { read_frd_mat(bad); });
+  EXPECT_NE(message, "<no error>");
+}
+
+TEST_F(FrdMat, RandomByteFlips_NeverCrashAndGiveFiniteResponses) {
+  FrequencyResponse frd = random_frd(5, 2, 1, kSeed + 4);
+  const std::string p = path("base.mat");
+  write_frd_mat(p, frd, "S");
+  const std::string base = read(p);
+  std::mt19937_64 rng(kSeed + 5);  // named seed: the same 500 mutants every run
+  std::uniform_int_distribution<size_t> at(0, base.size() - 1);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int k = 0; k < 500; ++k) {
+    std::string bytes = base;
+    for (int flips = 0; flips < 4; ++flips) bytes[at(rng)] = static_cast<char>(byte(rng));
+    const std::string q = write("m.mat", bytes);
+    try {
+      const FrequencyResponse r = read_frd_mat(q);
+      for (const auto& h : r.response) EXPECT_TRUE(h.allFinite());
+    } catch (const InputError&) {
+    }
+  }
+}
+
+TEST_F(FrdMat, PipeInsteadOfAFile_IsRefused) {
+  EXPECT_EQ(input_error([&] { read_frd_mat("/dev/null"); }),
+            "cannot read '/dev/null': a .mat file must be a regular file (not a pipe or device); save it to a file "
+            "first");
 }
 
 }  // namespace

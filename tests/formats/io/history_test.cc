@@ -66,7 +66,7 @@ TEST_F(History, BadLinesNameFileLineAndColumn) {
   bad.replace(bad.find("\"free_parameters\":9"), 19, "\"free_parameters\":-1");
   write("h2.jsonl", good + "\n" + good + "\n" + bad + "\n");
   EXPECT_EQ(input_error([&] { read_history(path("h2.jsonl")); }),
-            path("h2.jsonl") + ":3:1: free_parameters is -1; it counts parameters, so >= 0");
+            path("h2.jsonl") + ":3:1: free_parameters is -1; write the number of free parameters (>= 0)");
   write("h3.jsonl", good + "\n\n");
   EXPECT_EQ(input_error([&] { read_history(path("h3.jsonl")); }),
             path("h3.jsonl") +

@@ -125,7 +125,7 @@ TEST_F(MarkovCsv, MissingMagicLine_SaysNotAMarkovFile) {
 TEST_F(MarkovCsv, OtherVersion_IsUnsupported) {
   const std::string p = write("g.csv", replace(kGood, "markov 1", "markov 2"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
-            p + ":1:3: unsupported format 'lpvid markov 2'; this version reads 'lpvid markov 1'");
+            p + ":1:3: unsupported format 'lpvid markov 2'; write the file with this lpvid's `lpvid markov` ('lpvid markov 1')");
 }
 
 TEST_F(MarkovCsv, MissingSamplePeriod_IsNamed) {
@@ -138,10 +138,10 @@ TEST_F(MarkovCsv, MissingSamplePeriod_IsNamed) {
 TEST_F(MarkovCsv, BadSamplePeriod_PointsAtTheValue) {
   const std::string p = write("g.csv", replace(kGood, "0.001", "1ms"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
-            p + ":3:20: cannot parse '1ms' as a finite number for 'sample_period_s'; write a number such as 0.001");
+            p + ":3:20: cannot parse '1ms' as a finite number for 'sample_period_s'; write a decimal number such as 0.001");
   const std::string q = write("h.csv", replace(kGood, "0.001", "0"));
   EXPECT_EQ(input_error([&] { read_markov_csv(q); }),
-            q + ":3:20: sample_period_s is 0; it must be a positive sample period in seconds");
+            q + ":3:20: sample_period_s is 0; write the positive sample period in seconds");
 }
 
 TEST_F(MarkovCsv, DuplicateInputName_PointsAtIt) {
@@ -154,7 +154,7 @@ TEST_F(MarkovCsv, HeaderNotMatchingNames_PointsAtTheColumn) {
   const std::string p = write("g.csv", replace(kGood, "g_q1_v2", "g_q1_v3"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
             p + ":6:13: column 3 is 'g_q1_v3' where 'g_q1_v2' is expected; the header is 'lag' then g_<output>_<input> "
-                "over outputs (outer) and inputs (inner) as listed in the metadata");
+                "over outputs (outer) and inputs (inner) as listed in the metadata: write the file with `lpvid markov`");
 }
 
 TEST_F(MarkovCsv, LagGap_PointsAtTheRow) {
@@ -166,14 +166,14 @@ TEST_F(MarkovCsv, LagGap_PointsAtTheRow) {
 TEST_F(MarkovCsv, NoiseStdWithWrongCount_IsRejected) {
   const std::string p = write("g.csv", replace(kGood, "# outputs: q1\n", "# outputs: q1\n# noise_std: 1e-6\n"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
-            p + ":6:14: 'noise_std' has 1 values; it needs 2 (comma separated, row-major over outputs then inputs)");
+            p + ":6:14: 'noise_std' has 1 values; it needs 2 (comma separated, row-major over outputs then inputs): give that many");
 }
 
 TEST_F(MarkovCsv, NonNumericCell_FollowsTheLogRules) {
   const std::string p = write("g.csv", replace(kGood, "1,1,2", "1,one,2"));
   EXPECT_EQ(input_error([&] { read_markov_csv(p); }),
-            p + ":8:3: cannot parse 'one' as a number in column 'g_q1_v1'; every cell after the header must be a "
-                "number");
+            p + ":8:3: cannot parse 'one' as a number in column 'g_q1_v1'; write a number there (every cell after the header "
+            "is a number)");
 }
 
 TEST_F(MarkovCsv, WriteWithWrongShape_FailsAndLeavesNoFile) {

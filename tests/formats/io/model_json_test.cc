@@ -169,10 +169,10 @@ TEST_F(ModelJson, RaggedRows_AreRejected) {
 TEST_F(ModelJson, NegativeTsAndWrongType_AreRejected) {
   const std::string p = write("t.json", replace(kGood, "\"ts\": 0", "\"ts\": -0.001"));
   EXPECT_EQ(input_error([&] { read_state_space(p); }),
-            p + ":3:3: key 'ts' is -0.001; it must be 0 (continuous time) or a positive sample period in seconds");
+            p + ":3:3: key 'ts' is -0.001; write 0 (continuous time) or the positive sample period in seconds");
   const std::string q = write("y.json", replace(kGood, "\"state_space\"", "\"transfer_function\""));
   EXPECT_EQ(input_error([&] { read_state_space(q); }),
-            q + ":2:3: key 'type' is \"transfer_function\"; this reader knows only \"state_space\"");
+            q + ":2:3: key 'type' is \"transfer_function\"; write \"type\": \"state_space\" (the only type lpvid reads)");
 }
 
 TEST_F(ModelJson, NameCountDisagreeingWithMatrices_IsAShapeError) {
@@ -194,7 +194,7 @@ TEST_F(ModelJson, NotAnObject_IsRejected) {
   const std::string p = write("a.json", "[1, 2]");
   EXPECT_EQ(input_error([&] { read_state_space(p); }),
             p + ":1:1: the file holds array where a JSON object is expected; a model file is an object {\"type\": "
-                "\"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}");
+                "\"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}: check that this is a model file");
 }
 
 TEST_F(ModelJson, WritingNaNOrCollidingExtra_FailsAndLeavesNoFile) {

@@ -36,7 +36,7 @@ TEST_F(PlatformJson, MissingKeysKeepTheDefaults) {
 TEST_F(PlatformJson, UnknownKeyIsReportedAtItsLineAndColumn) {
   const std::string file = write("p.json", "{\n  \"beam_mass_kg\": 1,\n  \"mass\": 3\n}\n");
   EXPECT_THAT(test::input_error([&] { read_platform_parameters(file); }),
-              StartsWith(file + ":3:3: unknown parameter 'mass'; known: J_psi_kgm2"));
+              StartsWith(file + ":3:3: unknown parameter 'mass'; use one of J_psi_kgm2"));
 }
 
 TEST_F(PlatformJson, NonNumberAndInvalidValuesAreErrors) {

@@ -105,8 +105,8 @@ TEST(PlantFromClosedLoop, ControllerShapeMismatchIsRejected) {
     plant_from_closed_loop(G, C, UnloopOptions{});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
-    EXPECT_STREQ(e.what(), "unloop: the controller is 3x2 (outputs x inputs) but the closed loop v → q is 3x3; the controller must "
-                           "map the 3 outputs back to the 3 inputs");
+    EXPECT_STREQ(e.what(), "unloop: the controller is 3x2 (outputs x inputs) but the closed loop v → q is 3x3; give the controller "
+                           "that maps the 3 outputs back to the 3 inputs");
   }
 }
 

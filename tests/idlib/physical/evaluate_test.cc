@@ -9,6 +9,7 @@
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/models/platform.h"
+#include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
 namespace {
@@ -28,14 +29,7 @@ const Eigen::VectorXd& grid() {
 
 // The physical model with the physics of PlatformParameters::defaults() (rod
 // twist, J_psitheta, beam gravity): what the simulator's platform_model computes.
-PhysicalModel lpvid_defaults() {
-  PhysicalModel m = PhysicalModel::bare("platform");
-  m.add_effect("rod_twist");
-  m.add_effect("com_offset");
-  m.add_effect("beam_gravity");
-  m.parameter("J_psitheta_kgm2").value = PlatformParameters::defaults().J_psitheta_kgm2;
-  return m;
-}
+PhysicalModel lpvid_defaults() { return platform_defaults_model(); }
 
 double max_rel_diff(const std::vector<Eigen::MatrixXcd>& a, const std::vector<Eigen::MatrixXcd>& b) {
   double worst = 0.0;

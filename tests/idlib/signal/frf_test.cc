@@ -318,13 +318,13 @@ TEST(EstimateFrf, RejectsBadOptionsAndData) {
   EXPECT_THAT(message({}, o), HasSubstr("estimate_frf: no experiments"));
   const Eigen::MatrixXd short_y = y.topRows(999);
   EXPECT_THAT(message({{v, short_y}}, o),
-              HasSubstr("experiment 0: excitation has 1000 samples and output has 999"));
+              HasSubstr("experiment 1: excitation has 1000 samples and output has 999"));
   Eigen::MatrixXd nan_y = y;
   nan_y(17, 2) = std::nan("");
-  EXPECT_THAT(message({{v, nan_y}}, o), HasSubstr("experiment 0: output(17, 2) = nan; every sample must be finite"));
+  EXPECT_THAT(message({{v, nan_y}}, o), HasSubstr("experiment 1: output(18, 3) = nan; every sample must be finite"));
   const Eigen::MatrixXd zero_v = Eigen::MatrixXd::Zero(1000, 3);
   EXPECT_THAT(message({{zero_v, y}}, o),
-              HasSubstr("experiment 0: every excitation column is constant (zero after mean removal)"));
+              HasSubstr("experiment 1: every excitation column is constant (zero after mean removal)"));
   const Eigen::MatrixXd tiny = v.topRows(200);
   EXPECT_THAT(message({{tiny, tiny}}, o), HasSubstr("the shortest experiment has N = 200 samples; the automatic "
                                                     "segment length needs N >= 256"));

@@ -370,14 +370,14 @@ TEST(EstimateMarkov, RejectsNoExperiments) {
 TEST(EstimateMarkov, RejectsExcitationAndOutputOfDifferentLength) {
   const Eigen::MatrixXd v = Eigen::MatrixXd::Ones(1000, 3), q = Eigen::MatrixXd::Ones(999, 3);
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 10)),
-              HasSubstr("experiment 0: excitation has 1000 samples and output has 999"));
+              HasSubstr("experiment 1: excitation has 1000 samples and output has 999"));
 }
 
 TEST(EstimateMarkov, RejectsChannelCountsThatDifferBetweenExperiments) {
   std::mt19937_64 rng(kExcitationSeed);
   const Eigen::MatrixXd v = white(1000, 3, rng), q = white(1000, 3, rng), q2 = white(1000, 2, rng);
   EXPECT_THAT(error_of({{v, q}, {v, q2}}, options(Method::kLeastSquares, 10)),
-              HasSubstr("experiment 1 has 3 excitation and 2 output channels, experiment 0 has 3 and 3"));
+              HasSubstr("experiment 2 has 3 excitation and 2 output channels, experiment 1 has 3 and 3"));
 }
 
 TEST(EstimateMarkov, RejectsNonFiniteSamplesNamingTheFirst) {
@@ -385,18 +385,18 @@ TEST(EstimateMarkov, RejectsNonFiniteSamplesNamingTheFirst) {
   Eigen::MatrixXd v = white(1000, 3, rng), q = white(1000, 3, rng);
   q(17, 2) = std::numeric_limits<double>::infinity();
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 10)),
-              HasSubstr("experiment 0: output(17, 2) = inf; every sample must be finite"));
+              HasSubstr("experiment 1: output(18, 3) = inf; every sample must be finite"));
   q(17, 2) = 0.0;
   v(3, 0) = std::nan("");
   EXPECT_THAT(error_of({{v, q}}, options(Method::kCorrelation, 10)),
-              HasSubstr("excitation(3, 0) = nan"));
+              HasSubstr("excitation(4, 1) = nan"));
 }
 
 TEST(EstimateMarkov, RejectsRecordsTooShortForTheLags) {
   std::mt19937_64 rng(kExcitationSeed);
   const Eigen::MatrixXd v = white(100, 3, rng), q = white(100, 3, rng);
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 100)),
-              HasSubstr("experiment 0 has N = 100 samples for num_lags = 100; each record needs N > num_lags"));
+              HasSubstr("experiment 1 has N = 100 samples for num_lags = 100; each record needs N > num_lags"));
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 20)),
               HasSubstr("100 samples in all for 3 inputs and num_lags = 20; the rule is total samples >= 2 * inputs * (num_lags + 1) = 126"));
 }
@@ -406,10 +406,10 @@ TEST(EstimateMarkov, RejectsAnInputThatIsNeverExcited) {
   Eigen::MatrixXd v = white(1000, 3, rng), q = white(1000, 3, rng);
   v.col(1).setConstant(2.5);  // constant: zero after mean removal
   EXPECT_THAT(error_of({{v, q}, {v, q}}, options(Method::kLeastSquares, 10, true)),
-              HasSubstr("excitation input 1 is constant (zero after mean removal) in every experiment"));
+              HasSubstr("excitation input 2 is constant (zero after mean removal) in every experiment"));
   v.col(1).setZero();
   EXPECT_THAT(error_of({{v, q}}, options(Method::kCorrelation, 10)),
-              HasSubstr("excitation input 1 is constant"));
+              HasSubstr("excitation input 2 is constant"));
 }
 
 TEST(EstimateMarkov, RejectsIdenticalInputsNamingThem) {
@@ -417,7 +417,7 @@ TEST(EstimateMarkov, RejectsIdenticalInputsNamingThem) {
   Eigen::MatrixXd v = white(1000, 3, rng), q = white(1000, 3, rng);
   v.col(2) = v.col(0);
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 10)),
-              HasSubstr("excitation inputs [0, 2] are linearly dependent over all experiments"));
+              HasSubstr("excitation inputs [1, 3] are linearly dependent over all experiments"));
 }
 
 }  // namespace
