@@ -71,7 +71,7 @@ nlohmann::json structured_report(const IdentifyResult& r) {
   const IdentifyChoices& ch = r.choices;
   nlohmann::json candidates = nlohmann::json::array();
   for (const auto& c : ch.order_candidates)
-    candidates.push_back({{"order", c.order}, {"cost", c.cost}, {"dof", c.dof}, {"stable_loop", c.stable}});
+    candidates.push_back({{"order", c.order}, {"cost", c.cost}, {"dof", c.dof}, {"stable_loop", c.stable}, {"screened", c.screened}});
   nlohmann::json stages = nlohmann::json::array();
   for (const auto& s : ch.stages)
     stages.push_back({{"lags", s.lags}, {"bins", s.bins}, {"iterations", s.iterations}, {"cost", s.cost}});

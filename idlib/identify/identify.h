@@ -73,6 +73,7 @@ struct IdentifyChoices {
     Index order = 0;
     double cost = 0, dof = 0;  // whitened cost at the first stage and its degrees of freedom
     bool stable = false;
+    bool screened = false;     // left after the screening iterations: far above the noise floor
   };
   std::vector<Candidate> order_candidates;
   struct Stage {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -201,16 +202,28 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   // Per bin, the Gram matrices s_f Gu = s_f Uᴴ Φ⁻¹ U (NU²) and Gv = Vᴴ (R₀/L) V (NV²) are
   // stored as columns; Σ_f Re(Gu_f(α, α') Gv_f(β, β')) for every pair is then one pair of
   // real matrix products (Re Au Re Avᵀ − Im Au Im Avᵀ).
-  MatrixXd AuRe, AuIm, AvRe, AvIm;
+  // Only the (α, β) pairs of the basis columns enter: α < n with every β (group 0),
+  // n ≤ α < N with β in [n + m, n + 2m) (group 1), α ≥ N with β < n (group 2); so the
+  // products are taken per pair of groups (about 4x fewer flops than all NU² × NV² pairs).
+  struct Group {
+    Index a0, na, b0, nb;
+  };
+  const std::array<Group, 3> groups = {Group{0, n, 0, n + 2 * m}, Group{n, nk, n + m, m}, Group{N, p, 0, n}};
+  std::array<MatrixXd, 6> AuRe, AuIm, AvRe, AvIm;  // pair (g, h), g ≤ h, index g * 3 + h − g (g + 1) / 2
+  auto pair_index = [](Index g, Index h) { return g * 3 + h - g * (g + 1) / 2; };
   MatrixXcd GJsum, U, V;
   const MatrixXcd DkC = (k_.Dk * C).cast<Complex>(), BDk = (B * k_.Dk).cast<Complex>();
   const MatrixXcd Ckc = k_.Ck.cast<Complex>(), Bkc = k_.Bk.cast<Complex>();
   if (jac) {
     DQ = truncation_derivatives(l, AL, B, C);
-    AuRe.resize(NU * NU, F);
-    AuIm.resize(NU * NU, F);
-    AvRe.resize(NV * NV, F);
-    AvIm.resize(NV * NV, F);
+    for (Index g = 0; g < 3; ++g)
+      for (Index h = g; h < 3; ++h) {
+        const Index k = pair_index(g, h);
+        AuRe[k].resize(groups[g].na * groups[h].na, F);
+        AuIm[k].resize(groups[g].na * groups[h].na, F);
+        AvRe[k].resize(groups[g].nb * groups[h].nb, F);
+        AvIm[k].resize(groups[g].nb * groups[h].nb, F);
+      }
     GJsum.setZero(NU, NV);
     U.resize(p, NU);
     V.resize(m, NV);
@@ -250,26 +263,34 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
     const MatrixXcd T1 = Phi * U;
     const MatrixXcd Gu = s * (U.adjoint() * T1);
     const MatrixXcd Gv = V.adjoint() * (D2 * V);
-    AuRe.col(f) = Eigen::Map<const VectorXd>(Gu.real().eval().data(), NU * NU);
-    AuIm.col(f) = Eigen::Map<const VectorXd>(Gu.imag().eval().data(), NU * NU);
-    AvRe.col(f) = Eigen::Map<const VectorXd>(Gv.real().eval().data(), NV * NV);
-    AvIm.col(f) = Eigen::Map<const VectorXd>(Gv.imag().eval().data(), NV * NV);
+    for (Index g = 0; g < 3; ++g)
+      for (Index h = g; h < 3; ++h) {
+        const Index k = pair_index(g, h);
+        const Group &G1 = groups[g], &G2 = groups[h];
+        const MatrixXcd bu = Gu.block(G1.a0, G2.a0, G1.na, G2.na), bv = Gv.block(G1.b0, G2.b0, G1.nb, G2.nb);
+        AuRe[k].col(f) = Eigen::Map<const VectorXd>(bu.real().eval().data(), bu.size());
+        AuIm[k].col(f) = Eigen::Map<const VectorXd>(bu.imag().eval().data(), bu.size());
+        AvRe[k].col(f) = Eigen::Map<const VectorXd>(bv.real().eval().data(), bv.size());
+        AvIm[k].col(f) = Eigen::Map<const VectorXd>(bv.imag().eval().data(), bv.size());
+      }
     GJsum.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
   }
-  MatrixXd K2;  // K2(α + NU α', β + NV β') = Σ_f s_f Re(Gu_f(α, α') Gv_f(β, β'))
-  if (jac) {
-    K2.noalias() = AuRe * AvRe.transpose();
-    K2.noalias() -= AuIm * AvIm.transpose();
-  }
+  // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
+  std::array<MatrixXd, 6> K2;
+  if (jac)
+    for (Index k = 0; k < 6; ++k) {
+      K2[k].noalias() = AuRe[k] * AvRe[k].transpose();
+      K2[k].noalias() -= AuIm[k] * AvIm[k].transpose();
+    }
   // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
-  std::vector<Index> col_alpha, col_beta;
+  std::vector<Index> col_alpha, col_beta, col_group;
   if (jac) {
     for (Index ga = 0; ga < NU; ++ga) {
-      const Index v0 = ga < n ? 0 : (ga < N ? n + m : 0);
-      const Index len = ga < n ? NV : (ga < N ? m : n);
-      for (Index c = 0; c < len; ++c) {
+      const Index grp = ga < n ? 0 : (ga < N ? 1 : 2);
+      for (Index c = 0; c < groups[grp].nb; ++c) {
         col_alpha.push_back(ga);
-        col_beta.push_back(v0 + c);
+        col_beta.push_back(groups[grp].b0 + c);
+        col_group.push_back(grp);
       }
     }
   }
@@ -280,8 +301,13 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
     g.resize(ncol);
     for (Index c2 = 0; c2 < ncol; ++c2) {
       g(c2) = GJsum(col_alpha[c2], col_beta[c2]).real();
-      for (Index c1 = 0; c1 < ncol; ++c1)
-        M(c1, c2) = K2(col_alpha[c1] + NU * col_alpha[c2], col_beta[c1] + NV * col_beta[c2]);
+      for (Index c1 = 0; c1 <= c2; ++c1) {
+        const Index g1 = col_group[c1], g2 = col_group[c2];  // g1 ≤ g2: columns are ordered by group
+        const Group &G1 = groups[g1], &G2 = groups[g2];
+        M(c1, c2) = M(c2, c1) =
+            K2[pair_index(g1, g2)]((col_alpha[c1] - G1.a0) + G1.na * (col_alpha[c2] - G2.a0),
+                                   (col_beta[c1] - G1.b0) + G1.nb * (col_beta[c2] - G2.b0));
+      }
     }
   }
   if (!jac) return cost;

@@ -146,6 +146,9 @@ void EraOptions::validate() const {
                                  sample_period_s));
   if (order < 0) throw InputError(fmt::format("ERA: order = {}; use 0 for automatic or a positive order", order));
   if (max_order < 1) throw InputError(fmt::format("ERA: max_order = {}; it must be at least 1", max_order));
+  for (const Index o : also_orders)
+    if (o < 1 || o > max_order)
+      throw InputError(fmt::format("ERA: also_orders holds {}; each must be 1..max_order ({})", o, max_order));
   if (block_rows < 0 || block_cols < 0 || stride < 0)
     throw InputError(fmt::format("ERA: block_rows = {}, block_cols = {}, stride = {}; use 0 for automatic or a positive "
                                  "number",
@@ -353,36 +356,43 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
     report.warnings.push_back(fmt::format("the order {} is uncertain: s_{}/s_{} = {:.3g} is below {:g}", n, n, n + 1,
                                           boundary_ratio(n), kClearGapRatio));
 
-  // Realisation (era.h step 5) and unscaling (step 6).
-  const Eigen::VectorXd sqrt_s = s.head(n).cwiseSqrt();
-  const Eigen::VectorXd inv_sqrt_s = sqrt_s.cwiseInverse();
-  const Eigen::MatrixXd U = svd.U.leftCols(n);
-  const Eigen::MatrixXd V = svd.V.leftCols(n);
+  // Realisation (era.h step 5) and unscaling (step 6), at n and at every also_orders.
   const Eigen::MatrixXd H1 = block_hankel(hankel_source, rows, cols, 2, stride);
-  StateSpace& model = result.model;
-  model.A = inv_sqrt_s.asDiagonal() * (U.transpose() * (H1 * V)) * inv_sqrt_s.asDiagonal();
-  model.C = out.asDiagonal() * (U.topRows(p) * sqrt_s.asDiagonal());
-  Eigen::MatrixXd B_scaled = sqrt_s.asDiagonal() * V.topRows(m).transpose();
-  if (summed) {  // B_d = S B with S = sum_{l<d} A^l
-    Eigen::MatrixXd S = Eigen::MatrixXd::Identity(n, n);
-    Eigen::MatrixXd power = Eigen::MatrixXd::Identity(n, n);
-    for (Index l = 1; l < stride; ++l) {
-      power = power * model.A;
-      S += power;
+  const auto realise = [&](Index n, Report* report) {
+    StateSpace model;
+    const Eigen::VectorXd sqrt_s = s.head(n).cwiseSqrt();
+    const Eigen::VectorXd inv_sqrt_s = sqrt_s.cwiseInverse();
+    const Eigen::MatrixXd U = svd.U.leftCols(n);
+    const Eigen::MatrixXd V = svd.V.leftCols(n);
+    model.A = inv_sqrt_s.asDiagonal() * (U.transpose() * (H1 * V)) * inv_sqrt_s.asDiagonal();
+    model.C = out.asDiagonal() * (U.topRows(p) * sqrt_s.asDiagonal());
+    Eigen::MatrixXd B_scaled = sqrt_s.asDiagonal() * V.topRows(m).transpose();
+    if (summed) {  // B_d = S B with S = sum_{l<d} A^l
+      Eigen::MatrixXd S = Eigen::MatrixXd::Identity(n, n);
+      Eigen::MatrixXd power = Eigen::MatrixXd::Identity(n, n);
+      for (Index l = 1; l < stride; ++l) {
+        power = power * model.A;
+        S += power;
+      }
+      const Eigen::VectorXd s_values = Eigen::JacobiSVD<Eigen::MatrixXd>(S).singularValues();
+      if (report != nullptr && !(s_values(n - 1) > kMinSumConditioning * s_values(0)))
+        report->warnings.push_back(fmt::format(
+            "a mode lies near a multiple of fs/{} where the sum over {} lags hides it (conditioning {:.3g}); B is "
+            "uncertain: set sum_stride_lags = false or a smaller stride",
+            stride, stride, s_values(n - 1) / s_values(0)));
+      B_scaled = S.colPivHouseholderQr().solve(B_scaled);
     }
-    const Eigen::VectorXd s_values = Eigen::JacobiSVD<Eigen::MatrixXd>(S).singularValues();
-    if (!(s_values(n - 1) > kMinSumConditioning * s_values(0)))
-      report.warnings.push_back(fmt::format(
-          "a mode lies near a multiple of fs/{} where the sum over {} lags hides it (conditioning {:.3g}); B is "
-          "uncertain: set sum_stride_lags = false or a smaller stride",
-          stride, stride, s_values(n - 1) / s_values(0)));
-    B_scaled = S.colPivHouseholderQr().solve(B_scaled);
-  }
-  model.B = B_scaled * in.cwiseInverse().asDiagonal();
-  model.D = options.estimate_feedthrough ? g.front() : Eigen::MatrixXd::Zero(p, m);
-  model.sample_period_s = options.sample_period_s;
-  model.input_names = options.input_names;
-  model.output_names = options.output_names;
+    model.B = B_scaled * in.cwiseInverse().asDiagonal();
+    model.D = options.estimate_feedthrough ? g.front() : Eigen::MatrixXd::Zero(p, m);
+    model.sample_period_s = options.sample_period_s;
+    model.input_names = options.input_names;
+    model.output_names = options.output_names;
+    return model;
+  };
+  result.model = realise(n, &report);
+  const StateSpace& model = result.model;
+  for (const Index extra : options.also_orders)
+    result.models_at.push_back(extra <= s.size() ? realise(extra, nullptr) : StateSpace{});
 
   const double spectral_radius = Eigen::EigenSolver<Eigen::MatrixXd>(model.A, false).eigenvalues().cwiseAbs().maxCoeff();
   if (spectral_radius >= 1.0)

@@ -22,6 +22,10 @@ struct EraOptions {
   double sample_period_s = 0;  // required > 0; copied into the model
   Index order = 0;             // 0 = choose automatically (see realize_era)
   Index max_order = 40;        // largest order the automatic rule may choose
+  // More orders to realise from the same SVD (EraResult::models_at), e.g. starting
+  // models at several orders for one Hankel matrix.  Each must be 1..max_order and at
+  // most the Hankel matrix's dimension; orders the matrix cannot hold get an empty model.
+  std::vector<Index> also_orders;
   // Hankel layout (hankel.h): 0 = choose from the data (see realize_era).
   Index block_rows = 0, block_cols = 0, stride = 0;
   Eigen::VectorXd input_scale;       // m: spread (RMS) of each excitation; empty = derive from g
@@ -55,6 +59,8 @@ struct EraResult {
   Eigen::VectorXd input_scale, output_scale;  // as used (given or derived)
   Eigen::MatrixXd markov_noise_std;           // p x m, as used (given or estimated), original units
   Report report;                              // warnings: unstable model, order at max_order, ...
+  // One per EraOptions::also_orders, same order (order 0: the Hankel matrix cannot hold it).
+  std::vector<StateSpace> models_at;
 };
 
 // Realises a discrete state-space model x[k+1] = A x[k] + B u[k], y = C x + D u
