@@ -251,6 +251,18 @@ PcgOutcome solve_pcg(NormalOperator& op, const Eigen::MatrixXd& rhs,
   return out;
 }
 
+// mean_t v(t − k) over a record of n samples (v = 0 before it), for k = 0..L.
+Eigen::VectorXd lag_means_of(const double* v, Index n, Index L) {
+  Eigen::VectorXd mu(L + 1);
+  double sum = 0.0;
+  for (Index t = 0; t < n; ++t) sum += v[t];
+  for (Index k = 0; k <= L; ++k) {
+    mu(k) = sum / static_cast<double>(n);
+    if (k < n) sum -= v[n - 1 - k];
+  }
+  return mu;
+}
+
 }  // namespace
 
 void MarkovOptions::validate() const {
@@ -438,13 +450,8 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
         Eigen::VectorXd mu = Eigen::VectorXd::Zero(m * (L + 1));
         for (Index a = 0; a < m; ++a) {
           if (!vs[e][a].active) continue;
-          const double* v = vs[e][a].data;
-          double sum = 0.0;
-          for (Index t = 0; t < n; ++t) sum += v[t];
-          for (Index k = 0; k <= L; ++k) {
-            mu(k * m + a) = sum / static_cast<double>(n);
-            if (k < n) sum -= v[n - 1 - k];
-          }
+          const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
+          for (Index k = 0; k <= L; ++k) mu(k * m + a) = means(k);
         }
         lag_means.push_back(std::move(mu));
         lag_count.push_back(static_cast<double>(n));
@@ -492,13 +499,8 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
         Eigen::VectorXd delta = Eigen::VectorXd::Zero(p);
         for (Index a = 0; a < m; ++a) {
           if (!vs[e][a].active) continue;
-          const double* v = vs[e][a].data;
-          double sum = 0.0;
-          for (Index t = 0; t < n; ++t) sum += v[t];
-          for (Index k = 0; k <= L; ++k) {
-            delta += res.g[k].col(a) * (sum / static_cast<double>(n));
-            if (k < n) sum -= v[n - 1 - k];
-          }
+          const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
+          for (Index k = 0; k <= L; ++k) delta += res.g[k].col(a) * means(k);
         }
         part -= static_cast<double>(n) * delta.cwiseAbs2();
       }
