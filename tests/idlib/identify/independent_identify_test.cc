@@ -11,31 +11,11 @@
 
 #include "idlib/identify/identify.h"
 #include "idlib/lti/analysis.h"
-#include "idlib/lti/frequency_response.h"
 #include "idlib/lti/interconnect.h"
-#include "idlib/validate/frequency_error.h"
-#include "tests/support/independent_draw.h"
+#include "tests/idlib/identify/independent_case.h"
 
 namespace lpvid {
 namespace {
-
-// The error measure of `identify --truth`: mean and max over 1–400 rad/s (200 log
-// points) of ‖P̂ − P‖₂ / ‖P‖₂, unweighted (the platform model's valid band).
-constexpr double kBandLow = 1.0, kBandHigh = 400.0;
-constexpr Index kBandPoints = 200;
-// 3 × 60 s at 1 kHz, one excited input per experiment (indep_sim's logs).
-constexpr double kTs = 1e-3;
-constexpr double kDuration_s = 60.0;
-
-StateSpace to_ss(const indep::Discrete& d) {
-  StateSpace s;
-  s.A = d.A;
-  s.B = d.B;
-  s.C = d.C;
-  s.D = d.D;
-  s.sample_period_s = d.Ts;
-  return s;
-}
 
 struct Case {
   std::uint64_t seed;
@@ -49,37 +29,15 @@ class IndependentIdentify : public ::testing::TestWithParam<Case> {};
 
 TEST_P(IndependentIdentify, DefaultsGiveAStableOrderSixPlantNearTheTruth) {
   const Case c = GetParam();
-  const double xb[3] = {-0.1, 0.0, 0.1};
-  const indep::Draw d = indep::draw_stable(c.seed, indep::HiddenEffect::kNone, indep::DrawOptions{}, kTs,
-                                           {xb[0], xb[1], xb[2]});
-  indep::Noise noise;
-  noise.sensor_std_m = 0.3e-6 * c.noise_scale;
-  const indep::Discrete C = indep::pid_controller(d.plant, d.pid, kTs);
-  const indep::Discrete P = indep::sampled_plant(d.plant, xb[c.position], kTs);
-  std::vector<Eigen::MatrixXd> v(3), q(3);
-  std::vector<ExperimentView> views;
-  const double amplitude[3] = {0.05, 0.05, 1.0};  // indep_sim's excitation levels
-  for (int j = 0; j < 3; ++j) {
-    const auto N = static_cast<Eigen::Index>(std::llround(kDuration_s / kTs));
-    // seed as indep_sim's: the test reproduces `indep_sim --seed S --noise-scale X` logs
-    const Eigen::MatrixXd log =
-        indep::simulate_log(P, C, d.plant, noise, amplitude, j, N, c.seed * 1000 + 10 * c.position + j);
-    v[static_cast<std::size_t>(j)] = log.middleCols(1, 3);
-    q[static_cast<std::size_t>(j)] = log.middleCols(7, 3);
-  }
-  for (int j = 0; j < 3; ++j) views.push_back({v[static_cast<std::size_t>(j)], q[static_cast<std::size_t>(j)]});
-
-  const IdentifyResult r = identify_closed_loop(views, kTs, to_ss(C), IdentifyOptions{});
-  const Eigen::VectorXd omega = log_frequency_grid(kBandLow, kBandHigh, kBandPoints);
-  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(3);
-  const ErrorSummary e =
-      weighted_error_over(evaluate_response(r.plant, omega), evaluate_response(to_ss(P), omega), omega, ones, ones);
+  const testing::IndependentOutcome o = testing::run_independent({c.seed, c.position, c.noise_scale});
+  const IdentifyResult& r = o.result;
+  const ErrorSummary& e = o.error;
   std::printf("seed %llu position %d noise %.3g: horizon %ld lags, order %ld, mean %.4f %%, max %.4f %%\n  %s\n  %s\n",
               static_cast<unsigned long long>(c.seed), c.position, c.noise_scale, static_cast<long>(r.num_lags),
               static_cast<long>(r.plant.order()), 100 * e.mean, 100 * e.max, r.choices.horizon_reason.c_str(),
               r.choices.order_reason.c_str());
   EXPECT_EQ(r.plant.order(), 6);  // the platform's three rigid-body modes
-  EXPECT_TRUE(is_stable(closed_loop_output(r.plant, to_ss(C))));
+  EXPECT_TRUE(is_stable(closed_loop_output(r.plant, o.controller)));
   EXPECT_LE(e.mean, c.max_mean_error);
 }
 
