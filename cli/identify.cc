@@ -233,11 +233,12 @@ void run(const IdentifyCliOptions& o) {
           const double a = std::abs(H(i, j)), d = kBandRadiusPerSigma * std::sqrt(plant_frd.variance[k](i, j));
           const std::complex<double> unit = a > 0 ? H(i, j) / a : std::complex<double>(1.0, 0.0);
           upper.response[k](i, j) = unit * (a + d);
-          lower.response[k](i, j) = unit * std::max(a - d, 1e-6 * a);
+          // Where the band reaches zero its lower edge has no magnitude: a gap, not a plunge.
+          lower.response[k](i, j) = a > d ? unit * (a - d) : std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0);
         }
     }
-    series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed});
-    series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed});
+    series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed, false});
+    series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed, false});
   }
   if (truth) series.push_back({"true plant", frequency_response(*truth, omega), BodeSeries::Style::kDashed});
   BodePlotOptions bode;

@@ -287,6 +287,47 @@ std::vector<double> unwrapped_phase_deg(const std::vector<Complex>& values) {
   return out;
 }
 
+namespace {
+
+// The unwrapped phases of one panel (output i, input j), one vector per series in display
+// order (NaN for a series without phase).  Each curve is unwrapped on its own and then
+// moved by a multiple of 360 deg to lie within 180 deg of the first series with a phase,
+// at the nearest frequency where both have one: curves of nearly the same response are
+// otherwise drawn 360 deg apart when their first points fall on either side of -180 deg.
+std::vector<std::vector<double>> panel_phases(const std::vector<BodeSeries>& series,
+                                              const std::vector<std::vector<std::size_t>>& orders, int i, int j) {
+  std::vector<std::vector<double>> out(series.size());
+  int reference = -1;
+  for (std::size_t s = 0; s < series.size(); ++s) {
+    const std::vector<Complex> h = channel(series[s].response, orders[s], i, j);
+    out[s] = series[s].show_phase ? unwrapped_phase_deg(h) : std::vector<double>(h.size(), kNaN);
+    if (!series[s].show_phase) continue;
+    std::size_t k0 = 0;
+    while (k0 < out[s].size() && !std::isfinite(out[s][k0])) ++k0;
+    if (k0 == out[s].size()) continue;
+    if (reference < 0) {
+      reference = static_cast<int>(s);
+      continue;
+    }
+    const auto& ref = series[static_cast<std::size_t>(reference)];
+    const std::vector<double>& ref_phase = out[static_cast<std::size_t>(reference)];
+    const double w0 = series[s].response.omega_rad_s[static_cast<Index>(orders[s][k0])];
+    double best = std::numeric_limits<double>::infinity(), ref_deg = kNaN;
+    for (std::size_t k = 0; k < ref_phase.size(); ++k) {
+      if (!std::isfinite(ref_phase[k])) continue;
+      const double w = ref.response.omega_rad_s[static_cast<Index>(orders[static_cast<std::size_t>(reference)][k])];
+      const double d = std::abs(std::log(w / w0));
+      if (d < best) best = d, ref_deg = ref_phase[k];
+    }
+    if (!std::isfinite(ref_deg)) continue;
+    const double shift = 360.0 * std::round((ref_deg - out[s][k0]) / 360.0);
+    for (double& deg : out[s]) deg += shift;
+  }
+  return out;
+}
+
+}  // namespace
+
 BodeLayout layout_bode(const std::vector<BodeSeries>& series, const BodePlotOptions& options) {
   validate(series, options);
   BodeLayout layout;
@@ -328,14 +369,15 @@ BodeLayout layout_bode(const std::vector<BodeSeries>& series, const BodePlotOpti
             mhi = std::max(mhi, db);
           }
         }
-        if (options.show_phase) {
-          for (double deg : unwrapped_phase_deg(h)) {
+      }
+      if (options.show_phase) {
+        for (const std::vector<double>& phases : panel_phases(series, orders, i, j))
+          for (double deg : phases) {
             if (std::isfinite(deg)) {
               plo = std::min(plo, deg);
               phi = std::max(phi, deg);
             }
           }
-        }
       }
       BodeAxes axes;
       const int x0 = kMargin + kYLabelWidth + j * column_pitch + kYTickWidth;
@@ -442,11 +484,12 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
 
       // Curves, then flagged crosses on top of all curves.
       std::vector<cv::Point2d> flag_mag, flag_phase;
+      const std::vector<std::vector<double>> phases =
+          options.show_phase ? panel_phases(series, orders, i, j) : std::vector<std::vector<double>>();
       for (std::size_t s = 0; s < series.size(); ++s) {
         const FrequencyResponse& r = series[s].response;
         const std::vector<Complex> h = channel(r, orders[s], i, j);
-        const std::vector<double> phase =
-            options.show_phase ? unwrapped_phase_deg(h) : std::vector<double>(h.size(), kNaN);
+        const std::vector<double> phase = options.show_phase ? phases[s] : std::vector<double>(h.size(), kNaN);
         std::vector<cv::Point2d> mag_pts, phase_pts;
         for (std::size_t k = 0; k < h.size(); ++k) {
           const std::size_t src = orders[s][k];
@@ -470,7 +513,8 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
         }
         const cv::Scalar color = plot::series_color(s);
         draw_curve(image, axes.magnitude_px, mag_pts, color, series[s].style);
-        if (options.show_phase) draw_curve(image, axes.phase_px, phase_pts, color, series[s].style);
+        if (options.show_phase && series[s].show_phase)
+          draw_curve(image, axes.phase_px, phase_pts, color, series[s].style);
       }
       for (const cv::Point2d& q : flag_mag) {
         plot::draw_marker(image, q, plot::Marker::kCross, plot::kFlagColor, kFlagSize,

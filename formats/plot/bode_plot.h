@@ -42,6 +42,8 @@ struct BodeSeries {
   FrequencyResponse response;  // outputs x inputs x frequency
   enum class Style { kLine, kDashed, kMarkers } style = Style::kLine;
   // Flagged frequencies (response.flagged) are drawn with a red cross on top.
+  // false: magnitude only (e.g. the envelope of a band, whose phase is the estimate's).
+  bool show_phase = true;
 };
 
 struct BodePlotOptions {

@@ -186,6 +186,24 @@ TEST(UnwrappedPhase, RemovesJumpsAndStartsInMinus270To90) {
   EXPECT_NEAR(unwrapped_phase_deg({Complex(0.0, 1.0)})[0], 90.0, 1e-12);
 }
 
+// Two responses 2 degrees apart whose phases lie on either side of +90 deg: each unwrapped
+// alone starts in (-270, 90], one at +89 and one at -269 (= +91 - 360), 358 deg apart.
+// The panel aligns them, so the phase axis spans tens of degrees, not 360; a
+// magnitude-only series (a band envelope) adds nothing to the phase range.
+TEST(RenderBode, PhasesOfOnePanelAreAlignedAndMagnitudeOnlySeriesHaveNone) {
+  const Eigen::VectorXd omega = log_grid(0, 2, 20);
+  const Complex a = std::polar(1.0, 89.0 * M_PI / 180.0), b = std::polar(1.0, 91.0 * M_PI / 180.0);
+  ASSERT_GT(unwrapped_phase_deg({a})[0] - unwrapped_phase_deg({b})[0], 300.0);  // the case being fixed
+  BodeSeries band = series("band", constant(omega, 1, 1, Complex(-5.0, 0.0)));
+  band.show_phase = false;  // phase -180 deg if it were drawn
+  const BodeLayout layout =
+      layout_bode({series("a", constant(omega, 1, 1, a)), series("b", constant(omega, 1, 1, b)), band}, {});
+  const plot::AxisMap& ph = layout.panel(0, 0).phase_deg;
+  EXPECT_LT(ph.hi - ph.lo, 100.0) << ph.lo << " .. " << ph.hi;
+  EXPECT_LE(ph.lo, 89.0);
+  EXPECT_GE(ph.hi, 91.0);
+}
+
 TEST(BodeErrors, MessagesNameTheProblem) {
   const FrequencyResponse good = constant(log_grid(0, 2, 5), 2, 2, 1.0);
   auto msg = [&](std::vector<BodeSeries> s, BodePlotOptions o = BodePlotOptions{}) {
