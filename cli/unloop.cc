@@ -17,6 +17,7 @@
 #include "idlib/closedloop/sensitivity.h"
 #include "idlib/closedloop/unloop.h"
 #include "idlib/core/error.h"
+#include "idlib/fit/fit.h"
 #include "idlib/lti/analysis.h"
 
 namespace lpvid::cli {
@@ -59,7 +60,7 @@ void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyRespo
   FrequencyResponse plant;
   Index flagged = 0;
   std::vector<std::string> warnings;
-  std::string route;
+  std::string route, variance_note;
   if (!o.sensitivity.empty()) {
     const FrequencyResponse s = load_frd_merged(o.sensitivity);
     // Analyzer exports hold one excited input per file: a missing file leaves S
@@ -74,6 +75,27 @@ void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyRespo
     flagged = r.flagged_count;
     warnings = r.report.warnings;
     route = "P = C^-1 (S^-1 - I)";
+    // P's variance from S's: its own variance column, or its coherence with the number of
+    // averages (the noise the fit and diagnose read from data, idlib/fit data_sigma).
+    bool known = false;
+    std::string source;
+    const std::vector<Eigen::MatrixXd> sigma = data_sigma(s, NoiseOptions{}, &source, &known);
+    if (known) {
+      std::vector<Eigen::MatrixXd> s_variance;
+      for (const Eigen::MatrixXd& sg : sigma) s_variance.push_back(2.0 * sg.cwiseAbs2());  // both real parts
+      std::vector<Eigen::MatrixXd> variance = plant_variance_from_sensitivity(s, s_variance, c);
+      Index unknown = 0;
+      for (const Eigen::MatrixXd& v : variance) unknown += v.allFinite() ? 0 : 1;
+      if (unknown == 0) {
+        plant.variance = std::move(variance);
+        variance_note = "var_<i>_<j>: E|P^ - P|^2 propagated from the " + source +
+                        " of S (first order, entries of S independent)";
+      } else {
+        warnings.push_back(fmt::format("no variance written: at {} frequencies S or C is singular or S's noise is "
+                                       "unknown, so nothing is known of P there",
+                                       unknown));
+      }
+    }
   } else {
     plant = plant_from_closed_loop_frd(*closed_loop, c);
     for (bool f : plant.flagged) flagged += f ? 1 : 0;
@@ -83,12 +105,16 @@ void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyRespo
   // errors e = -q, conventionally named e_<q> (as lpvid simulate writes them).
   for (auto& name : plant.output_names)
     if (name.rfind("e_", 0) == 0) name = name.substr(2);
-  write_frd_csv(outputs.stage(o.out), plant, "P", {"lpvid unloop: " + route + " per frequency"});
+  std::vector<std::string> comments = {"lpvid unloop: " + route + " per frequency"};
+  if (!variance_note.empty()) comments.push_back(variance_note);
+  write_frd_csv(outputs.stage(o.out), plant, "P", comments);
   outputs.commit();
-  nlohmann::json summary = {{"route", route}, {"frequencies", plant.num_frequencies()}, {"flagged", flagged},
-                            {"warnings", warnings}, {"out", o.out}};
+  nlohmann::json summary = {{"route", route},         {"frequencies", plant.num_frequencies()},
+                            {"flagged", flagged},     {"variance", !plant.variance.empty()},
+                            {"warnings", warnings},   {"out", o.out}};
   std::string text = fmt::format("unloop: {} at {} frequencies, {} flagged as untrustworthy\n", route,
                                  plant.num_frequencies(), flagged);
+  if (!variance_note.empty()) text += "  with the variance of P (" + variance_note.substr(variance_note.find("from")) + ")\n";
   for (const auto& w : warnings) text += "warning: " + w + "\n";
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }

@@ -207,6 +207,44 @@ SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const
   return out;
 }
 
+std::vector<Eigen::MatrixXd> plant_variance_from_sensitivity(const FrequencyResponse& S,
+                                                             const std::vector<Eigen::MatrixXd>& s_variance,
+                                                             const StateSpace& controller) {
+  constexpr const char* fn = "plant_variance_from_sensitivity";
+  controller.validate();
+  const Index m = controller.num_outputs();
+  if (controller.num_inputs() != m)
+    throw InputError(fmt::format("{}: the controller has {} inputs and {} outputs; P = C⁻¹ (S⁻¹ − I) needs a square "
+                                 "controller",
+                                 fn, controller.num_inputs(), m));
+  check_frd(S, fn, "S (v → u)", m, m);
+  const Index F = S.num_frequencies();
+  if (static_cast<Index>(s_variance.size()) != F)
+    throw InputError(fmt::format("{}: {} variance matrices for {} frequencies of S", fn, s_variance.size(), F));
+  for (Index k = 0; k < F; ++k) {
+    const Eigen::MatrixXd& v = s_variance[static_cast<std::size_t>(k)];
+    if (v.rows() != m || v.cols() != m)
+      throw InputError(fmt::format("{}: the variance at frequency {} is {}x{}; S is {}x{}", fn, k, v.rows(), v.cols(), m, m));
+    if ((v.array() < 0.0).any())
+      throw InputError(fmt::format("{}: the variance at frequency {} holds a negative value", fn, k));
+  }
+  const ControllerResponse C = controller_response(controller, S.omega_rad_s, fn);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Eigen::MatrixXd> out(static_cast<std::size_t>(F), Eigen::MatrixXd::Constant(m, m, inf));
+  for (Index k = 0; k < F; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    if (C.pole_hit[kk] || !s_variance[kk].allFinite()) continue;
+    const Eigen::FullPivLU<Eigen::MatrixXcd> lu_s(S.response[kk]), lu_c(C.value[kk]);
+    if (!lu_s.isInvertible() || !lu_c.isInvertible()) continue;
+    const Eigen::MatrixXcd Si = lu_s.inverse();
+    const Eigen::MatrixXd left = (lu_c.inverse() * Si).cwiseAbs2();  // |(C⁻¹ S⁻¹)_ak|²
+    const Eigen::MatrixXd right = Si.cwiseAbs2();                    // |(S⁻¹)_lb|²
+    // Σ_kl left_ak v_kl right_lb = (left · v · right)_ab
+    out[kk] = left * s_variance[kk] * right;
+  }
+  return out;
+}
+
 FrequencyResponse plant_from_sensitivity_printed_eq15(const FrequencyResponse& S, const StateSpace& controller) {
   constexpr const char* fn = "plant_from_sensitivity_printed_eq15";
   controller.validate();

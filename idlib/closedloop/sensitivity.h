@@ -93,6 +93,18 @@ struct SensitivityUnloopResult {
 SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const StateSpace& controller,
                                                const SensitivityUnloopOptions& options);
 
+// E|P̂ − P|² per entry of P = C⁻¹ (S⁻¹ − I) from the per-entry variance of the measured S
+// (s_variance[k](k', l) = E|Ŝ_k'l − S_k'l|² at S's frequency k), to first order in the
+// error and with the errors of different entries of S taken as independent:
+//   dP = −C⁻¹ S⁻¹ dS S⁻¹   ⇒   E|dP_ab|² = Σ_kl |(C⁻¹ S⁻¹)_ak|² |(S⁻¹)_lb|² E|dS_kl|².
+// At a frequency where S or C(ω) is singular, or a variance is not finite, the result is
+// +inf (nothing is known of P there).
+// @throws InputError  as plant_from_sensitivity for S and the controller; s_variance
+//                     not one m × m matrix per frequency, or holding a negative value.
+std::vector<Eigen::MatrixXd> plant_variance_from_sensitivity(const FrequencyResponse& S,
+                                                             const std::vector<Eigen::MatrixXd>& s_variance,
+                                                             const StateSpace& controller);
+
 // The seed's printed eq (15): C(ω)⁻¹ (S(ω) − I)⁻¹.  WRONG (it is −C⁻¹ − C⁻¹P⁻¹C⁻¹);
 // kept to demonstrate the failure.  No conditioning checks: frequencies where
 // S − I or C is exactly singular are flagged and set to zero; names as above.

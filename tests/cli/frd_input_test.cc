@@ -125,6 +125,21 @@ TEST_F(FrdCli, PlantFromAnalyzerDataAgreesWithTheTruthThroughCompare) {
   EXPECT_LE(summary["weighted_error_mean"].get<double>(), kMeanError);
 }
 
+// S from the analyzer carries coherence and its number of averages, so the plant gets
+// its variance (propagated through P = C^-1 (S^-1 - I); the propagation is checked
+// against the scatter of noisy draws in tests/idlib/closedloop/sensitivity_test.cc).
+TEST_F(FrdCli, PlantFromAnalyzerDataCarriesItsVariance) {
+  TempDir out("var");
+  const RunResult r = run_lpvid("unloop --sensitivity " + s_parts() + " --controller " + data("controller.json") +
+                                " --out " + (out / "P.csv") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(nlohmann::json::parse(r.out)["variance"].get<bool>());
+  const FrequencyResponse P = read_frd_csv(out / "P.csv");
+  ASSERT_EQ(P.variance.size(), static_cast<std::size_t>(P.num_frequencies()));
+  for (const auto& v : P.variance) EXPECT_GT(v.minCoeff(), 0.0);
+  EXPECT_THAT(slurp(out / "P.csv"), HasSubstr("propagated from the coherence (4 averages) of S"));
+}
+
 // ---- unloop --sensitivity ----
 
 TEST_F(FrdCli, UnloopFlagsLowLoopGainOnRequestAndRejectsANegativeThreshold) {
