@@ -61,10 +61,7 @@ nlohmann::json poles_json(const StateSpace& s) {
   return out;
 }
 
-// The band drawn in bode.png: a disc of radius r σ around Ĥ, σ² = E|Ĥ − H|² (the variance
-// in plant_frd.csv), drawn as the magnitude envelope |Ĥ| ± r σ.  For a circular complex
-// Gaussian error |ε|²/σ² is Exp(1), so P(|ε| ≤ r σ) = 1 − e^{−r²} = 0.95 at r = √(ln 20).
-constexpr double kBandRadiusPerSigma = 1.7308;
+// The band drawn in bode.png: |Ĥ| ± kBandRadiusPerSigma σ (idlib/identify/identify.h).
 constexpr const char* kBandLevel = "95 %";
 
 nlohmann::json structured_report(const IdentifyResult& r) {
@@ -88,6 +85,8 @@ nlohmann::json structured_report(const IdentifyResult& r) {
           {"stages", stages},
           {"tail_rounds", rounds},
           {"tail_reason", ch.tail_reason},
+          {"bands_reason", ch.bands_reason},
+          {"replicates", r.fit.replicates},
           {"cost", r.fit.cost},
           {"residuals", r.fit.residuals},
           {"parameters", r.fit.parameters},
@@ -279,7 +278,13 @@ void run(const IdentifyCliOptions& o) {
   }
   write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), plant_frd, "P",
                 {"lpvid identify: identified plant u -> q",
-                 era ? "no variance: --method era has no covariance" : "var_<i>_<j>: E|P^ - P|^2 from the fit's covariance (delta method)"});
+                 era ? std::string("no variance: --method era has no covariance")
+                     : r.fit.replicates > 0
+                           ? fmt::format("var_<i>_<j>: E|P^ - P|^2 from the fit's covariance, a sandwich over {} "
+                                         "replicates of the Markov estimate's error (delta method)",
+                                         r.fit.replicates)
+                           : std::string("var_<i>_<j>: E|P^ - P|^2 from the fit's covariance under its noise model "
+                                         "(delta method; too few record segments for replicates)")});
   files.stage(join_path(o.out, "bode.png"), bode_bytes);
   files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
@@ -294,9 +299,10 @@ void run(const IdentifyCliOptions& o) {
                         r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
   } else {
     const IdentifyChoices& ch = r.choices;
-    text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  plant: {}, closed loop stable\n",
+    text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "
+                        "closed loop stable\n",
                         ch.horizon_reason, ch.band_reason, ch.start_reason, ch.plant_order, ch.order_reason,
-                        ch.tail_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)");
+                        ch.tail_reason, ch.bands_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)");
   }
   if (truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,

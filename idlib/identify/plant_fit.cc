@@ -99,7 +99,10 @@ class Model {
 
   // Cost V(θ); with jac, also JᵀJ and Jᵀr (J = ∂r/∂θ, r = Ĝ − H).  spectral_radius
   // of the closed loop is returned through rho.
-  double evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho) const;
+  // With reps (per replicate, per bin: a perturbation δĜ of the data, scaled as the data),
+  // also rep_grads.col(s) = Jᵀ W δĜ_s (the gradient term a perturbation adds), np × S.
+  double evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho,
+                  const std::vector<std::vector<MatrixXcd>>* reps = nullptr, MatrixXd* rep_grads = nullptr) const;
 
  private:
   MatrixXd truncation_derivatives(const Loop& l, const MatrixXd& AL, const MatrixXd& B, const MatrixXd& C) const;
@@ -184,7 +187,8 @@ MatrixXd Model::truncation_derivatives(const Loop& l, const MatrixXd& AL, const 
   return DQ;
 }
 
-double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho) const {
+double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd* Jtr, double& rho,
+                      const std::vector<std::vector<MatrixXcd>>* reps, MatrixXd* rep_grads) const {
   const Index n = n_, m = m_, p = p_, N = N_, nk = N - n, L = data_.num_lags;
   MatrixXd A, B, C;
   unpack(theta, A, B, C);
@@ -212,6 +216,8 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   std::array<MatrixXd, 6> AuRe, AuIm, AvRe, AvIm;  // pair (g, h), g ≤ h, index g * 3 + h − g (g + 1) / 2
   auto pair_index = [](Index g, Index h) { return g * 3 + h - g * (g + 1) / 2; };
   MatrixXcd GJsum, U, V;
+  const std::size_t S = reps != nullptr ? reps->size() : 0;
+  std::vector<MatrixXcd> GJrep(S);
   const MatrixXcd DkC = (k_.Dk * C).cast<Complex>(), BDk = (B * k_.Dk).cast<Complex>();
   const MatrixXcd Ckc = k_.Ck.cast<Complex>(), Bkc = k_.Bk.cast<Complex>();
   if (jac) {
@@ -225,6 +231,7 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
         AvIm[k].resize(groups[g].nb * groups[h].nb, F);
       }
     GJsum.setZero(NU, NV);
+    for (auto& x : GJrep) x.setZero(NU, NV);
     U.resize(p, NU);
     V.resize(m, NV);
     V.rightCols(m).setIdentity();
@@ -274,6 +281,8 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
         AvIm[k].col(f) = Eigen::Map<const VectorXd>(bv.imag().eval().data(), bv.size());
       }
     GJsum.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
+    for (std::size_t r = 0; r < S; ++r)
+      GJrep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2)) * V.conjugate());
   }
   // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
   std::array<MatrixXd, 6> K2;
@@ -332,7 +341,25 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   const MatrixXd St = sgn.asDiagonal() * T;
   *JtJ = St.transpose() * M * St;
   *Jtr = St.transpose() * g;
+  if (rep_grads != nullptr) {
+    rep_grads->resize(np_, static_cast<Index>(S));
+    for (std::size_t r = 0; r < S; ++r) {
+      VectorXd gr(ncol);
+      for (Index c = 0; c < ncol; ++c) gr(c) = GJrep[r](col_alpha[c], col_beta[c]).real();
+      rep_grads->col(static_cast<Index>(r)) = St.transpose() * gr;
+    }
+  }
   return cost;
+}
+
+// θ in the plant's own coordinates from scaled θ (B = B_s diag(1/su), C = diag(sq) C_s).
+VectorXd coordinate_map(Index n, Index m, Index p, const VectorXd& su, const VectorXd& sq) {
+  VectorXd map(n * n + n * m + p * n);
+  map.head(n * n).setOnes();
+  for (Index j = 0; j < m; ++j) map.segment(n * n + j * n, n).setConstant(1.0 / su(j));
+  for (Index j = 0; j < n; ++j)
+    for (Index i = 0; i < p; ++i) map(n * n + n * m + i + j * p) = sq(i);
+  return map;
 }
 
 // Orthonormal basis of the complement of the similarity directions at θ.
@@ -566,11 +593,7 @@ PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& c
     if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
   const Eigen::MatrixXd cov_s = result.noise_scale * Qp * es.eigenvectors() * inv.asDiagonal() *
                                 es.eigenvectors().transpose() * Qp.transpose();
-  Eigen::VectorXd map(model.num_params());
-  map.head(n * n).setOnes();
-  for (Index j = 0; j < m; ++j) map.segment(n * n + j * n, n).setConstant(1.0 / su(j));
-  for (Index j = 0; j < n; ++j)
-    for (Index i = 0; i < p; ++i) map(n * n + n * m + i + j * p) = sq(i);
+  const Eigen::VectorXd map = coordinate_map(n, m, p, su, sq);
   result.covariance = map.asDiagonal() * cov_s * map.asDiagonal();
 
   result.report.termination =
@@ -585,6 +608,48 @@ PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& c
         "the fitted plant closes an unstable loop with the controller (spectral radius {:.6f})", rho));
   }
   return result;
+}
+
+void use_replicate_covariance(PlantFitResult& fit, const MarkovBins& data, const StateSpace& controller,
+                              const std::vector<std::vector<Eigen::MatrixXcd>>& replicates,
+                              const PlantFitOptions& options) {
+  const Setup st = setup(data, controller, fit.plant, options);
+  const Index p = data.response.front().rows(), m = data.response.front().cols(), n = fit.plant.order();
+  if (replicates.size() < 2) throw InputError("replicate covariance: at least two replicates are needed");
+  std::vector<std::vector<MatrixXcd>> scaled(replicates.size());
+  for (std::size_t r = 0; r < replicates.size(); ++r) {
+    if (static_cast<Index>(replicates[r].size()) != data.num_bins())
+      throw InputError(fmt::format("replicate covariance: replicate {} has {} bins for {}", r, replicates[r].size(),
+                                   data.num_bins()));
+    for (const auto& b : replicates[r]) {
+      if (b.rows() != p || b.cols() != m || !b.allFinite())
+        throw InputError(fmt::format("replicate covariance: every bin must be a finite {}x{} matrix", p, m));
+      scaled[r].push_back(st.sq.cwiseInverse().asDiagonal() * b * st.su.asDiagonal());
+    }
+  }
+  const Model model(st.scaled, st.k, n);
+  const Eigen::VectorXd theta =
+      model.pack(fit.plant.A, fit.plant.B * st.su.asDiagonal(), st.sq.cwiseInverse().asDiagonal() * fit.plant.C);
+  Eigen::MatrixXd JtJ, grads;
+  Eigen::VectorXd Jtr;
+  double rho = 0.0;
+  model.evaluate(theta, true, &JtJ, &Jtr, rho, &scaled, &grads);
+  // Residuals are orthogonal to the regressors, so the replicates sum to zero: the
+  // meat Σ g gᵀ has S − 1 degrees of freedom (the factor S / (S − 1)).
+  const double S = static_cast<double>(replicates.size());
+  const Eigen::MatrixXd meat = (S / (S - 1.0)) * (grads * grads.transpose());
+  const Eigen::MatrixXd Qp = gauge_complement(model, theta, n);
+  const Eigen::MatrixXd Nm = Qp.transpose() * JtJ * Qp;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (Nm + Nm.transpose()));
+  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  Eigen::VectorXd inv = Eigen::VectorXd::Zero(Nm.rows());
+  for (Index i = 0; i < Nm.rows(); ++i)
+    if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
+  const Eigen::MatrixXd bread = Qp * es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose() * Qp.transpose();
+  const Eigen::MatrixXd cov_s = bread * meat * bread;
+  fit.covariance = coordinate_map(n, m, p, st.su, st.sq).asDiagonal() * cov_s *
+                   coordinate_map(n, m, p, st.su, st.sq).asDiagonal();
+  fit.replicates = static_cast<Index>(replicates.size());
 }
 
 std::vector<Eigen::MatrixXd> plant_response_variance(const PlantFitResult& fit, const Eigen::VectorXd& omega_rad_s) {

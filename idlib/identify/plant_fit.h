@@ -111,6 +111,9 @@ struct PlantFitResult {
   // Covariance of θ = [vec A; vec B; vec C_P] of `plant` (its own coordinates),
   // σ̂² (JᵀJ)⁺ restricted to the gauge complement: (n² + n m + p n) square.
   Eigen::MatrixXd covariance;
+  // 0: covariance is the model's σ̂² (JᵀJ)⁺; S > 0: the sandwich of S replicates
+  // (use_replicate_covariance).
+  Index replicates = 0;
   Report report;
 };
 
@@ -125,6 +128,18 @@ PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& c
 // @throws InputError  as fit_plant_closed_loop.
 double plant_fit_cost(const MarkovBins& data, const StateSpace& controller, const StateSpace& plant,
                       const PlantFitOptions& options);
+
+// Replaces fit.covariance by the sandwich B (Σ_s g_s g_sᵀ) B · S/(S − 1), B = (JᵀJ)⁺ on
+// the gauge complement, g_s = Jᵀ W δĜ_s the gradient a replicate δĜ_s of the data's
+// error adds (J, W at fit.plant on `data`, the data of the fit): the covariance of the
+// linearised estimate when the data's error is Σ_s δĜ_s with independent terms,
+// however the bins are correlated (Φ's model of independent bins is not used).
+// Replicates: markov_error_replicates (signal/noise_spectrum.h), bins as `data`.
+// @throws InputError  as fit_plant_closed_loop; fewer than two replicates; a
+//                     replicate whose bins do not match the data's.
+void use_replicate_covariance(PlantFitResult& fit, const MarkovBins& data, const StateSpace& controller,
+                              const std::vector<std::vector<Eigen::MatrixXcd>>& replicates,
+                              const PlantFitOptions& options);
 
 // E|P̂_ij(e^{jωTs}) − P_ij|² at each ω (delta method with the fit's covariance: the sum
 // of the variances of the real and imaginary parts), p × m per frequency.

@@ -35,4 +35,28 @@ std::vector<Eigen::MatrixXcd> fir_residual_spectrum(const std::vector<Experiment
                                                     const MarkovSequence& g, Index segment_length, Index num_bins,
                                                     const std::vector<Eigen::MatrixXd>& output_correction = {});
 
+// Replicates of a least-squares Markov estimate's error, one per record segment: the
+// data's own measure of how uncertain ĝ is, whatever the noise's spectrum, its
+// correlation or its cause (identify's bands: a sandwich covariance, plant_fit.h).
+//
+// The LS error is δg = Φ⁻¹ Σ_t φ(t) e(t) (φ(t) the lagged excitations, e the noise).
+// With white excitation Φ ≈ I ⊗ R₀ (R₀ = Σ v vᵀ over all experiments), so splitting
+// the sum over t into segments s gives δg = Σ_s δg_s,
+//   δg_s[k] = (Σ_{t∈s} e(t) v(t − k)ᵀ) R₀⁻¹,   k = 1..num_lags,
+// with e the residual of g (as fir_residual_spectrum: less the correction and its
+// mean).  Each experiment is cut into ⌊N_e / segment_length⌋ segments (the last takes
+// the remainder); terms of different segments are nearly uncorrelated when segments
+// are long against the correlation time of e·v, so Σ_s δG_s δG_sᴴ estimates the
+// error covariance of the bins (Σ_s δg_s = 0: e is orthogonal to the regressors).
+// Coloured excitation breaks Φ ≈ I ⊗ R₀; the replicates are then only indicative.
+//
+// Returned: per segment, the num_lags-point DFT bins f = 0..num_bins−1 of
+// Σ_{k=1}^{num_lags} δg_s[k] z^−k (make_markov_bins' transform of g), p × m each.
+// Cost O(segments (m_active + 2p) M log M), M ≥ segment_length + num_lags.
+// @throws InputError  as fir_residual_spectrum; num_lags < 2; num_bins not in
+//                     1..num_lags/2+1; a singular excitation_gram.
+std::vector<std::vector<Eigen::MatrixXcd>> markov_error_replicates(
+    const std::vector<ExperimentView>& experiments, const MarkovSequence& g, const Eigen::MatrixXd& excitation_gram,
+    Index segment_length, Index num_lags, Index num_bins, const std::vector<Eigen::MatrixXd>& output_correction = {});
+
 }  // namespace lpvid

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   std::string out, hidden = "none";
   std::uint64_t seed = 1;
   double rate = 1000, duration = 60, noise_override = -1, integration_s = 4;
+  unsigned long long noise_seed = 0;  // --noise-seed: another noise (and excitation) realisation of the same plant
   bool logs = true, analyzer = true, averages_line = true;
   int averages = 16, points = 300;
   indep::DrawOptions dopt;  // the draw's ranges (tests/support/independent_draw.h)
@@ -47,6 +48,7 @@ int main(int argc, char** argv) {
     else if (a == "--rate-hz") rate = std::stod(next());
     else if (a == "--duration-s") duration = std::stod(next());
     else if (a == "--noise-scale") noise_override = std::stod(next());
+    else if (a == "--noise-seed") noise_seed = std::stoull(next());
     else if (a == "--no-logs") logs = false;
     else if (a == "--no-analyzer") analyzer = false;
     else if (a == "--averages") averages = std::stoi(next());
@@ -113,7 +115,7 @@ int main(int argc, char** argv) {
       const double ex[3] = {0.05, 0.05, 1.0};
       for (int j = 0; j < 3; ++j) {
         const auto N = static_cast<Eigen::Index>(std::llround(duration * rate));
-        const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, ex, j, N, seed * 1000 + 10 * pos + j);
+        const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, ex, j, N, seed * 1000 + 10 * pos + j + noise_seed * 7919);
         indep::write_log_csv(dir + "/exp_v" + std::to_string(j + 1) + ".csv", log);
       }
     }

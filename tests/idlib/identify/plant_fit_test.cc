@@ -165,6 +165,84 @@ TEST(PlantFit, BandsMatchTheScatterOfFitsOverNoiseDraws) {
               noise_scale);
 }
 
+// Bin errors that are correlated across frequency (a common complex offset per entry
+// carrying 90 % of the variance, plus independent parts): the model's σ̂² (JᵀJ)⁺ assumes
+// independent bins and must under-predict the scatter of the fits; the sandwich of
+// use_replicate_covariance, given replicates drawn from the same correlated law (each
+// with 1/S of the covariance, as the segments of a record are), must match it.  Bounds
+// as in BandsMatchTheScatterOfFitsOverNoiseDraws ([0.6, 1.6] is ≥ 4 sigma for 100 draws;
+// the sandwich's own estimate from 60 replicates adds ~18 % spread per draw, averaged
+// out over the draws).
+TEST(PlantFit, ReplicateBandsMatchTheScatterWhenBinErrorsAreCorrelated) {
+  constexpr int kDraws = 100, kReplicates = 60;
+  constexpr double kMinRatio = 0.6, kMaxRatio = 1.6, kModelTooNarrow = 0.6;
+  constexpr double kCommon = 0.9, kOwn = 0.3;  // per real part, × the bin's std
+  const StateSpace plant = coupled_plant(), controller = pi_controller_2x2();
+  const MarkovBins clean = truth_bins(plant, controller);
+  const double bin_std = std::sqrt(kNoiseVariance * kLags / kSamples);
+  const Eigen::VectorXd w = log_frequency_grid(1.0, 150.0, 5);
+  const auto truth = evaluate_response(plant, w);
+  std::mt19937_64 rng(kNoiseSeed + 7);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  // One draw of the correlated error, scaled by `scale`: per entry a common offset of
+  // variance bin_std²/2 at every bin plus an independent part of the same variance.
+  auto draw_error = [&](double scale) {
+    std::vector<Eigen::MatrixXcd> e(static_cast<std::size_t>(clean.num_bins()), Eigen::MatrixXcd::Zero(2, 2));
+    for (Index i = 0; i < 2; ++i)
+      for (Index j = 0; j < 2; ++j) {
+        const Complex common(n01(rng) * kCommon * bin_std, n01(rng) * kCommon * bin_std);
+        for (Index f = 0; f < clean.num_bins(); ++f) {
+          const bool real_bin = f == 0 || 2 * f == kLags;
+          const Complex own(n01(rng) * kOwn * bin_std, real_bin ? 0.0 : n01(rng) * kOwn * bin_std);
+          e[static_cast<std::size_t>(f)](i, j) = scale * (real_bin ? Complex(common.real(), 0.0) + own : common + own);
+        }
+      }
+    return e;
+  };
+  std::vector<Eigen::MatrixXd> empirical(w.size(), Eigen::MatrixXd::Zero(2, 2)), model = empirical, sandwich = empirical;
+  for (int d = 0; d < kDraws; ++d) {
+    MarkovBins b = clean;
+    const auto err = draw_error(1.0);
+    for (Index f = 0; f < b.num_bins(); ++f) b.response[static_cast<std::size_t>(f)] += err[static_cast<std::size_t>(f)];
+    PlantFitResult r = fit_plant_closed_loop(b, controller, plant, PlantFitOptions{});
+    ASSERT_TRUE(r.report.usable) << r.report.termination;
+    const auto est = evaluate_response(r.plant, w);
+    const auto var_model = plant_response_variance(r, w);
+    std::vector<std::vector<Eigen::MatrixXcd>> reps;
+    for (int s = 0; s < kReplicates; ++s) reps.push_back(draw_error(1.0 / std::sqrt(static_cast<double>(kReplicates))));
+    use_replicate_covariance(r, b, controller, reps, PlantFitOptions{});
+    EXPECT_EQ(r.replicates, kReplicates);
+    const auto var_sandwich = plant_response_variance(r, w);
+    for (Index k = 0; k < w.size(); ++k) {
+      empirical[static_cast<std::size_t>(k)] += (est[k] - truth[k]).cwiseAbs2() / kDraws;
+      model[static_cast<std::size_t>(k)] += var_model[static_cast<std::size_t>(k)] / kDraws;
+      sandwich[static_cast<std::size_t>(k)] += var_sandwich[static_cast<std::size_t>(k)] / kDraws;
+    }
+  }
+  double lo = 1e300, hi = 0, model_mean = 0;
+  for (Index k = 0; k < w.size(); ++k)
+    for (Index i = 0; i < 2; ++i)
+      for (Index j = 0; j < 2; ++j) {
+        const double ratio = sandwich[k](i, j) / empirical[k](i, j), model_ratio = model[k](i, j) / empirical[k](i, j);
+        lo = std::min(lo, ratio), hi = std::max(hi, ratio), model_mean += model_ratio / static_cast<double>(4 * w.size());
+        EXPECT_GE(ratio, kMinRatio) << "omega " << w(k) << " entry " << i << "," << j;
+        EXPECT_LE(ratio, kMaxRatio) << "omega " << w(k) << " entry " << i << "," << j;
+      }
+  EXPECT_LT(model_mean, kModelTooNarrow) << "the correlated errors did not fool the independent-bin model";
+  std::printf("sandwich predicted / empirical variance over %d draws: %.3f .. %.3f; the model's %.3f on average\n",
+              kDraws, lo, hi, model_mean);
+}
+
+TEST(PlantFit, ReplicateCovarianceRejectsTooFewReplicatesAndMismatchedBins) {
+  const StateSpace plant = coupled_plant(), controller = pi_controller_2x2();
+  const MarkovBins b = truth_bins(plant, controller);
+  PlantFitResult r = fit_plant_closed_loop(b, controller, plant, PlantFitOptions{});
+  const std::vector<Eigen::MatrixXcd> zero(static_cast<std::size_t>(b.num_bins()), Eigen::MatrixXcd::Zero(2, 2));
+  EXPECT_THROW(use_replicate_covariance(r, b, controller, {zero}, PlantFitOptions{}), InputError);
+  const std::vector<Eigen::MatrixXcd> short_one(zero.begin(), zero.end() - 1);
+  EXPECT_THROW(use_replicate_covariance(r, b, controller, {zero, short_one}, PlantFitOptions{}), InputError);
+}
+
 TEST(PlantFit, RejectsAStartWithFeedthroughAndMismatchedShapes) {
   const StateSpace plant = coupled_plant(), controller = pi_controller_2x2();
   const MarkovBins b = truth_bins(plant, controller);

@@ -15,6 +15,8 @@
 #include <cstdio>
 
 #include "idlib/identify/identify.h"
+#include "idlib/identify/plant_fit.h"
+#include "idlib/lti/frequency_response.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/interconnect.h"
 #include "tests/idlib/identify/independent_case.h"
@@ -55,6 +57,46 @@ INSTANTIATE_TEST_SUITE_P(Seeds2To25, IndependentRobustness,
 TEST(IndependentRobustness10kHz, DefaultsGiveAStableOrderSixPlantWithinTheStatedError) {
   check_case({3, 0, -1.0, 1e-4, 100});  // seed 3 draws no sensor noise
   check_case({4, 1, -1.0, 1e-4, 100});  // × 0.53
+}
+
+// The bands (issue 11: "a 95 % band contains the true response at 90–99 % of
+// frequencies"): one drawn plant (seed 4, beam left: the lowest coverage of the four
+// plants measured), noise ×1, kDraws independent noise and excitation draws; the share
+// of (frequency, entry) pairs over 1–400 rad/s whose true response lies within the disc
+// of radius kBandRadiusPerSigma σ drawn by bode.  Measured at this commit: 0.93 pooled
+// (0.89–0.95 per decade over 12 draws).  Coverage within one draw is strongly correlated
+// across frequency (it is one parametric fit), so the pooled share over 10 draws
+// scatters by ~3 points: the bounds [0.85, 0.995] are ~3 sigma below and the
+// "hopelessly wide" side (every point inside) above.
+TEST(IndependentBands, CoverTheTruthAtTheStatedLevelOverNoiseDraws) {
+  constexpr int kDraws = 10;
+  constexpr double kMinCoverage = 0.85, kMaxCoverage = 0.995;
+  const Eigen::VectorXd omega =
+      log_frequency_grid(testing::kIndependentBandLow, testing::kIndependentBandHigh, testing::kIndependentBandPoints);
+  Index inside = 0, total = 0;
+  for (int d = 1; d <= kDraws; ++d) {
+    testing::IndependentCase c;
+    c.seed = 4;
+    c.position = 0;
+    c.noise_scale = 1.0;
+    c.realisation = static_cast<std::uint64_t>(d);
+    const testing::IndependentOutcome o = testing::run_independent(c);
+    ASSERT_GT(o.result.fit.replicates, 0) << o.result.choices.bands_reason;
+    const auto est = evaluate_response(o.result.plant, omega), truth = evaluate_response(o.truth, omega);
+    const auto var = plant_response_variance(o.result.fit, omega);
+    for (Index k = 0; k < omega.size(); ++k)
+      for (Index i = 0; i < 3; ++i)
+        for (Index j = 0; j < 3; ++j) {
+          const double r2 = kBandRadiusPerSigma * kBandRadiusPerSigma * var[static_cast<std::size_t>(k)](i, j);
+          inside += std::norm(est[static_cast<std::size_t>(k)](i, j) - truth[static_cast<std::size_t>(k)](i, j)) <= r2;
+          ++total;
+        }
+  }
+  const double coverage = static_cast<double>(inside) / static_cast<double>(total);
+  std::printf("95 %% bands: %.3f of %ld (frequency, entry) pairs over %d draws contain the truth\n", coverage,
+              static_cast<long>(total), kDraws);
+  EXPECT_GE(coverage, kMinCoverage);
+  EXPECT_LE(coverage, kMaxCoverage);
 }
 
 // Found by this suite and NOT yet passing (pinned, disabled until fixed): seed 2 at the
