@@ -278,6 +278,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s): {}", L, static_cast<double>(L) * Ts, why);
         break;
       }
+      mo.initial_guess = result.markov.g;  // the next horizon starts from this one.s estimate
       if (2 * L > cap) {
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s), a quarter of the shortest record: {}; the response "
                                         "beyond is left to the tail rounds",
@@ -594,6 +595,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
         views.push_back({experiments[e].excitation, corrected[e]});
       }
       mo.num_lags = L;
+      mo.initial_guess = g_final;  // the previous round's ĝ: the correction is small
       const MarkovResult mr = estimate_markov(views, mo);
       if (round == 1 && pass == 0) spectrum = fir_residual_spectrum(views, mr.g, L, L / 2 + 1);
       const MarkovBins data = bins_at(mr.g, spectrum, L);
@@ -616,6 +618,27 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       if (round == options.max_tail_rounds) result.warnings.push_back("identify: " + ch.tail_reason);
     }
     if (!select_order || pass == 1 || fit.plant.order() == 1) break;
+    // The next smaller order is not retried when the first stage found it more than
+    // kOrderAbandonRatio times worse per degree of freedom than the chosen one: the
+    // response beyond the horizon, which the tail rounds remove, burdens both orders
+    // alike at the first stage (it is why an extra state can look useful there), so it
+    // cannot hide a gap that large.
+    {
+      const Index top = fit.plant.order();
+      auto at = [&](Index n) {
+        return std::find_if(ch.order_candidates.begin(), ch.order_candidates.end(),
+                            [&](const IdentifyChoices::Candidate& c) { return c.order == n; });
+      };
+      const auto chosen = at(top), below = at(top - 1);
+      if (chosen != ch.order_candidates.end() && below != ch.order_candidates.end() &&
+          below->cost / std::max(below->dof, 1.0) >
+              kOrderAbandonRatio * std::max(chosen->cost / std::max(chosen->dof, 1.0), 1.0)) {
+        ch.order_reason += fmt::format("; order {} was more than {:g}x worse per degree of freedom at the first "
+                                       "stage, so smaller orders were not retried on the final data",
+                                       top - 1, kOrderAbandonRatio);
+        break;
+      }
+    }
     const MarkovBins small = bins_at(g_final, spectrum, K0);
     const std::vector<Realised> pool = realise_all(plant_markov_from_closed_loop(g_final, controller, L));
     PlantFitResult top_small = fit_plant_closed_loop(small, controller, fit.plant, fo);

@@ -199,7 +199,7 @@ struct PcgOutcome {
 // R_vv(0)^{-1} applied to every lag.
 PcgOutcome solve_pcg(NormalOperator& op, const Eigen::MatrixXd& rhs,
                      const Eigen::LLT<Eigen::MatrixXd>& r0, Index m, Index L, double tolerance,
-                     int max_iterations) {
+                     int max_iterations, const Eigen::MatrixXd* x0 = nullptr) {
   const Index n = rhs.rows(), p = rhs.cols();
   auto precondition = [&](const Eigen::MatrixXd& r, Eigen::MatrixXd& z) {
     z = r;
@@ -211,6 +211,11 @@ PcgOutcome solve_pcg(NormalOperator& op, const Eigen::MatrixXd& rhs,
   PcgOutcome out;
   out.x = Eigen::MatrixXd::Zero(n, p);
   Eigen::MatrixXd r = rhs, z, q;
+  if (x0 != nullptr) {  // warm start: the same tolerance, relative to ||rhs||
+    out.x = *x0;
+    op.apply(out.x, q);
+    r -= q;
+  }
   Eigen::VectorXd bnorm(p), rz(p);
   std::vector<bool> done(static_cast<size_t>(p));
   auto relres = [&](Index c) { return bnorm(c) > 0.0 ? r.col(c).norm() / bnorm(c) : 0.0; };
@@ -459,7 +464,21 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
     }
     const Eigen::LLT<Eigen::MatrixXd> r0(rvv[0]);
     NormalOperator op(rvv, tails, m, L, p, lag_means, lag_count);
-    const PcgOutcome sol = solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations);
+    Eigen::MatrixXd x0;
+    if (!options.initial_guess.empty()) {
+      x0 = Eigen::MatrixXd::Zero(m * (L + 1), p);
+      const Index K = std::min<Index>(L + 1, static_cast<Index>(options.initial_guess.size()));
+      for (Index k = 0; k < K; ++k) {
+        const Eigen::MatrixXd& gk = options.initial_guess[static_cast<std::size_t>(k)];
+        if (gk.rows() != p || gk.cols() != m)
+          throw InputError(fmt::format("estimate_markov: the initial guess is {}x{} at lag {}; the data are {}x{}",
+                                       gk.rows(), gk.cols(), k, p, m));
+        for (Index a = 0; a < m; ++a)
+          for (Index i = 0; i < p; ++i) x0(k * m + a, i) = gk(i, a);
+      }
+    }
+    const PcgOutcome sol = solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations,
+                                     options.initial_guess.empty() ? nullptr : &x0);
     for (Index k = 0; k <= L; ++k)
       for (Index a = 0; a < m; ++a)
         for (Index i = 0; i < p; ++i) res.g[k](i, a) = sol.x(k * m + a, i);

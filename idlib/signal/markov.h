@@ -52,6 +52,12 @@ struct MarkovOptions {
   // kLeastSquares: PCG iteration limit.  Must be > 0.
   int max_iterations = 500;
 
+  // kLeastSquares: a starting point for PCG (e.g. the estimate at a shorter horizon, or
+  // before a small change of the outputs): lags beyond its size start at zero, lags
+  // beyond num_lags are ignored.  Same tolerance, so the same estimate to within it;
+  // fewer iterations when the guess is close.  Empty: start from zero.  Each entry p x m.
+  MarkovSequence initial_guess;
+
   // @throws InputError naming the first broken rule (num_lags <= 0, tolerance not in
   //         (0, 1), max_iterations <= 0).
   void validate() const;
