@@ -87,6 +87,39 @@ void BM_Identify_Independent_Seed1_3x60s_1kHz(benchmark::State& state) {
   }
 }
 void BM_Identify_3x100s_10kHz(benchmark::State& state) { run(state, 1e-4, 100.0); }
+// 10 kHz on the independent simulator: the robustness suite's two draws (seed 3 beam left,
+// noise-free; seed 4 middle, noise x0.53 as drawn), 3 x 100 s (state.range(0) = seed).
+void BM_Identify_Independent_3x100s_10kHz(benchmark::State& state) {
+  constexpr double kTs = 1e-4;
+  const double xb[3] = {-0.1, 0.0, 0.1};
+  const auto seed = static_cast<std::uint64_t>(state.range(0));
+  const int position = seed == 3 ? 0 : 1;
+  const indep::Draw d =
+      indep::draw_stable(seed, indep::HiddenEffect::kNone, indep::DrawOptions{}, kTs, {xb[0], xb[1], xb[2]});
+  indep::Noise noise;
+  noise.sensor_std_m = 0.3e-6 * d.noise_scale;
+  const indep::Discrete C = indep::pid_controller(d.plant, d.pid, kTs);
+  const indep::Discrete P = indep::sampled_plant(d.plant, xb[position], kTs);
+  StateSpace controller;
+  controller.A = C.A, controller.B = C.B, controller.C = C.C, controller.D = C.D, controller.sample_period_s = kTs;
+  const double amplitude[3] = {0.05, 0.05, 1.0};
+  std::vector<Eigen::MatrixXd> v, q;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, amplitude, j, 1000000,
+                                                    seed * 1000 + 10 * static_cast<std::uint64_t>(position) +
+                                                        static_cast<std::uint64_t>(j));
+    v.push_back(log.middleCols(1, 3));
+    q.push_back(log.middleCols(7, 3));
+  }
+  std::vector<ExperimentView> views;
+  for (std::size_t i = 0; i < v.size(); ++i) views.push_back({v[i], q[i]});
+  for (auto _ : state) {
+    IdentifyResult r = identify_closed_loop(views, kTs, controller, IdentifyOptions{});
+    benchmark::DoNotOptimize(r.plant.A.data());
+    state.counters["plant_order"] = static_cast<double>(r.plant.order());
+    state.counters["lags"] = static_cast<double>(r.num_lags);
+  }
+}
 // The paper's recipe (--method era), the default before issue 11.
 void BM_IdentifyEra_3x60s_1kHz(benchmark::State& state) { run(state, 1e-3, 60.0, IdentifyMethod::kEra); }
 void BM_IdentifyEra_3x100s_10kHz(benchmark::State& state) { run(state, 1e-4, 100.0, IdentifyMethod::kEra); }
@@ -115,6 +148,13 @@ BENCHMARK(BM_IdentifyEra_3x100s_10kHz)->Unit(benchmark::kMillisecond)->UseRealTi
 BENCHMARK(BM_Identify_Independent_Seed1_3x60s_1kHz)
     ->ArgsProduct({{0, 1, 2}, {1, 0}})
     ->ArgNames({"position", "noise"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
+BENCHMARK(BM_Identify_Independent_3x100s_10kHz)
+    ->Arg(3)
+    ->Arg(4)
+    ->ArgName("seed")
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->Iterations(1);
