@@ -8,6 +8,7 @@
 #include "idlib/lti/discretize.h"
 #include "idlib/models/platform.h"
 #include "idlib/sim/platform_sim.h"
+#include "tests/idlib/identify/independent_case.h"
 #include "tests/support/independent_draw.h"
 
 namespace {
@@ -57,68 +58,28 @@ void BM_Identify_3x60s_1kHz(benchmark::State& state) { run(state, 1e-3, 60.0); }
 // The same on logs of the INDEPENDENT simulator (tests/support, as
 // independent_identify_test.cc): seed 1, 3 × 60 s at 1 kHz, beam at x_b = −0.1, 0, 0.1 m
 // (state.range(0) = 0, 1, 2), sensor noise × state.range(1) (0 = noise-free).
-void BM_Identify_Independent_Seed1_3x60s_1kHz(benchmark::State& state) {
-  constexpr double kTs = 1e-3;
-  const double xb[3] = {-0.1, 0.0, 0.1};
-  const auto position = static_cast<int>(state.range(0));
-  const indep::Draw d =
-      indep::draw_stable(1, indep::HiddenEffect::kNone, indep::DrawOptions{}, kTs, {xb[0], xb[1], xb[2]});
-  indep::Noise noise;
-  noise.sensor_std_m = 0.3e-6 * static_cast<double>(state.range(1));
-  const indep::Discrete C = indep::pid_controller(d.plant, d.pid, kTs);
-  const indep::Discrete P = indep::sampled_plant(d.plant, xb[position], kTs);
-  StateSpace controller;
-  controller.A = C.A, controller.B = C.B, controller.C = C.C, controller.D = C.D, controller.sample_period_s = kTs;
-  const double amplitude[3] = {0.05, 0.05, 1.0};
-  std::vector<Eigen::MatrixXd> v, q;
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, amplitude, j, 60000,
-                                                    1000 + 10 * static_cast<std::uint64_t>(position) + static_cast<std::uint64_t>(j));
-    v.push_back(log.middleCols(1, 3));
-    q.push_back(log.middleCols(7, 3));
-  }
+void run_independent_case(benchmark::State& state, const testing::IndependentCase& c) {
+  testing::IndependentCase logs_only = c;
+  logs_only.identify = false;
+  const testing::IndependentOutcome o = testing::run_independent(logs_only);
   std::vector<ExperimentView> views;
-  for (std::size_t i = 0; i < v.size(); ++i) views.push_back({v[i], q[i]});
+  for (std::size_t i = 0; i < o.v.size(); ++i) views.push_back({o.v[i], o.q[i]});
   for (auto _ : state) {
-    IdentifyResult r = identify_closed_loop(views, kTs, controller, IdentifyOptions{});
+    IdentifyResult r = identify_closed_loop(views, c.sample_period_s, o.controller, IdentifyOptions{});
     benchmark::DoNotOptimize(r.plant.A.data());
     state.counters["plant_order"] = static_cast<double>(r.plant.order());
     state.counters["lags"] = static_cast<double>(r.num_lags);
   }
 }
+void BM_Identify_Independent_Seed1_3x60s_1kHz(benchmark::State& state) {
+  run_independent_case(state, {1, static_cast<int>(state.range(0)), static_cast<double>(state.range(1))});
+}
 void BM_Identify_3x100s_10kHz(benchmark::State& state) { run(state, 1e-4, 100.0); }
 // 10 kHz on the independent simulator: the robustness suite's two draws (seed 3 beam left,
 // noise-free; seed 4 middle, noise x0.53 as drawn), 3 x 100 s (state.range(0) = seed).
 void BM_Identify_Independent_3x100s_10kHz(benchmark::State& state) {
-  constexpr double kTs = 1e-4;
-  const double xb[3] = {-0.1, 0.0, 0.1};
   const auto seed = static_cast<std::uint64_t>(state.range(0));
-  const int position = seed == 3 ? 0 : 1;
-  const indep::Draw d =
-      indep::draw_stable(seed, indep::HiddenEffect::kNone, indep::DrawOptions{}, kTs, {xb[0], xb[1], xb[2]});
-  indep::Noise noise;
-  noise.sensor_std_m = 0.3e-6 * d.noise_scale;
-  const indep::Discrete C = indep::pid_controller(d.plant, d.pid, kTs);
-  const indep::Discrete P = indep::sampled_plant(d.plant, xb[position], kTs);
-  StateSpace controller;
-  controller.A = C.A, controller.B = C.B, controller.C = C.C, controller.D = C.D, controller.sample_period_s = kTs;
-  const double amplitude[3] = {0.05, 0.05, 1.0};
-  std::vector<Eigen::MatrixXd> v, q;
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::MatrixXd log = indep::simulate_log(P, C, d.plant, noise, amplitude, j, 1000000,
-                                                    seed * 1000 + 10 * static_cast<std::uint64_t>(position) +
-                                                        static_cast<std::uint64_t>(j));
-    v.push_back(log.middleCols(1, 3));
-    q.push_back(log.middleCols(7, 3));
-  }
-  std::vector<ExperimentView> views;
-  for (std::size_t i = 0; i < v.size(); ++i) views.push_back({v[i], q[i]});
-  for (auto _ : state) {
-    IdentifyResult r = identify_closed_loop(views, kTs, controller, IdentifyOptions{});
-    benchmark::DoNotOptimize(r.plant.A.data());
-    state.counters["plant_order"] = static_cast<double>(r.plant.order());
-    state.counters["lags"] = static_cast<double>(r.num_lags);
-  }
+  run_independent_case(state, {seed, seed == 3 ? 0 : 1, -1.0, 1e-4, 100.0});
 }
 // The paper's recipe (--method era), the default before issue 11.
 void BM_IdentifyEra_3x60s_1kHz(benchmark::State& state) { run(state, 1e-3, 60.0, IdentifyMethod::kEra); }

@@ -381,6 +381,19 @@ MatrixXd gauge_complement(const Model& model, const VectorXd& theta, Index n) {
   return Q.rightCols(theta.size() - rank);
 }
 
+// (JᵀJ)⁺ restricted to the gauge complement at θ: Qp (Qpᵀ JᵀJ Qp)⁺ Qpᵀ, eigenvalues below
+// kCovarianceRankTolerance of the largest dropped (unidentifiable combinations).
+MatrixXd normal_pseudo_inverse(const Model& model, const VectorXd& theta, Index n, const MatrixXd& JtJ) {
+  const MatrixXd Qp = gauge_complement(model, theta, n);
+  const MatrixXd Nm = Qp.transpose() * JtJ * Qp;
+  const Eigen::SelfAdjointEigenSolver<MatrixXd> es(0.5 * (Nm + Nm.transpose()));
+  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  VectorXd inv = VectorXd::Zero(Nm.rows());
+  for (Index i = 0; i < Nm.rows(); ++i)
+    if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
+  return Qp * es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose() * Qp.transpose();
+}
+
 }  // namespace
 
 Index MarkovBins::real_residuals() const {
@@ -584,15 +597,7 @@ PlantFitResult fit_plant_closed_loop(const MarkovBins& data, const StateSpace& c
 
   // Covariance in scaled coordinates, then mapped to the plant's own coordinates
   // (B = B_s diag(1/su), C = diag(sq) C_s: a diagonal change of variables).
-  const Eigen::MatrixXd Qp = gauge_complement(model, theta, n);
-  const Eigen::MatrixXd Nm = Qp.transpose() * JtJ * Qp;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (Nm + Nm.transpose()));
-  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
-  Eigen::VectorXd inv = Eigen::VectorXd::Zero(Nm.rows());
-  for (Index i = 0; i < Nm.rows(); ++i)
-    if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
-  const Eigen::MatrixXd cov_s = result.noise_scale * Qp * es.eigenvectors() * inv.asDiagonal() *
-                                es.eigenvectors().transpose() * Qp.transpose();
+  const Eigen::MatrixXd cov_s = result.noise_scale * normal_pseudo_inverse(model, theta, n, JtJ);
   const Eigen::VectorXd map = coordinate_map(n, m, p, su, sq);
   result.covariance = map.asDiagonal() * cov_s * map.asDiagonal();
 
@@ -638,14 +643,7 @@ void use_replicate_covariance(PlantFitResult& fit, const MarkovBins& data, const
   // meat Σ g gᵀ has S − 1 degrees of freedom (the factor S / (S − 1)).
   const double S = static_cast<double>(replicates.size());
   const Eigen::MatrixXd meat = (S / (S - 1.0)) * (grads * grads.transpose());
-  const Eigen::MatrixXd Qp = gauge_complement(model, theta, n);
-  const Eigen::MatrixXd Nm = Qp.transpose() * JtJ * Qp;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (Nm + Nm.transpose()));
-  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
-  Eigen::VectorXd inv = Eigen::VectorXd::Zero(Nm.rows());
-  for (Index i = 0; i < Nm.rows(); ++i)
-    if (es.eigenvalues()(i) > kCovarianceRankTolerance * top) inv(i) = 1.0 / es.eigenvalues()(i);
-  const Eigen::MatrixXd bread = Qp * es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose() * Qp.transpose();
+  const Eigen::MatrixXd bread = normal_pseudo_inverse(model, theta, n, JtJ);
   const Eigen::MatrixXd cov_s = bread * meat * bread;
   fit.covariance = coordinate_map(n, m, p, st.su, st.sq).asDiagonal() * cov_s *
                    coordinate_map(n, m, p, st.su, st.sq).asDiagonal();
