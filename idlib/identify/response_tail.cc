@@ -8,6 +8,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/lti/interconnect.h"
+#include "idlib/signal/noise_spectrum.h"
 
 namespace lpvid {
 
@@ -78,6 +79,124 @@ Eigen::MatrixXd closed_loop_response_beyond(const StateSpace& plant, const State
     x = loop.A * x + loop.B * excitation.row(t).transpose();
   }
   return y;
+}
+
+std::vector<Eigen::MatrixXd> refit_response_beyond(const StateSpace& plant, const StateSpace& controller,
+                                                   const std::vector<ExperimentView>& corrected,
+                                                   const MarkovSequence& g, Index lag) {
+  plant.validate();
+  controller.validate();
+  if (lag < 1) throw InputError(fmt::format("tail refit: lag {} < 1", lag));
+  const Index m = plant.num_inputs(), p = plant.num_outputs();
+  std::vector<Eigen::MatrixXd> out;
+  for (const auto& x : corrected) {
+    if (x.excitation.cols() != m || x.output.cols() != p || x.excitation.rows() != x.output.rows())
+      throw InputError(fmt::format("tail refit: every experiment must have {} inputs and {} outputs over one record", m, p));
+    out.push_back(Eigen::MatrixXd::Zero(x.output.rows(), p));
+  }
+  const StateSpace loop = closed_loop_output(plant, controller);
+  const Eigen::EigenSolver<Eigen::MatrixXd> es(loop.A, false);
+  if (es.info() != Eigen::Success) return out;
+  std::vector<Complex> slow;  // one of each complex pair (Im > 0) and the real modes
+  for (Index a = 0; a < loop.order(); ++a) {
+    const Complex l = es.eigenvalues()(a);
+    if (l.imag() < 0.0 || std::pow(std::abs(l), static_cast<double>(lag)) < kSlowModeTail) continue;
+    slow.push_back(l);
+  }
+  if (slow.empty()) return out;
+  // Regressor columns: (mode, input, part), part 0 = Re, 1 = Im (complex modes only).
+  struct Column {
+    std::size_t mode;
+    Index input;
+    int part;
+  };
+  std::vector<Column> cols;
+  for (std::size_t i = 0; i < slow.size(); ++i)
+    for (Index a = 0; a < m; ++a) {
+      cols.push_back({i, a, 0});
+      if (slow[i].imag() > 0.0) cols.push_back({i, a, 1});
+    }
+  const Index r = static_cast<Index>(cols.size());
+  // Per experiment only the excited inputs' columns are non-zero: `act` lists them, and
+  // U(t) is built row by row over those (never the N × r matrix): U(t + lag) = [Re, Im]
+  // ξ_{i,a}(t), zero before.
+  auto active_columns = [&](const ExperimentView& x) {
+    std::vector<Index> act;
+    for (Index c = 0; c < r; ++c) {
+      const auto col = x.excitation.col(cols[static_cast<std::size_t>(c)].input);
+      if ((col.array() != 0.0).any()) act.push_back(c);
+    }
+    return act;
+  };
+  auto for_each_row = [&](const ExperimentView& x, const std::vector<Index>& act, const auto& visit) {
+    const Index n = x.excitation.rows(), na = static_cast<Index>(act.size());
+    std::vector<Complex> xi(static_cast<std::size_t>(na), Complex(0.0));
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(na);
+    for (Index t = 0; t < n; ++t) {
+      if (t >= lag) {
+        for (Index k = 0; k < na; ++k) {
+          const Column& c = cols[static_cast<std::size_t>(act[static_cast<std::size_t>(k)])];
+          Complex& z = xi[static_cast<std::size_t>(k)];
+          u(k) = c.part == 0 ? z.real() : z.imag();
+          // the Im column shares ξ with the Re column before it: advance ξ once, at the last part
+          const bool last = c.part == 1 || slow[c.mode].imag() <= 0.0;
+          if (c.part == 0 && !last) continue;  // advanced with its Im column
+          z = slow[c.mode] * z + x.excitation(t - lag, c.input);
+          if (c.part == 1) xi[static_cast<std::size_t>(k - 1)] = z;
+        }
+      }
+      visit(t, u);
+    }
+  };
+  // Centred per experiment (the offset is part of the model): Σ (u − ū)(u − ū)ᵀ and
+  // Σ (u − ū) eᵀ, e of zero mean.
+  Eigen::MatrixXd UtU = Eigen::MatrixXd::Zero(r, r), Ute = Eigen::MatrixXd::Zero(r, p);
+  std::vector<Eigen::VectorXd> means;
+  std::vector<std::vector<Index>> acts;
+  Eigen::MatrixXd e;
+  for (const auto& x : corrected) {
+    const std::vector<Index> act = active_columns(x);
+    const Index na = static_cast<Index>(act.size());
+    fir_residual(x, g, nullptr, e);
+    constexpr Index kBlock = 1024;  // rows gathered per matrix product
+    Eigen::MatrixXd Ub(kBlock, na), Eb(kBlock, p), uu = Eigen::MatrixXd::Zero(na, na), ue = Eigen::MatrixXd::Zero(na, p);
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(na);
+    Index filled = 0;
+    auto flush = [&] {
+      uu.noalias() += Ub.topRows(filled).transpose() * Ub.topRows(filled);
+      ue.noalias() += Ub.topRows(filled).transpose() * Eb.topRows(filled);  // Σ ū eᵀ = 0
+      filled = 0;
+    };
+    for_each_row(x, act, [&](Index t, const Eigen::VectorXd& u) {
+      sum += u;
+      Ub.row(filled) = u.transpose();
+      Eb.row(filled) = e.row(t);
+      if (++filled == kBlock) flush();
+    });
+    flush();
+    const double n = static_cast<double>(x.excitation.rows());
+    const Eigen::VectorXd mean = sum / n;
+    uu -= n * mean * mean.transpose();
+    Eigen::VectorXd full_mean = Eigen::VectorXd::Zero(r);
+    for (Index k = 0; k < na; ++k) {
+      full_mean(act[static_cast<std::size_t>(k)]) = mean(k);
+      Ute.row(act[static_cast<std::size_t>(k)]) += ue.row(k);
+      for (Index l = 0; l < na; ++l) UtU(act[static_cast<std::size_t>(k)], act[static_cast<std::size_t>(l)]) += uu(k, l);
+    }
+    means.push_back(full_mean);
+    acts.push_back(act);
+  }
+  // Columns of inputs never excited are zero: a pseudo-inverse leaves them at zero.
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(UtU);
+  const Eigen::MatrixXd dc = cod.solve(Ute);
+  for (std::size_t k = 0; k < corrected.size(); ++k) {
+    const std::vector<Index>& act = acts[k];
+    Eigen::MatrixXd dca(static_cast<Index>(act.size()), p);
+    for (std::size_t c = 0; c < act.size(); ++c) dca.row(static_cast<Index>(c)) = dc.row(act[c]);
+    const Eigen::RowVectorXd offset = means[k].transpose() * dc;
+    for_each_row(corrected[k], act, [&](Index t, const Eigen::VectorXd& u) { out[k].row(t) = u.transpose() * dca - offset; });
+  }
+  return out;
 }
 
 }  // namespace lpvid

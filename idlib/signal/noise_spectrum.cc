@@ -13,26 +13,6 @@
 namespace lpvid {
 
 namespace {
-// e = q − y_c − Σ_k g[k] v(t − k), less its mean (the offset), N × p.
-void fir_residual(const ExperimentView& ex, const MarkovSequence& g, const Eigen::MatrixXd* correction,
-                  Eigen::MatrixXd& e) {
-  using signal_detail::ChannelView;
-  const Index n = ex.excitation.rows(), m = ex.excitation.cols(), p = ex.output.cols();
-  std::vector<ChannelView> vs, qs;
-  for (Index a = 0; a < m; ++a) {
-    const double* d = ex.excitation.data() + a * ex.excitation.outerStride();
-    bool active = false;
-    for (Index t = 0; t < n && !active; ++t) active = d[t] != d[0];
-    vs.push_back({d, 0.0, active});  // a constant column counts as zero (as in estimate_markov)
-  }
-  for (Index i = 0; i < p; ++i) qs.push_back({ex.output.data() + i * ex.output.outerStride(), 0.0, true});
-  e.resize(n, p);
-  signal_detail::for_each_fir_residual_block(vs, qs, n, g, [&](Index i, Index t0, Index t1, const double* r) {
-    for (Index t = t0; t < t1; ++t) e(t, i) = r[t - t0];
-  });
-  if (correction != nullptr) e -= *correction;
-  e.rowwise() -= e.colwise().mean();
-}
 
 void check_experiments(const char* what, const std::vector<ExperimentView>& experiments, Index p, Index m,
                        Index min_samples, const std::vector<Eigen::MatrixXd>& output_correction) {
@@ -51,6 +31,31 @@ void check_experiments(const char* what, const std::vector<ExperimentView>& expe
   }
 }
 }  // namespace
+
+void fir_residual(const ExperimentView& ex, const MarkovSequence& g, const Eigen::MatrixXd* correction,
+                  Eigen::MatrixXd& e) {
+  if (g.empty() || g.front().rows() != ex.output.cols() || g.front().cols() != ex.excitation.cols() ||
+      ex.excitation.rows() != ex.output.rows())
+    throw InputError("FIR residual: g and the experiment's channels or lengths do not match");
+  if (correction != nullptr && (correction->rows() != ex.output.rows() || correction->cols() != ex.output.cols()))
+    throw InputError("FIR residual: the correction is not the shape of the output");
+  using signal_detail::ChannelView;
+  const Index n = ex.excitation.rows(), m = ex.excitation.cols(), p = ex.output.cols();
+  std::vector<ChannelView> vs, qs;
+  for (Index a = 0; a < m; ++a) {
+    const double* d = ex.excitation.data() + a * ex.excitation.outerStride();
+    bool active = false;
+    for (Index t = 0; t < n && !active; ++t) active = d[t] != d[0];
+    vs.push_back({d, 0.0, active});  // a constant column counts as zero (as in estimate_markov)
+  }
+  for (Index i = 0; i < p; ++i) qs.push_back({ex.output.data() + i * ex.output.outerStride(), 0.0, true});
+  e.resize(n, p);
+  signal_detail::for_each_fir_residual_block(vs, qs, n, g, [&](Index i, Index t0, Index t1, const double* r) {
+    for (Index t = t0; t < t1; ++t) e(t, i) = r[t - t0];
+  });
+  if (correction != nullptr) e -= *correction;
+  e.rowwise() -= e.colwise().mean();
+}
 
 std::vector<Eigen::MatrixXcd> fir_residual_spectrum(const std::vector<ExperimentView>& experiments,
                                                     const MarkovSequence& g, Index segment_length, Index num_bins,

@@ -31,6 +31,12 @@
 
 namespace lpvid {
 
+// e = q − y_c − Σ_{k=0}^{L} g[k] v(t − k), less its mean over the record (the offset),
+// N × p (v = 0 before the record; y_c = *correction, or none).  Blocked FFT convolution.
+// @throws InputError  g's shape or the correction's does not match the experiment.
+void fir_residual(const ExperimentView& experiment, const MarkovSequence& g, const Eigen::MatrixXd* correction,
+                  Eigen::MatrixXd& e);
+
 std::vector<Eigen::MatrixXcd> fir_residual_spectrum(const std::vector<ExperimentView>& experiments,
                                                     const MarkovSequence& g, Index segment_length, Index num_bins,
                                                     const std::vector<Eigen::MatrixXd>& output_correction = {});
