@@ -168,14 +168,10 @@ class NormalOperator {
   Complex* yspec(Index c, Index a) { return yspec_.get() + (c * m_ + a) * nb_; }
   const Complex* tail(Index e, Index a) const { return tail_.get() + (e * m_ + a) * nb_; }
 
-  // acc += x * z
-  void mac(const Complex* x, const Complex* z, Complex* acc) const {
-    for (Index i = 0; i < nb_; ++i) acc[i] += x[i] * z[i];
-  }
-  // acc += x * conj(z)
-  void mac_conj(const Complex* x, const Complex* z, Complex* acc) const {
-    for (Index i = 0; i < nb_; ++i) acc[i] += x[i] * std::conj(z[i]);
-  }
+  // acc += x * z, acc += x * conj(z): the real-arithmetic loops of real_fft.h (std::complex
+  // products check for NaN and do not vectorise).
+  void mac(const Complex* x, const Complex* z, Complex* acc) const { signal_detail::mac(x, z, acc, nb_); }
+  void mac_conj(const Complex* x, const Complex* z, Complex* acc) const { signal_detail::mac_conj(x, z, acc, nb_); }
 
   std::vector<Eigen::VectorXd> lag_means_;
   std::vector<double> lag_count_;

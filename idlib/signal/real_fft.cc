@@ -24,19 +24,6 @@ constexpr Index kMinBlockFftSize = 16384;
 constexpr Index kBlockLagFactor = 4;
 
 
-// acc[b] += a[b] * c[b].
-void mac(const Complex* a, const Complex* c, Complex* acc, Index nb) {
-  const double* ad = reinterpret_cast<const double*>(a);
-  const double* cd = reinterpret_cast<const double*>(c);
-  double* sd = reinterpret_cast<double*>(acc);
-  for (Index b = 0; b < nb; ++b) {
-    const double ar = ad[2 * b], ai = ad[2 * b + 1];
-    const double cr = cd[2 * b], ci = cd[2 * b + 1];
-    sd[2 * b] += ar * cr - ai * ci;
-    sd[2 * b + 1] += ar * ci + ai * cr;
-  }
-}
-
 // buf[0..len) = channel values at t = t_begin .. t_begin+len-1 (zero outside [0, n)).
 void load(const ChannelView& ch, Index n, Index t_begin, Index len, double* buf) {
   const Index lo = std::max<Index>(t_begin, 0);
@@ -50,6 +37,19 @@ void load(const ChannelView& ch, Index n, Index t_begin, Index len, double* buf)
 }
 
 }  // namespace
+
+// acc[b] += a[b] * c[b] over nb bins, written on doubles so it vectorises.
+void mac(const Complex* a, const Complex* c, Complex* acc, Index nb) {
+  const double* ad = reinterpret_cast<const double*>(a);
+  const double* cd = reinterpret_cast<const double*>(c);
+  double* sd = reinterpret_cast<double*>(acc);
+  for (Index b = 0; b < nb; ++b) {
+    const double ar = ad[2 * b], ai = ad[2 * b + 1];
+    const double cr = cd[2 * b], ci = cd[2 * b + 1];
+    sd[2 * b] += ar * cr - ai * ci;
+    sd[2 * b + 1] += ar * ci + ai * cr;
+  }
+}
 
 // acc[b] += a[b] * conj(c[b]) over nb bins, written on doubles so it vectorises.
 void mac_conj(const Complex* a, const Complex* c, Complex* acc, Index nb) {

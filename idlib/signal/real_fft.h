@@ -83,5 +83,7 @@ void accumulate_fir_residual_energy(const std::vector<ChannelView>& vs,
 // acc[b] += a[b] * conj(c[b]), b = 0..nb-1 (cross-spectrum accumulation),
 // written on doubles so that it vectorises.
 void mac_conj(const Complex* a, const Complex* c, Complex* acc, Index nb);
+// acc[b] += a[b] * c[b] over nb bins.
+void mac(const Complex* a, const Complex* c, Complex* acc, Index nb);
 
 }  // namespace lpvid::signal_detail
