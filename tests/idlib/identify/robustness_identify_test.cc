@@ -20,6 +20,7 @@
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/interconnect.h"
 #include "tests/idlib/identify/independent_case.h"
+#include "tests/support/statistics.h"
 
 namespace lpvid {
 namespace {
@@ -49,32 +50,40 @@ TEST_P(IndependentRobustness, DefaultsGiveAStableOrderSixPlantWithinTheStatedErr
   check_case({seed, static_cast<int>(seed % 3), -1.0});
 }
 
+// The sanitizer build (tests/support/statistics.h) runs a subset on the same code paths:
+// a noisy draw with the horizon at the cap (2), noise-free (3), the noisiest (5) and
+// noise-free at the cap (21).
 INSTANTIATE_TEST_SUITE_P(Seeds2To25, IndependentRobustness,
-                         ::testing::Values(2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23,
-                                           24, 25));
+                         ::testing::ValuesIn(testing::statistical_cases<std::uint64_t>(
+                             {2, 3, 4, 5, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25},
+                             {2, 3, 5, 21})));
 
 // 10 kHz, 3 × 100 s: one noise-free and one noisy draw.
 TEST(IndependentRobustness10kHz, DefaultsGiveAStableOrderSixPlantWithinTheStatedError) {
-  check_case({3, 0, -1.0, 1e-4, 100});  // seed 3 draws no sensor noise
-  check_case({4, 1, -1.0, 1e-4, 100});  // × 0.53
+  // seed 3 draws no sensor noise, seed 4 × 0.53; the sanitizer build runs seed 3 only.
+  for (const std::uint64_t seed : testing::statistical_cases<std::uint64_t>({3, 4}, {3}))
+    check_case({seed, seed == 3 ? 0 : 1, -1.0, 1e-4, 100});
 }
 
 // The bands (issue 11: "a 95 % band contains the true response at 90–99 % of
 // frequencies"): one drawn plant (seed 4, beam left: the lowest coverage of the four
-// plants measured), noise ×1, kDraws independent noise and excitation draws; the share
+// plants measured), noise ×1, 10 independent noise and excitation draws; the share
 // of (frequency, entry) pairs over 1–400 rad/s whose true response lies within the disc
-// of radius kBandRadiusPerSigma σ drawn by bode.  Measured at this commit: 0.93 pooled
-// (0.89–0.95 per decade over 12 draws).  Coverage within one draw is strongly correlated
+// of radius kBandRadiusPerSigma σ drawn by bode.  Measured: 0.954 pooled over the 10
+// draws (0.88–1.00 per draw; 0.89–0.95 per decade over 12 draws in a separate run).  Coverage within one draw is strongly correlated
 // across frequency (it is one parametric fit), so the pooled share over 10 draws
 // scatters by ~3 points: the bounds [0.85, 0.995] are ~3 sigma below and the
 // "hopelessly wide" side (every point inside) above.
 TEST(IndependentBands, CoverTheTruthAtTheStatedLevelOverNoiseDraws) {
-  constexpr int kDraws = 10;
+  // The sanitizer build runs the first 3 draws (tests/support/statistics.h) against the
+  // same bounds: measured per draw 1.000, 0.966, 0.913, 0.968, 0.899, 0.882, 0.933, 0.973,
+  // 0.999, 1.000, so the first three pool to 0.960.
+  const std::vector<int> draws = testing::statistical_cases<int>({1, 2, 3, 4, 5, 6, 7, 8, 9, 10}, {1, 2, 3});
   constexpr double kMinCoverage = 0.85, kMaxCoverage = 0.995;
   const Eigen::VectorXd omega =
       log_frequency_grid(testing::kIndependentBandLow, testing::kIndependentBandHigh, testing::kIndependentBandPoints);
   Index inside = 0, total = 0;
-  for (int d = 1; d <= kDraws; ++d) {
+  for (const int d : draws) {
     testing::IndependentCase c;
     c.seed = 4;
     c.position = 0;
@@ -84,6 +93,7 @@ TEST(IndependentBands, CoverTheTruthAtTheStatedLevelOverNoiseDraws) {
     ASSERT_GT(o.result.fit.replicates, 0) << o.result.choices.bands_reason;
     const auto est = evaluate_response(o.result.plant, omega), truth = evaluate_response(o.truth, omega);
     const auto var = plant_response_variance(o.result.fit, omega);
+    const Index inside_before = inside;
     for (Index k = 0; k < omega.size(); ++k)
       for (Index i = 0; i < 3; ++i)
         for (Index j = 0; j < 3; ++j) {
@@ -91,10 +101,11 @@ TEST(IndependentBands, CoverTheTruthAtTheStatedLevelOverNoiseDraws) {
           inside += std::norm(est[static_cast<std::size_t>(k)](i, j) - truth[static_cast<std::size_t>(k)](i, j)) <= r2;
           ++total;
         }
+    std::printf("draw %d: %.3f of its pairs inside\n", d, static_cast<double>(inside - inside_before) / (9.0 * static_cast<double>(omega.size())));
   }
   const double coverage = static_cast<double>(inside) / static_cast<double>(total);
-  std::printf("95 %% bands: %.3f of %ld (frequency, entry) pairs over %d draws contain the truth\n", coverage,
-              static_cast<long>(total), kDraws);
+  std::printf("95 %% bands: %.3f of %ld (frequency, entry) pairs over %zu draws contain the truth\n", coverage,
+              static_cast<long>(total), draws.size());
   EXPECT_GE(coverage, kMinCoverage);
   EXPECT_LE(coverage, kMaxCoverage);
 }
