@@ -285,7 +285,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s): {}", L, static_cast<double>(L) * Ts, why);
         break;
       }
-      mo.initial_guess = result.markov.g;  // the next horizon starts from this one.s estimate
+      mo.initial_guess = result.markov.g;  // the next horizon starts from this one's estimate
       if (2 * L > cap) {
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s), a quarter of the shortest record: {}; the response "
                                         "beyond is left to the tail rounds",
@@ -686,9 +686,10 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   }
   ch.plant_order = fit.plant.order();
   // 7. Bands: the covariance from replicates of ĝ's error, one per segment of the records
-  //    (L samples, longer when that would give more than kTargetReplicates) (markov_error_replicates), propagated through the final fit
+  //    (L samples, longer where that would give more than kTargetReplicates;
+  //    markov_error_replicates), propagated through the final fit
   //    (use_replicate_covariance).  Measured: the model's own σ̂² (JᵀJ)⁺ assumes
-  //    independent bins and claimed ~8x too little variance on the independent
+  //    independent bins and claimed 6-10x too little variance on the independent
   //    simulator (bins' errors correlate over tens to hundreds of bins).
   {
     std::vector<ExperimentView> views;
@@ -711,7 +712,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     } else {
       ch.bands_reason = fmt::format("covariance of the fit's noise model (only {} record segments of {} samples; {} "
                                     "are needed for replicates): bins assumed independent, likely too narrow",
-                                    reps.size(), L, kMinReplicates);
+                                    reps.size(), segment, kMinReplicates);
     }
   }
   if (!fit.closed_loop_stable)
