@@ -26,6 +26,7 @@ ModelLayout::ModelLayout(const PhysicalModel& model) {
   n_out = static_cast<Index>(b.output_names.size());
   n_dof = static_cast<Index>(b.dof_names.size());
   if (base == "platform") platform.emplace(model);
+  if (base == "stage6") stage6.emplace(model);
   delays.assign(static_cast<std::size_t>(n_in), {});
   for (const std::string& name : model.effects) {
     const EffectInfo* e = model.effect_info(name);
@@ -75,6 +76,10 @@ bool ModelLayout::has_delay() const {
 void check_schedule(const PhysicalModel& model, double schedule) {
   if (model.base == "platform") {
     check_platform_beam_position(model, schedule);
+    return;
+  }
+  if (model.base == "stage6") {
+    check_stage6_hover_height(schedule);
     return;
   }
   if (!std::isfinite(schedule)) throw InputError(fmt::format("operating point {} is not finite", schedule));

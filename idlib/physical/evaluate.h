@@ -53,6 +53,7 @@
 #include "idlib/core/types.h"
 #include "idlib/physical/physical_model.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/physical/stage6/stage6_base.h"
 
 namespace lpvid {
 
@@ -75,6 +76,7 @@ struct ModelLayout {
   };
   std::string base;
   std::optional<PlatformIndices> platform;
+  std::optional<Stage6Indices> stage6;
   std::vector<CompiledBlock> input_blocks, modes, output_blocks;
   std::vector<std::vector<Index>> delays;  // per input: parameter positions of its delays (summed)
   Index n_in = 0, n_out = 0, n_dof = 0;
@@ -224,7 +226,13 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   const T zero(0.0), one(1.0);
   const Index nd = L.n_dof;
   MatrixT<T> M(nd, nd), Dm(nd, nd), K(nd, nd);
-  if (L.platform) {
+  // Bw: the base's input map (w -> generalised force; identity for the platform);
+  // F: velocity feedback into the input chain (w -> w − F q'), empty when none.
+  MatrixT<T> Bw = MatrixT<T>::Identity(nd, L.n_in), F;
+  if (L.stage6) {
+    if (!stage6_matrices<T>(*L.stage6, p, schedule, &ScalarValue<T>::of, M, Dm, K, Bw, F)) return false;
+    if (L.stage6->back_emf < 0) F.resize(0, 0);
+  } else if (L.platform) {
     T m3[3][3], d3[3][3], k3[3][3];
     platform_matrices<T>(*L.platform, p, schedule, m3, d3, k3);
     for (int i = 0; i < 3; ++i)
@@ -242,7 +250,7 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   const Index nb = 2 * nd + 2 * nm;
   Lti<T> body;
   body.A = MatrixT<T>::Constant(nb, nb, zero);
-  body.B = MatrixT<T>::Constant(nb, nd, zero);
+  body.B = MatrixT<T>::Constant(nb, L.n_in, zero);
   body.C = MatrixT<T>::Constant(nd, nb, zero);
   body.D = MatrixT<T>::Constant(nd, nd, zero);
   for (Index i = 0; i < nd; ++i) {
@@ -251,7 +259,7 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   }
   body.A.block(nd, 0, nd, nd) = -(Mi * K);
   body.A.block(nd, nd, nd, nd) = -(Mi * Dm);
-  body.B.block(nd, 0, nd, nd) = Mi;
+  body.B.block(nd, 0, nd, L.n_in) = Mi * Bw;
   for (Index k = 0; k < nm; ++k) {
     const auto& b = L.modes[static_cast<std::size_t>(k)];
     const Index i = 2 * nd + 2 * k;
@@ -261,13 +269,23 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
     body.A(i + 1, i + 1) = T(-2.0) * z * w;
     for (Index d = 0; d < nd; ++d) {
       const T phi = p[b.params[static_cast<std::size_t>(2 + d)]];
-      body.B(i + 1, d) = phi;
+      for (Index j = 0; j < L.n_in; ++j) body.B(i + 1, j) += phi * Bw(d, j);
       body.C(d, i) = phi;
     }
   }
   const Lti<T> in = physical_detail::block_chain<T>(L.input_blocks, L.n_in, p);
   const Lti<T> out = physical_detail::block_chain<T>(L.output_blocks, L.n_out, p);
-  const Lti<T> all = physical_detail::series(physical_detail::series(in, body), out);
+  Lti<T> driven = physical_detail::series(in, body);
+  if (F.size() > 0) {
+    // The chain's input is w − F q': close the loop from the body's velocities
+    // (states n_in_states + nd .. + 2 nd of the series) to the chain's input.
+    const Index ni = in.A.rows();
+    const MatrixT<T> BF = driven.B * F;  // (states) × nd
+    for (Index d = 0; d < nd; ++d) driven.A.col(ni + nd + d) -= BF.col(d);
+    const MatrixT<T> DF = driven.D * F;
+    for (Index d = 0; d < nd; ++d) driven.C.col(ni + nd + d) -= DF.col(d);
+  }
+  const Lti<T> all = physical_detail::series(driven, out);
   A = all.A;
   B = all.B;
   C = all.C;

@@ -9,6 +9,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/physical/stage6/stage6_base.h"
 
 namespace lpvid {
 namespace {
@@ -133,6 +134,7 @@ const Registry& registry() {
   static const Registry r = [] {
     Registry reg;
     reg.bases.push_back(make_platform_base());
+    reg.bases.push_back(make_stage6_base());
     for (const BaseInfo& b : reg.bases) {
       std::vector<EffectInfo> lib = b.physics_effects;
       for (EffectInfo& e : shared_block_effects(b)) lib.push_back(std::move(e));

@@ -1,0 +1,204 @@
+// lpvid — the base "stage6": the 6-DOF magnetically levitated stage of seed 001
+// (Nam et al.) linearised about hover, as a physical model of the same framework as
+// the platform (idlib/physical/physical_model.h; docs/effects.md, "Base: stage6").
+//
+// Coordinates as in idlib/stage6/stage6.h: q = [x y z psi theta phi] (m, m, m, rad,
+// rad, rad; Z-Y-X Euler angles: yaw psi about z, pitch theta about y, roll phi about
+// x), inputs the commanded body wrench that the controller hands to the
+// allocation f = A(r)⁺ w of eqs 27–30 (r the DESIGNED lever arms of the four
+// magnet arrays), outputs q.  The inputs are in the order of the generalised
+// forces, [F_x F_y F_z tau_z tau_y tau_x] (N, N·m), so that input k drives output k
+// (a square response's diagonal is its direct channels; the fit's channel scale
+// sqrt(|P_ii| |P_jj|) relies on it).  A log in wrench order (u1..u6 = F_x F_y F_z
+// tau_x tau_y tau_z, as `simulate stage6` writes) is read in this order by naming
+// its columns u1,u2,u3,u6,u5,u4 (docs/effects.md, "Base: stage6").  The scheduling
+// variable is the hover height z_0 above the reference gap (m; 0 = hovering at the
+// reference gap z_ref, where the force constant is the nominal one).
+//
+// Linearised about q_0 = (0, 0, z_0, 0, 0, 0), q' = 0 (docs/math.md, "6-DOF stage
+// as a physical base"):
+//
+//   M q'' + K q = B_w w_l,        w_l = the wrench after the input blocks,
+//
+// | term | value (+ the physics effects of this base) |
+// |------|---------------------------------------------|
+// | M    | blockdiag(m I₃, diag(I_zz, I_yy, I_xx)) (eq 5 at zero angles: Wᵀ H W with ω = (phi', theta', psi')) |
+// | B_w  | Π T₀ Π, T₀ = kappa alpha₀ A(r − c) A(r)⁺: the true forces of the allocated commands (eqs 27–30), in wrench order; Π swaps tau_x and tau_z (wrench ↔ generalised order: at zero angles the generalised forces of (psi, theta, phi) are (tau_z, tau_y, tau_x)) |
+// | K    | tilt of the lift m g: K_x,theta = −m g, K_y,phi = +m g; gap_dependence: + Π kappa gamma alpha₀ A(r − c) diag(f₀) J, f₀ = A(r)⁺ w₀ the hover forces (w₀ = T₀⁻¹ [0 0 m g 0 0 0]), J_k = ∂gap/∂q of the magnet array of force k = [0 0 1 0 −r_x r_y] |
+// | feedback | electrical_lag: the back-EMF of eq 25, −b alpha v_k per force channel (v_k the array's velocity along force k: x' for motors 1, 3 horizontal, y' for 2, 4, z' vertical — the centre of mass's velocity, as the simulator writes eq 25), fed into the current loop: the input chain sees w − F q' with F = Π T₀⁻¹ kappa alpha₀² b A(r − c) P |
+//
+// with c the centre-of-mass offset (com_offset), alpha₀ = exp(−gamma z_0) the
+// gap factor at the operating point (gap_dependence; else 1), kappa the force-constant
+// scale.  The equations are homogeneous in (m, H, kappa) except through gravity, whose
+// terms (tilt of the lift, gap stiffness) are themselves ∝ m: a response determines
+// H/m and kappa/m only, so the mass is held (weighed) and kappa fitted by default.
+//
+// The matrices are built by a template on the scalar type (double, or ceres::Jet in
+// idlib/fit for exact derivatives).  The allocation A(r)⁺ is the controller's (its
+// designed geometry): it is computed once from the lever-arm parameters' values.
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+
+#include "idlib/core/types.h"
+#include "idlib/physical/physical_model.h"
+
+namespace lpvid {
+
+// The stage's BaseInfo (defaults from seed 001 / docs/assumptions.md).
+BaseInfo make_stage6_base();
+
+// Positions of the stage's parameters in a model's list (-1: effect off), and the
+// controller's allocation from the lever arms' values.
+struct Stage6Indices {
+  Index mass = -1, I_xx = -1, I_yy = -1, I_zz = -1, kappa = -1, g = -1;
+  Index arm[4][3] = {{-1, -1, -1}, {-1, -1, -1}, {-1, -1, -1}, {-1, -1, -1}};
+  Index com[3] = {-1, -1, -1};  // com_offset
+  Index gamma = -1;             // gap_dependence
+  Index back_emf = -1;          // electrical_lag (its time constant is an input block)
+  Eigen::Matrix<double, 8, 6> allocation_pinv;  // A(r)⁺ of the designed arms
+  explicit Stage6Indices(const PhysicalModel& model);
+};
+
+// The double value of x (Jets: their scalar part).  Defined for double here;
+// idlib/physical/evaluate.h's ScalarValue covers Jets.
+namespace stage6_detail {
+
+template <class T>
+using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+
+// Inverse by Gauss–Jordan without pivoting, for matrices near a positive diagonal
+// (here A(r − c) A(r)⁺, within a few per cent of I): false when a pivot's size is
+// below 1e-9 of the largest diagonal entry.
+template <class T>
+bool near_identity_inverse(const Mat<T>& M, Mat<T>& inv, double (*value)(const T&)) {
+  const Index n = M.rows();
+  Mat<T> a = M;
+  inv = Mat<T>::Identity(n, n);
+  double scale = 0.0;
+  for (Index k = 0; k < n; ++k) scale = std::max(scale, std::abs(value(a(k, k))));
+  for (Index k = 0; k < n; ++k) {
+    const T piv = a(k, k);
+    if (!(std::abs(value(piv)) > 1e-9 * scale)) return false;
+    for (Index j = 0; j < n; ++j) {
+      a(k, j) /= piv;
+      inv(k, j) /= piv;
+    }
+    for (Index i = 0; i < n; ++i) {
+      if (i == k) continue;
+      const T f = a(i, k);
+      for (Index j = 0; j < n; ++j) {
+        a(i, j) -= f * a(k, j);
+        inv(i, j) -= f * inv(k, j);
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace stage6_detail
+
+// M, D (zero), K (6×6), B_w (6×6) and the back-EMF feedback F (6×6; zero without
+// electrical_lag) at the hover height z0 (m above the reference gap).  Returns
+// false when A(r − c) A(r)⁺ cannot be inverted (a centre-of-mass offset as large
+// as the platen).  `value` gives the double value of a scalar.
+template <class T>
+bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*value)(const T&),
+                     stage6_detail::Mat<T>& M, stage6_detail::Mat<T>& D, stage6_detail::Mat<T>& K,
+                     stage6_detail::Mat<T>& Bw, stage6_detail::Mat<T>& F) {
+  using Mat = stage6_detail::Mat<T>;
+  using std::exp;
+  const T zero(0.0), one(1.0);
+  const T m = p[L.mass], kappa = p[L.kappa], g = p[L.g];
+  M = Mat::Constant(6, 6, zero);
+  D = Mat::Constant(6, 6, zero);
+  K = Mat::Constant(6, 6, zero);
+  F = Mat::Constant(6, 6, zero);
+  for (int i = 0; i < 3; ++i) M(i, i) = m;
+  M(3, 3) = p[L.I_zz];
+  M(4, 4) = p[L.I_yy];
+  M(5, 5) = p[L.I_xx];
+  // True lever arms r − c and the true allocation A(r − c) (6×8; columns: the
+  // horizontal then vertical force of motors 1..4; horizontal is x for motors 1, 3
+  // and y for 2, 4).
+  T r[4][3];
+  for (int i = 0; i < 4; ++i)
+    for (int a = 0; a < 3; ++a) r[i][a] = p[L.arm[i][a]] - (L.com[a] >= 0 ? p[L.com[a]] : zero);
+  Mat At = Mat::Constant(6, 8, zero);
+  for (int i = 0; i < 4; ++i) {
+    const int h = (i % 2 == 0) ? 0 : 1;  // horizontal axis
+    const Index ch = 2 * i, cv = 2 * i + 1;
+    At(h, ch) = one;
+    // r × e_h: e_x → (0, r_z, −r_y); e_y → (−r_z, 0, r_x)
+    if (h == 0) {
+      At(4, ch) = r[i][2];
+      At(5, ch) = -r[i][1];
+    } else {
+      At(3, ch) = -r[i][2];
+      At(5, ch) = r[i][0];
+    }
+    At(2, cv) = one;
+    // r × e_z = (r_y, −r_x, 0)
+    At(3, cv) = r[i][1];
+    At(4, cv) = -r[i][0];
+  }
+  const T alpha0 = L.gamma >= 0 ? exp(-p[L.gamma] * T(z0)) : one;
+  const Mat Apinv = L.allocation_pinv.cast<T>();
+  const Mat AAp = At * Apinv;  // 6×6, I when c = 0
+  Mat AApInv;
+  if (!stage6_detail::near_identity_inverse<T>(AAp, AApInv, value)) return false;
+  // Π: wrench order (F; tau_x, tau_y, tau_z) ↔ generalised order (F; tau_z, tau_y, tau_x).
+  auto to_generalised = [](const Mat& X) {
+    Mat Y = X;
+    Y.row(3) = X.row(5);
+    Y.row(5) = X.row(3);
+    return Y;
+  };
+  auto from_generalised_inputs = [](const Mat& X) {
+    Mat Y = X;
+    Y.col(3) = X.col(5);
+    Y.col(5) = X.col(3);
+    return Y;
+  };
+  Bw = from_generalised_inputs(to_generalised(AAp * (kappa * alpha0)));
+  // Tilt of the lift m g (body z force at hover): δ(R F) = ω × (0, 0, m g).
+  K(0, 4) = -m * g;
+  K(1, 5) = m * g;
+  if (L.gamma >= 0) {
+    // Hover commands w₀ = T₀⁻¹ (0 0 m g 0 0 0)ᵀ, forces f₀ = A⁺ w₀.
+    const Mat w0 = AApInv.col(2) * (m * g / (kappa * alpha0));
+    const Mat f0 = Apinv * w0;  // 8×1
+    // J (8×6): ∂gap/∂q of the array that exerts force k: z + phi r_y − theta r_x.
+    Mat J = Mat::Constant(8, 6, zero);
+    for (int i = 0; i < 4; ++i)
+      for (int k : {2 * i, 2 * i + 1}) {
+        J(k, 2) = one;
+        J(k, 4) = -r[i][0];
+        J(k, 5) = r[i][1];
+      }
+    Mat scaled = At;
+    for (Index k = 0; k < 8; ++k) scaled.col(k) *= f0(k, 0);
+    K += to_generalised(scaled * J) * (kappa * p[L.gamma] * alpha0);
+  }
+  if (L.back_emf >= 0) {
+    // P (8×6): the velocity along each force (centre-of-mass translation).
+    Mat P = Mat::Constant(8, 6, zero);
+    for (int i = 0; i < 4; ++i) {
+      P(2 * i, (i % 2 == 0) ? 0 : 1) = one;
+      P(2 * i + 1, 2) = one;
+    }
+    F = to_generalised(AApInv * (At * P) * (alpha0 * p[L.back_emf]));
+  }
+  return true;
+}
+
+// The seed-001 stage (stage6::StageParameters defaults) as a physical model: the
+// base alone.
+PhysicalModel stage6_defaults_model();
+
+// @throws InputError  |z_0| > 1 mm or not finite (the linearisation is about a
+//   hover height near the reference gap).
+void check_stage6_hover_height(double z0_m);
+
+}  // namespace lpvid
