@@ -3,8 +3,10 @@
 #include <fmt/format.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numbers>
 
 #include "idlib/signal/real_fft.h"
@@ -109,7 +111,12 @@ void FrfOptions::validate() const {
         "FRF options: max_condition = {}; it must be > 1 (e.g. 1e6)", max_condition));
 }
 
-FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
+namespace {
+
+// The checks every estimator shares (estimate_frf's @throws) and the segment
+// length; n_min receives the shortest experiment's length.
+Index checked_segment_length(const std::vector<ExperimentView>& experiments, const FrfOptions& options,
+                             Index& n_min) {
   options.validate();
   if (experiments.empty())
     throw InputError(
@@ -121,7 +128,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
     throw InputError(fmt::format(
         "estimate_frf: experiment 1 has {} excitation and {} output columns; each needs at least one",
         m, p));
-  Index n_min = 0;
+  n_min = 0;
   for (Index e = 0; e < E; ++e) {
     const ExperimentView& x = experiments[e];
     if (x.excitation.rows() != x.output.rows())
@@ -150,6 +157,68 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
         "experiment needs N >= segment_length: use a shorter segment",
         nseg, n_min));
   }
+  return nseg;
+}
+
+// Independent averages behind a Welch estimate (Welch 1967, eq. for the variance of
+// averaged overlapping periodograms): K segments whose windows overlap are worth
+//   n_d = K / (1 + 2 Σ_{l=1}^{K−1} (1 − l/K) c(l)),  c(l) = (Σ_t w_t w_{t+l·step})² / (Σ_t w_t²)²
+// independent ones (Hann at 50 %: c(1) ≈ 0.028, n_d ≈ 0.947 K for large K), summed
+// over the experiments (segments_per_experiment).
+double effective_averages(const RealArray& window, Index nseg, Index step,
+                          const std::vector<Index>& segments_per_experiment) {
+  std::vector<double> c;
+  double w2 = 0.0;
+  for (Index t = 0; t < nseg; ++t) w2 += window[t] * window[t];
+  for (Index l = 1; l * step < nseg; ++l) {
+    double acc = 0.0;
+    for (Index t = 0; t + l * step < nseg; ++t) acc += window[t] * window[t + l * step];
+    c.push_back((acc * acc) / (w2 * w2));
+  }
+  double nd = 0.0;
+  for (Index K : segments_per_experiment) {
+    double denom = 1.0;
+    for (Index l = 1; l < K && l <= static_cast<Index>(c.size()); ++l)
+      denom += 2.0 * (1.0 - static_cast<double>(l) / static_cast<double>(K)) * c[static_cast<size_t>(l - 1)];
+    nd += static_cast<double>(K) / denom;
+  }
+  return nd;
+}
+
+RealArray make_window(Index nseg, FrfOptions::Window kind) {
+  RealArray window = alloc_real(nseg);
+  for (Index t = 0; t < nseg; ++t)
+    window[t] = kind == FrfOptions::Window::kHann
+                    ? 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(t) / static_cast<double>(nseg))
+                    : 1.0;
+  return window;
+}
+
+// The leakage bias² of line used[u], entry (i, j), from the curvature of the
+// response over three neighbouring used lines (estimate_frf's variance comment),
+// less the random part's share in that difference; 0 when it cannot be formed.
+double curvature_bias2(const FrequencyResponse& r, const std::vector<Index>& used, std::size_t u, Index i, Index j,
+                       double second_moment, const std::function<double(Index, Index, Index)>& random_var) {
+  if (used.size() < 3) return 0.0;
+  const std::size_t c = std::clamp<std::size_t>(u, 1, used.size() - 2);
+  const Index a = used[c - 1], b = used[c], e = used[c + 1];
+  const auto& R = r.response;
+  const Complex d2 =
+      R[static_cast<size_t>(e)](i, j) - 2.0 * R[static_cast<size_t>(b)](i, j) + R[static_cast<size_t>(a)](i, j);
+  const double bias = std::abs(d2) * second_moment / 2.0;
+  const double noise_in_d2 = (random_var(a, i, j) + 4.0 * random_var(b, i, j) + random_var(e, i, j)) *
+                             (second_moment / 2.0) * (second_moment / 2.0);
+  return std::isfinite(noise_in_d2) ? std::max(0.0, bias * bias - noise_in_d2) : 0.0;
+}
+
+}  // namespace
+
+FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
+  Index n_min = 0;
+  const Index nseg = checked_segment_length(experiments, options, n_min);
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
   // Channel statistics (also the finiteness check) and classification.
   std::vector<std::vector<Channel>> vs(E), ys(E);
   std::vector<std::vector<Index>> excited(E);
@@ -191,12 +260,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   const Index F = nseg / 2;
   std::vector<Spectra> groups(static_cast<size_t>(num_groups), Spectra(bins, m, p));
 
-  // Window.
-  RealArray window = alloc_real(nseg);
-  for (Index t = 0; t < nseg; ++t)
-    window[t] = options.window == FrfOptions::Window::kHann
-                    ? 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(t) / static_cast<double>(nseg))
-                    : 1.0;
+  const RealArray window = make_window(nseg, options.window);
 
   // One plan for every segment and channel.
   const RealFft fft(nseg);
@@ -226,31 +290,12 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   }
 
   FrequencyResponse out;
-  // Independent averages behind the coherence (Welch 1967, eq. for the variance of
-  // averaged overlapping periodograms): K segments whose windows overlap are worth
-  //   n_d = K / (1 + 2 Σ_{l=1}^{K−1} (1 − l/K) c(l)),  c(l) = (Σ_t w_t w_{t+l·step})² / (Σ_t w_t²)²
-  // independent ones (Hann at 50 %: c(1) ≈ 0.028, n_d ≈ 0.947 K for large K).  Summed
-  // over the experiments of a group; the smallest group counts (the noisiest column).
+  // Independent averages behind the coherence (effective_averages), per group; the
+  // smallest group counts (the noisiest column).
   {
-    std::vector<double> c;
-    double w2 = 0.0;
-    for (Index t = 0; t < nseg; ++t) w2 += window[t] * window[t];
-    for (Index l = 1; l * step < nseg; ++l) {
-      double acc = 0.0;
-      for (Index t = 0; t + l * step < nseg; ++t) acc += window[t] * window[t + l * step];
-      c.push_back((acc * acc) / (w2 * w2));
-    }
     double smallest = INFINITY;
-    for (const Spectra& g : groups) {
-      double nd = 0.0;
-      for (Index K : g.segments_per_experiment) {
-        double denom = 1.0;
-        for (Index l = 1; l < K && l <= static_cast<Index>(c.size()); ++l)
-          denom += 2.0 * (1.0 - static_cast<double>(l) / static_cast<double>(K)) * c[static_cast<size_t>(l - 1)];
-        nd += static_cast<double>(K) / denom;
-      }
-      smallest = std::min(smallest, nd);
-    }
+    for (const Spectra& g : groups)
+      smallest = std::min(smallest, effective_averages(window, nseg, step, g.segments_per_experiment));
     out.averages = std::isfinite(smallest) && smallest >= 1.0 ? smallest : 0.0;
   }
   out.omega_rad_s.resize(F);
@@ -371,25 +416,147 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
             const double d2 = std::norm(out.response[static_cast<size_t>(k)](i, j) - fine.response[kf](i, j));
             if (std::isfinite(var_fine)) richardson_bias2 = std::max(0.0, (16.0 / 9.0) * (d2 - var - var_fine));
           }
-          double curvature_bias2 = 0.0;
-          if (used.size() >= 3 && std::isfinite(var)) {
-            // three neighbouring lines around k (shifted inward at the ends)
-            const std::size_t c = std::clamp<std::size_t>(u, 1, used.size() - 2);
-            const Index a = used[c - 1], b = used[c], e = used[c + 1];
-            const auto& R = out.response;
-            const Complex d2 = R[static_cast<size_t>(e)](i, j) - 2.0 * R[static_cast<size_t>(b)](i, j) +
-                               R[static_cast<size_t>(a)](i, j);
-            const double bias = std::abs(d2) * second_moment / 2.0;
-            const double noise_in_d2 =
-                (random_var(a, i, j) + 4.0 * random_var(b, i, j) + random_var(e, i, j)) * (second_moment / 2.0) *
-                (second_moment / 2.0);
-            if (std::isfinite(noise_in_d2)) curvature_bias2 = std::max(0.0, bias * bias - noise_in_d2);
-          }
-          var += std::max(curvature_bias2, richardson_bias2);
+          const double curvature = std::isfinite(var)
+                                       ? curvature_bias2(out, used, u, i, j, second_moment, random_var)
+                                       : 0.0;
+          var += std::max(curvature, richardson_bias2);
           out.variance[static_cast<size_t>(k)](i, j) = std::isfinite(var) ? var : kNoInformation;
         }
     }
   }
+  return out;
+}
+
+FrequencyResponse estimate_plant_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
+  Index n_min = 0;
+  const Index nseg = checked_segment_length(experiments, options, n_min);
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index q = experiments[0].output.cols();  // z = [y; u]
+  const Index p = q - m;
+  if (p < 1)
+    throw InputError(fmt::format(
+        "estimate_plant_frf: {} output columns for {} excitation columns; give the plant's outputs y and then its "
+        "{} inputs u (one per excitation)",
+        q, m, m));
+  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
+  const Index bins = nseg / 2 + 1, F = nseg / 2;
+  const RealArray window = make_window(nseg, options.window);
+  const RealFft fft(nseg);
+  RealArray in = alloc_real(nseg);
+  std::vector<ComplexArray> X;
+  for (Index c = 0; c < m + q; ++c) X.push_back(alloc_complex(bins));
+  // Unscaled spectra, one column per entry: S_vv (upper), S_zv, S_zz (upper).
+  Eigen::MatrixXcd Svv = Eigen::MatrixXcd::Zero(bins, m * (m + 1) / 2), Szv = Eigen::MatrixXcd::Zero(bins, q * m),
+                   Szz = Eigen::MatrixXcd::Zero(bins, q * (q + 1) / 2);
+  std::vector<Index> segments;
+  for (Index e = 0; e < E; ++e) {
+    std::vector<Channel> ch;
+    for (Index a = 0; a < m; ++a) ch.push_back(channel(experiments[e].excitation, a, options.remove_mean, e, "excitation"));
+    for (Index i = 0; i < q; ++i) ch.push_back(channel(experiments[e].output, i, options.remove_mean, e, "output"));
+    const Index n = experiments[e].excitation.rows();
+    segments.push_back((n - nseg) / step + 1);
+    for (Index s0 = 0; s0 + nseg <= n; s0 += step) {
+      for (Index c = 0; c < m + q; ++c) {
+        const double* src = ch[static_cast<size_t>(c)].data + s0;
+        const double off = ch[static_cast<size_t>(c)].offset;
+        for (Index t = 0; t < nseg; ++t) in[t] = (src[t] - off) * window[t];
+        fft.forward(in.get(), X[c].get());
+      }
+      for (Index a = 0; a < m; ++a)
+        for (Index b = a; b < m; ++b) signal_detail::mac_conj(X[a].get(), X[b].get(), Svv.col(upper_index(a, b, m)).data(), bins);
+      for (Index i = 0; i < q; ++i) {
+        for (Index j = 0; j < m; ++j) signal_detail::mac_conj(X[m + i].get(), X[j].get(), Szv.col(i * m + j).data(), bins);
+        for (Index i2 = i; i2 < q; ++i2)
+          signal_detail::mac_conj(X[m + i].get(), X[m + i2].get(), Szz.col(upper_index(i, i2, q)).data(), bins);
+      }
+    }
+  }
+  FrequencyResponse out;
+  const double nd = effective_averages(window, nseg, step, segments);
+  out.averages = nd >= 1.0 ? nd : 0.0;
+  out.omega_rad_s.resize(F);
+  out.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(p, m));
+  out.coherence.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(p, m));
+  out.flagged.assign(static_cast<size_t>(F), false);
+  std::vector<Eigen::MatrixXd> random(static_cast<size_t>(F), Eigen::MatrixXd::Constant(p, m, INFINITY));
+  auto hermitian = [](const Eigen::MatrixXcd& cols, Index k, Index n) {
+    Eigen::MatrixXcd S(n, n);
+    for (Index a = 0; a < n; ++a) {
+      S(a, a) = Complex(cols(k, upper_index(a, a, n)).real(), 0.0);
+      for (Index b = a + 1; b < n; ++b) {
+        S(a, b) = cols(k, upper_index(a, b, n));
+        S(b, a) = std::conj(S(a, b));
+      }
+    }
+    return S;
+  };
+  for (Index k = 1; k <= F; ++k) {
+    const auto kk = static_cast<size_t>(k - 1);
+    out.omega_rad_s(k - 1) =
+        2.0 * std::numbers::pi * static_cast<double>(k) / (static_cast<double>(nseg) * options.sample_period_s);
+    const Eigen::MatrixXcd Vv = hermitian(Svv, k, m), Zz = hermitian(Szz, k, q);
+    Eigen::MatrixXcd Zv(q, m);
+    for (Index i = 0; i < q; ++i)
+      for (Index j = 0; j < m; ++j) Zv(i, j) = Szv(k, i * m + j);
+    const Eigen::MatrixXcd Yv = Zv.topRows(p), Uv = Zv.bottomRows(m);
+    // Conditioning of S_vv (normalised, as estimate_frf) and of S_uv (columns and
+    // rows scaled to unit norm: units do not matter).
+    const Eigen::VectorXd d = Vv.diagonal().real();
+    if (!(d.minCoeff() > 0.0)) {
+      out.flagged[kk] = true;
+      continue;
+    }
+    const Eigen::VectorXd dv = d.cwiseSqrt().cwiseInverse();
+    const Eigen::LLT<Eigen::MatrixXcd> llt(dv.asDiagonal() * Vv * dv.asDiagonal());
+    const Eigen::VectorXd ru = Uv.rowwise().norm(), cu = Uv.colwise().norm().transpose();
+    if (llt.info() != Eigen::Success || !(llt.rcond() * options.max_condition >= 1.0) || !(ru.minCoeff() > 0.0) ||
+        !(cu.minCoeff() > 0.0)) {
+      out.flagged[kk] = true;
+      continue;
+    }
+    const Eigen::MatrixXcd Un = ru.cwiseInverse().asDiagonal() * Uv * cu.cwiseInverse().asDiagonal();
+    const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Un);
+    if (!(lu.rcond() * options.max_condition >= 1.0)) {
+      out.flagged[kk] = true;
+      continue;
+    }
+    // S_uv⁻¹ = C⁻¹ Un⁻¹ R⁻¹ (R, C the row and column scales).
+    const Eigen::MatrixXcd UvInv = cu.cwiseInverse().asDiagonal() * lu.inverse() * ru.cwiseInverse().asDiagonal();
+    const Eigen::MatrixXcd P = Yv * UvInv;
+    out.response[kk] = P;
+    // S_ee = [I −P] S_zz [I −P]ᴴ; the column factor [S_uv⁻ᴴ S_vv S_uv⁻¹]_jj.
+    Eigen::MatrixXcd W(p, q);
+    W.leftCols(p).setIdentity();
+    W.rightCols(m) = -P;
+    const Eigen::VectorXd ee = (W * Zz * W.adjoint()).diagonal().real().cwiseMax(0.0);
+    const Eigen::VectorXd col = (UvInv.adjoint() * Vv * UvInv).diagonal().real();
+    const double dof = nd > static_cast<double>(m) ? nd / (nd - static_cast<double>(m)) : INFINITY;
+    for (Index i = 0; i < p; ++i) {
+      // multiple coherence of y_i with v: (S_yv S_vv⁻¹ S_vy)_ii / S_yy,ii
+      const Eigen::MatrixXcd h = dv.asDiagonal() * llt.solve(dv.asDiagonal() * Yv.row(i).adjoint());
+      const double explained = (Yv.row(i) * h)(0, 0).real(), yy = Zz(i, i).real();
+      out.coherence[kk].row(i).setConstant(yy > 0.0 ? std::clamp(explained / yy, 0.0, 1.0) : 0.0);
+      for (Index j = 0; j < m; ++j) random[kk](i, j) = nd > 0 ? ee(i) / nd * col(j) * dof : INFINITY;
+    }
+  }
+  // Variance: the random part above plus the leakage bias from the curvature
+  // (estimate_frf's variance comment; Hann only).
+  const double second_moment = options.window == FrfOptions::Window::kHann ? 1.0 / 3.0 : 0.0;
+  constexpr double kNoInformation = 1e300;
+  out.variance.assign(static_cast<size_t>(F), Eigen::MatrixXd::Constant(p, m, kNoInformation));
+  std::vector<Index> used;
+  for (Index k = 0; k < F; ++k)
+    if (!out.flagged[static_cast<size_t>(k)]) used.push_back(k);
+  const auto random_var = [&](Index k, Index i, Index j) { return random[static_cast<size_t>(k)](i, j); };
+  for (std::size_t u = 0; u < used.size(); ++u)
+    for (Index i = 0; i < p; ++i)
+      for (Index j = 0; j < m; ++j) {
+        const Index k = used[u];
+        double var = random_var(k, i, j);
+        if (std::isfinite(var) && second_moment > 0) var += curvature_bias2(out, used, u, i, j, second_moment, random_var);
+        out.variance[static_cast<size_t>(k)](i, j) = std::isfinite(var) ? var : kNoInformation;
+      }
   return out;
 }
 

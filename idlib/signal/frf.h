@@ -137,3 +137,35 @@ struct FrfOptions {
 FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options);
 
 }  // namespace lpvid
+
+namespace lpvid {
+
+// The plant P: u -> y from closed-loop experiments, with the injected excitation v
+// as the instrument (the "joint input-output" or indirect route: P̂ = Ĝ Ŝ⁻¹ with Ĝ
+// the closed loop v -> y and Ŝ the map v -> u; seed 000 Fig. 11, Pintelon &
+// Schoukens 2012 §2.6):
+//
+//   P̂(ω_k) = S_yv S_uv⁻¹,   spectra summed over the Hann-windowed segments of every
+//   experiment (as estimate_frf; the experiments' designs need not be single-input).
+//
+// Noise on y and on u that is uncorrelated with v does not bias P̂ (an H1 from u
+// would be biased by the loop), and a nonlinear or time-varying controller does not
+// matter: only the plant has to be linear.  Variance of each entry, to first order
+// (the residual e = y − P u holds all the noise that reaches y and u):
+//
+//   E|P̂_ij − P_ij|² = (S_ee,ii / n_d) · [S_uv⁻ᴴ S_vv S_uv⁻¹]_jj · n_d/(n_d − m),
+//
+// with S_ee = [I −P̂] S_zz [I −P̂]ᴴ from the full cross-spectral matrix of z = [y; u],
+// n_d the independent averages (estimate_frf's formula) and the last factor for the
+// m columns P̂ took from the same data; plus the same leakage-bias term as
+// estimate_frf (curvature of P̂ over neighbouring lines).  Coherence: the multiple
+// coherence of y_i with the excitations (every entry of row i).
+//
+// experiments[e].excitation is v (N × m); experiments[e].output holds y then u
+// (N × (p + m)): the last m columns are the plant's inputs.  Frequencies where S_vv
+// or S_uv is ill-conditioned (max_condition) are flagged.
+// @throws InputError  as estimate_frf; output with no more columns than excitation
+//   columns (no y).
+FrequencyResponse estimate_plant_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options);
+
+}  // namespace lpvid
