@@ -20,13 +20,18 @@ constexpr const char* kExample = R"(
 Example:
   lpvid frf --excitation v1,v2,v3 --output u1,u2,u3 --quantity S --out S.csv exp_T_psi.csv exp_T_theta.csv exp_F_z.csv
   lpvid frf --excitation v1,v2,v3 --output q1,q2,q3 --quantity G --out G.csv --segment 4096 exp_*.csv
+  lpvid frf --excitation v1,v2,v3 --input u1,u2,u3 --output q1,q2,q3 --quantity P --out P.csv exp_*.csv
 H1 estimate S_yv S_vv^-1 averaged over Hann-windowed segments (50 % overlap) of every log;
-writes an FRD CSV (columns freq_hz, <Q>_i_j_re/_im, coh_i_j, flag) and flags frequencies
-where the excitation's spectral matrix is ill-conditioned.)";
+writes an FRD CSV (columns freq_hz, <Q>_i_j_re/_im, coh_i_j, var_i_j, flag) and flags
+frequencies where the excitation's spectral matrix is ill-conditioned.  With --input, the
+PLANT u -> y from the closed loop, S_yv S_uv^-1 (v as instrument: unbiased by the loop, any
+controller), its variance from the residual y - P u (docs/math.md, "Plant from closed-loop
+logs").  6-DOF stage logs (u1..u6 = F_x F_y F_z tau_x tau_y tau_z): name the columns in the
+base's order, --excitation v1,v2,v3,v6,v5,v4 --input u1,u2,u3,u6,u5,u4 --output q1,...,q6.)";
 
 struct FrfCliOptions {
   std::vector<std::string> logs;
-  std::string excitation, output, out, quantity = "H", window = "hann";
+  std::string excitation, input, output, out, quantity = "H", window = "hann";
   Index segment = 0;
   double overlap = 0.5;
   bool json = false;
@@ -50,20 +55,34 @@ void run(const FrfCliOptions& o) {
   }
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
+  const bool plant = !o.input.empty();
+  std::vector<std::string> input;
+  if (plant) {
+    input = split_names(o.input, "--input");
+    if (input.size() != excitation.size())
+      throw InputError(fmt::format("--input names {} columns and --excitation {}; give one excitation column per "
+                                   "plant input, in the same order",
+                                   input.size(), excitation.size()));
+  }
+  std::vector<std::string> read = output;
+  read.insert(read.end(), input.begin(), input.end());
   OutputSet outputs;
   outputs.inputs(o.logs);
   outputs.file("--out", o.out);
   outputs.check();
-  const ExperimentSet set = read_experiments(o.logs, excitation, output);
+  const ExperimentSet set = read_experiments(o.logs, excitation, read);
   options.sample_period_s = set.sample_period_s;
-  FrequencyResponse frd = estimate_frf(set.views(), options);
-  frd.input_names = excitation;
+  FrequencyResponse frd = plant ? estimate_plant_frf(set.views(), options) : estimate_frf(set.views(), options);
+  frd.input_names = plant ? input : excitation;
   frd.output_names = output;
   Index flagged = 0;
   for (bool f : frd.flagged) flagged += f ? 1 : 0;
   write_frd_csv(outputs.stage(o.out), frd, o.quantity,
-                {fmt::format("lpvid frf: H1 Welch estimate of {} from {} log(s), Ts = {:.6g} s", o.quantity,
-                             set.paths.size(), set.sample_period_s)});
+                {plant ? fmt::format("lpvid frf: plant {} = S_yv S_uv^-1 (Welch, excitation as instrument) from {} "
+                                     "log(s), Ts = {:.6g} s, variance from the residual y - P u",
+                                     o.quantity, set.paths.size(), set.sample_period_s)
+                       : fmt::format("lpvid frf: H1 Welch estimate of {} from {} log(s), Ts = {:.6g} s", o.quantity,
+                                     set.paths.size(), set.sample_period_s)});
   nlohmann::json summary = {{"frequencies", frd.num_frequencies()},
                             {"flagged", flagged},
                             {"sample_period_s", set.sample_period_s},
@@ -86,6 +105,9 @@ Command make_frf_command() {
             app->add_option("logs", o->logs, "CSV logs, one experiment each")->required();
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "response columns (u for S, q for G), comma separated")->required();
+            app->add_option("--input", o->input,
+                            "plant input columns u (comma separated, one per excitation): estimate the plant "
+                            "u -> output from the closed loop");
             app->add_option("--out", o->out, "FRD CSV to write ('-' = stdout)")->required();
             app->add_option("--quantity", o->quantity, "column prefix in the FRD file (S, G, P, H)");
             app->add_option("--segment", o->segment, "samples per segment (default: N/16 as a power of two)")

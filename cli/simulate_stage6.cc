@@ -16,13 +16,55 @@
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
+#include "formats/io/physical_model_json.h"
 #include "formats/plot/time_plot.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
+#include "idlib/physical/physical_model.h"
 #include "idlib/stage6/stage6_sim.h"
 
 namespace lpvid::cli {
 namespace {
+
+// The simulated stage as a physical model of base stage6: what an exact
+// identification would return.  The attitude it hovered at (the sliding-mode law
+// has no integral action) is the run's mean over its second half.
+PhysicalModel truth_physical_model(const stage6::StageParameters& p, const stage6::StageEffects& e,
+                                   const stage6::StageRun& run) {
+  PhysicalModel m = PhysicalModel::bare("stage6");
+  const Eigen::Index half = run.q.rows() / 2;
+  const Eigen::Vector3d attitude = run.q.bottomRows(run.q.rows() - half).rightCols(3).colwise().mean().transpose();
+  m.parameter("hover_yaw_rad").value = attitude(0);
+  m.parameter("hover_pitch_rad").value = attitude(1);
+  m.parameter("hover_roll_rad").value = attitude(2);
+  m.parameter("mass_kg").value = p.mass_kg;
+  m.parameter("inertia_xx_kgm2").value = p.inertia_kgm2(0, 0);
+  m.parameter("inertia_yy_kgm2").value = p.inertia_kgm2(1, 1);
+  m.parameter("inertia_zz_kgm2").value = p.inertia_kgm2(2, 2);
+  m.parameter("force_constant_scale").value = e.force_constant_scale;
+  if (e.com_offset_m.squaredNorm() > 0) {
+    m.add_effect("com_offset");
+    m.parameter("com_x_m").value = e.com_offset_m(0);
+    m.parameter("com_y_m").value = e.com_offset_m(1);
+    m.parameter("com_z_m").value = e.com_offset_m(2);
+  }
+  if (e.gap_dependence) {
+    m.add_effect("gap_dependence");
+    m.parameter("gap_decay_per_m").value = p.gamma_per_m();
+  }
+  if (e.electrical_lag) {
+    m.add_effect("electrical_lag");
+    m.parameter("electrical_time_constant_s").value = p.electrical_time_constant_s();
+    m.parameter("back_emf_damping_Ns_per_m").value =
+        p.force_constant_N_per_A * p.force_constant_N_per_A / (p.resistance_ohm + p.current_loop_gain_V_per_A);
+  }
+  if (e.input_delay_s > 0) {
+    m.add_effect("input_delay");
+    m.parameter("input_delay_s").value = e.input_delay_s;
+  }
+  m.validate();
+  return m;
+}
 
 constexpr const char* kExample = R"(
 Example:
@@ -47,6 +89,9 @@ struct Stage6Options {
   double gain_K = 2.0, delta = 0.01, lambda = 3.0, inertia_scale = 0.4;
   double excitation_scale = 1.0, noise_scale = 1.0;
   std::vector<std::string> effects;
+  std::vector<double> com_offset_mm, inertia_kgm2;
+  double input_delay_ms = 0.0, force_constant_scale = 1.0;
+  bool hover = false;
   std::uint64_t seed = 1;
   bool json = false;
 };
@@ -75,7 +120,7 @@ void run(const Stage6Options& o) {
   OutputSet out;
   out.directory("--out", o.out_dir);
   for (const char* name : o.experiment ? std::vector<const char*>{"exp_stage6.csv", "truth_plant_continuous.json",
-                                                                 "truth_plant.json"}
+                                                                 "truth_plant.json", "truth_model.json"}
                                        : std::vector<const char*>{"stage6_run.csv", "fig6a_xyz.png", "fig6b_angles.png",
                                                                   "fig6c_forces.png", "fig6d_torques.png"})
     out.file_in(o.out_dir, name);
@@ -86,6 +131,13 @@ void run(const Stage6Options& o) {
     else if (e == "lag") effects.electrical_lag = true;
     else throw InputError(fmt::format("--effects: unknown effect '{}'; use gap or lag", e));
   }
+  if (!o.com_offset_mm.empty()) {
+    if (o.com_offset_mm.size() != 3)
+      throw InputError(fmt::format("--com-offset-mm: {} values; give x,y,z in mm (e.g. 2,-1.5,1)", o.com_offset_mm.size()));
+    effects.com_offset_m = Eigen::Vector3d(o.com_offset_mm[0], o.com_offset_mm[1], o.com_offset_mm[2]) * 1e-3;
+  }
+  effects.input_delay_s = o.input_delay_ms * 1e-3;
+  effects.force_constant_scale = o.force_constant_scale;
   SlidingModeOptions smc;
   smc.gain_K = o.gain_K;
   smc.boundary_layer = o.delta;
@@ -96,7 +148,13 @@ void run(const Stage6Options& o) {
   sim.duration_s = duration_s;
   sim.integration_step_s = o.step_s;
   sim.seed = o.seed;
-  const StageParameters truth;
+  StageParameters truth;
+  if (!o.inertia_kgm2.empty()) {
+    if (o.inertia_kgm2.size() != 3)
+      throw InputError(fmt::format("--inertia-kgm2: {} values; give I_xx,I_yy,I_zz in kg·m² (e.g. 0.03,0.028,0.06)",
+                                   o.inertia_kgm2.size()));
+    truth.inertia_kgm2 = Eigen::Vector3d(o.inertia_kgm2[0], o.inertia_kgm2[1], o.inertia_kgm2[2]).asDiagonal();
+  }
   Vector6d q0 = paper_initial_configuration();
   const Vector6d qr = paper_reference_configuration();
   if (o.experiment) {
@@ -107,15 +165,19 @@ void run(const Stage6Options& o) {
     sim.excitation_std << 2, 2, 2, 0.1, 0.1, 0.1;
     sim.excitation_std *= o.excitation_scale;
     q0 = Vector6d::Zero();
-    q0(2) = 250e-6;
+    q0(2) = o.hover ? qr(2) : 250e-6;
   }
   const StageRun r = simulate_regulation(truth, effects, q0, qr, smc, sim);  // before any output
   nlohmann::json summary = {{"dir", o.out_dir}, {"duration_s", sim.duration_s}, {"rate_hz", o.rate_hz}};
   std::string text;
   const std::string provenance = fmt::format(
-      "lpvid simulate stage6{}: K={} delta={} lambda={} inertia_scale={} rate_hz={} step_s={} seed={} effects={}",
+      "lpvid simulate stage6{}: K={} delta={} lambda={} inertia_scale={} rate_hz={} step_s={} seed={} effects={} "
+      "com_offset_mm={},{},{} input_delay_ms={} force_constant_scale={} inertia_kgm2={},{},{}{}",
       o.experiment ? " --experiment" : "", o.gain_K, o.delta, o.lambda, o.inertia_scale, o.rate_hz, o.step_s, o.seed,
-      effects.gap_dependence ? (effects.electrical_lag ? "gap,lag" : "gap") : (effects.electrical_lag ? "lag" : "none"));
+      effects.gap_dependence ? (effects.electrical_lag ? "gap,lag" : "gap") : (effects.electrical_lag ? "lag" : "none"),
+      1e3 * effects.com_offset_m(0), 1e3 * effects.com_offset_m(1), 1e3 * effects.com_offset_m(2), o.input_delay_ms,
+      o.force_constant_scale, truth.inertia_kgm2(0, 0), truth.inertia_kgm2(1, 1), truth.inertia_kgm2(2, 2),
+      o.hover ? " hover" : "");
   if (o.experiment) {
     const StageLog log = experiment_log(r);
     const StateSpace plant_c = linearize_hover(truth, qr(2));
@@ -125,10 +187,13 @@ void run(const Stage6Options& o) {
     write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, {provenance});
     out.stage(join_path(o.out_dir, "truth_plant_continuous.json"), state_space_to_json(plant_c, {{"provenance", prov}}));
     out.stage(join_path(o.out_dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", prov}}));
+    out.stage(join_path(o.out_dir, "truth_model.json"), physical_model_to_json(truth_physical_model(truth, effects, r)));
     out.commit();
-    text = fmt::format("wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json\n",
-                       o.out_dir, log.data.rows());
-    summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json"};
+    text = fmt::format(
+        "wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json (the rigid body at hover), "
+        "truth_model.json (the simulated stage with its effects, base stage6)\n",
+        o.out_dir, log.data.rows());
+    summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
   } else {
     std::vector<std::string> cols = {"t", "x", "y", "z", "psi", "theta", "phi", "xd", "yd", "zd", "psid", "thetad",
                                      "phid"};
@@ -193,6 +258,19 @@ void install_simulate_stage6(CLI::App& simulate) {
       ->check(number_in(0, kMaxScale, "the noise scale"));
   c->add_option("--effects", opts->effects, "effects in the simulated stage, hidden from the controller: gap, lag")
       ->delimiter(',');
+  c->add_option("--com-offset-mm", opts->com_offset_mm,
+                "centre-of-mass offset x,y,z in mm, hidden from the controller's allocation")
+      ->delimiter(',')
+      ->check(number_in(-50, 50, "a centre-of-mass offset in mm"));
+  c->add_option("--input-delay-ms", opts->input_delay_ms, "delay of the motor commands in ms (whole RK4 steps)")
+      ->check(number_in(0, 100, "the input delay in ms"));
+  c->add_option("--force-constant-scale", opts->force_constant_scale,
+                "true force constant over the controller's (default 1)")
+      ->check(number_in(0.05, 20, "the force-constant scale"));
+  c->add_option("--inertia-kgm2", opts->inertia_kgm2, "the stage's inertia I_xx,I_yy,I_zz in kg·m² (default seed 001's)")
+      ->delimiter(',')
+      ->check(number_in(1e-5, 100, "an inertia in kg·m²"));
+  c->add_flag("--hover", opts->hover, "--experiment: start hovering at the reference (no z step)");
   c->add_option("--seed", opts->seed, "random seed (same seed, same log)")->check(seed_value());
   c->add_flag("--json", opts->json, "print the summary as JSON");
   c->callback([opts] { run(*opts); });

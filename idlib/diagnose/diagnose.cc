@@ -346,10 +346,14 @@ void describe_phenomena(const std::vector<Phenomenon>& phenomena, const std::vec
       for (Index d : ph.data_sets) xs.push_back(fmt::format("{:g}", data[static_cast<std::size_t>(d)].beam_position_m));
       at = fmt::format("at {} {}", ph.data_sets.size() == 1 ? "data set" : "data sets", fmt::join(xs, ", "));
     }
-    lines.push_back(fmt::format("  {}. near {:.4g} rad/s in {}, {}: up to {:.3g} % ({:+.2f} dB, {:+.1f} deg), {:.0f}x the "
-                                "noise; {}",
-                                k + 1, ph.omega_rad_s, ph.where, at, b.relative_percent_max, b.gain_db_max,
-                                b.phase_deg_max, b.max_sigma_ratio, b.hint));
+    // gain and phase of data over model: none where the model is zero there (a
+    // coupling the model lacks)
+    const std::string ratio = std::isfinite(b.gain_db_max) && std::isfinite(b.phase_deg_max)
+                                  ? fmt::format("{:+.2f} dB, {:+.1f} deg", b.gain_db_max, b.phase_deg_max)
+                                  : std::string("the model is 0 there");
+    lines.push_back(fmt::format("  {}. near {:.4g} rad/s in {}, {}: up to {:.3g} % ({}), {:.0f}x the noise; {}", k + 1,
+                                ph.omega_rad_s, ph.where, at, b.relative_percent_max, ratio, b.max_sigma_ratio,
+                                b.hint));
   }
   if (phenomena.size() > limit) lines.push_back(fmt::format("  ... and {} more", phenomena.size() - limit));
 }

@@ -160,6 +160,19 @@ class Engine {
     // dAv (n·p × n) = [V⁻¹ dA_q V], dBv (n·p × n_in) = [V⁻¹ dB_q], dCv (n_out·p × n) = [dC_q V],
     // so that every frequency needs three GEMMs for all parameters at once.
     Eigen::MatrixXcd dAv, dBvn, dBvo, dCv;
+    // Only the parameters that move A or B (inner) enter the first products and only
+    // those that move C (outer) the last: output blocks (gains, cross-talk) touch C
+    // alone, so their rows would be zeros.  pos_inner/pos_outer: a free parameter's
+    // row block in the stacks (-1: not there).
+    std::vector<Index> pos_inner(static_cast<std::size_t>(p), -1), pos_outer(static_cast<std::size_t>(p), -1);
+    Index n_inner = 0, n_outer = 0;
+    if (dT != nullptr)
+      for (Index q = 0; q < p; ++q) {
+        const auto s = static_cast<std::size_t>(q);
+        const auto nonzero = [](const Eigen::MatrixXd& m) { return m.size() > 0 && m.cwiseAbs().maxCoeff() > 0.0; };
+        if (nonzero(dA[s]) || nonzero(dBn[s]) || (any_old && nonzero(dBo[s]))) pos_inner[s] = n_inner++;
+        if (nonzero(dC[s])) pos_outer[s] = n_outer++;
+      }
     if (modal) {
       const Eigen::EigenSolver<Eigen::MatrixXd> es(A);
       modal = es.info() == Eigen::Success;
@@ -174,19 +187,39 @@ class Engine {
           Bho = Vinv * Bo.cast<Cx>();
           if (dT != nullptr && p > 0) {
             const Index ni0 = Bn.cols(), no0 = C.rows();
-            dAv.resize(n * p, n);
-            dBvn.resize(n * p, ni0);
-            if (any_old) dBvo.resize(n * p, ni0);
-            dCv.resize(no0 * p, n);
+            dAv.resize(n * n_inner, n);
+            dBvn.resize(n * n_inner, ni0);
+            if (any_old) dBvo.resize(n * n_inner, ni0);
+            dCv.resize(no0 * n_outer, n);
             for (Index q = 0; q < p; ++q) {
               const auto s = static_cast<std::size_t>(q);
-              dAv.middleRows(q * n, n).noalias() = Vinv * (dA[s].cast<Cx>() * V);
-              dBvn.middleRows(q * n, n).noalias() = Vinv * dBn[s].cast<Cx>();
-              if (any_old) dBvo.middleRows(q * n, n).noalias() = Vinv * dBo[s].cast<Cx>();
-              dCv.middleRows(q * no0, no0).noalias() = dC[s].cast<Cx>() * V;
+              if (const Index r = pos_inner[s]; r >= 0) {
+                dAv.middleRows(r * n, n).noalias() = Vinv * (dA[s].cast<Cx>() * V);
+                dBvn.middleRows(r * n, n).noalias() = Vinv * dBn[s].cast<Cx>();
+                if (any_old) dBvo.middleRows(r * n, n).noalias() = Vinv * dBo[s].cast<Cx>();
+              }
+              if (const Index r = pos_outer[s]; r >= 0) dCv.middleRows(r * no0, no0).noalias() = dC[s].cast<Cx>() * V;
             }
           }
         }
+      }
+    }
+    if (!modal && dT != nullptr && p > 0) {
+      // The resolvent route stacks the derivatives the same way, untransformed:
+      // dAv = [dA_q], dBv = [dB_q], dCv = [dC_q], so that with X = (λI − A)⁻¹ B_z and
+      // Y = C (λI − A)⁻¹ every frequency needs three GEMMs for all parameters.
+      dAv.resize(n * n_inner, n);
+      dBvn.resize(n * n_inner, ni);
+      if (any_old) dBvo.resize(n * n_inner, ni);
+      dCv.resize(no * n_outer, n);
+      for (Index q = 0; q < p; ++q) {
+        const auto s = static_cast<std::size_t>(q);
+        if (const Index r = pos_inner[s]; r >= 0) {
+          dAv.middleRows(r * n, n) = dA[s].cast<Cx>();
+          dBvn.middleRows(r * n, n) = dBn[s].cast<Cx>();
+          if (any_old) dBvo.middleRows(r * n, n) = dBo[s].cast<Cx>();
+        }
+        if (const Index r = pos_outer[s]; r >= 0) dCv.middleRows(r * no, no) = dC[s].cast<Cx>();
       }
     }
     const Eigen::MatrixXcd Ac = A.cast<Cx>(), Bnc = Bn.cast<Cx>(), Boc = Bo.cast<Cx>(), Cc = C.cast<Cx>();
@@ -196,7 +229,7 @@ class Engine {
     for (const auto& m : dD) dD_nonzero.push_back(m.cwiseAbs().maxCoeff() > 0.0);
     // work space, allocated once per evaluation
     Eigen::MatrixXcd Z(n, n), Chd(no, n), Bhd(n, ni), Bhz(n, ni), X, Y, Bz, tmp(n, ni), dPm(no, ni);
-    Eigen::MatrixXcd U, R, S;  // stacked derivative products (modal route)
+    Eigen::MatrixXcd U, R, S;  // stacked derivative products
     for (std::size_t k = 0; k < F; ++k) {
       const double w = d.omega[k];
       const Cx lambda = ts > 0.0 ? std::exp(Cx(0.0, w * ts)) : Cx(0.0, w);
@@ -222,13 +255,15 @@ class Engine {
         P = dPm + Dc * dcol.asDiagonal();
         if (dT != nullptr && p > 0) {
           for (Index a = 0; a < n; ++a) Bhd.row(a) = Bhz.row(a) / (lambda - mu(a));
-          // U = [dAh_q Λ Bh + dBh_q] (n·p × n_in); R = Ch Λ U reshaped (n_out × n_in·p,
-          // column j·p + q); S = [dCh_q Λ Bh] (n_out·p × n_in)
-          U.noalias() = dAv * Bhd;
-          U += dBvn;
-          if (any_old) U += dBvo * zinv;
-          R.noalias() = Chd * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * p);
-          S.noalias() = dCv * Bhd;
+          // U = [dAh_q Λ Bh + dBh_q] (n·p_in × n_in, inner q); R = Ch Λ U reshaped
+          // (n_out × n_in·p_in, column j·p_in + q); S = [dCh_q Λ Bh] (n_out·p_out × n_in)
+          if (n_inner > 0) {
+            U.noalias() = dAv * Bhd;
+            U += dBvn;
+            if (any_old) U += dBvo * zinv;
+            R.noalias() = Chd * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
+          }
+          if (n_outer > 0) S.noalias() = dCv * Bhd;
         }
       } else {
         Z = -Ac;
@@ -238,9 +273,18 @@ class Engine {
         if (dT == nullptr || p == 0) {
           X = lu.solve(Bz);
         } else {
-          const Eigen::MatrixXcd R = lu.inverse();
-          X = R * Bz;
-          Y = Cc * R;
+          const Eigen::MatrixXcd Rz = lu.inverse();
+          X = Rz * Bz;
+          Y = Cc * Rz;
+          // U = [dA_q X + dB_q] (n·p_in × n_in); R = Y U reshaped (n_out × n_in·p_in,
+          // column j·p_in + q); S = [dC_q X] (n_out·p_out × n_in)
+          if (n_inner > 0) {
+            U.noalias() = dAv * X;
+            U += dBvn;
+            if (any_old) U += dBvo * zinv;
+            R.noalias() = Y * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
+          }
+          if (n_outer > 0) S.noalias() = dCv * X;
         }
         P = Cc * X + Dc * dcol.asDiagonal();
       }
@@ -274,14 +318,13 @@ class Engine {
       out.resize(static_cast<std::size_t>(p));
       for (Index q = 0; q < p; ++q) {
         const auto s = static_cast<std::size_t>(q);
-        if (modal) {
-          // dP = Ch Λ (dAh Λ Bh + dBh) + dCh Λ Bh, gathered from the stacked products
+        {
+          // dP = Ch Λ (dAh Λ Bh + dBh) + dCh Λ Bh (modal), Y (dA X + dB) + dC X
+          // (resolvent): gathered from the stacked products
+          const Index qi = pos_inner[s], qo = pos_outer[s];
           for (Index j = 0; j < ni; ++j)
-            for (Index i = 0; i < no; ++i) dPm(i, j) = R(i, j * p + q) + S(q * no + i, j);
-        } else {
-          Eigen::MatrixXcd dB = dBn[s].cast<Cx>();
-          if (any_old) dB += dBo[s].cast<Cx>() * zinv;
-          dPm = Y * (dA[s].cast<Cx>() * X) + Y * dB + dC[s].cast<Cx>() * X;
+            for (Index i = 0; i < no; ++i)
+              dPm(i, j) = (qi >= 0 ? R(i, j * n_inner + qi) : Cx(0.0)) + (qo >= 0 ? S(qo * no + i, j) : Cx(0.0));
         }
         CMat dP = dPm;
         if (dD_nonzero[s]) dP += dD[s].cast<Cx>() * dcol.asDiagonal();

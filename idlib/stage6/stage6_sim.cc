@@ -109,6 +109,8 @@ StageRun simulate_regulation(const StageParameters& truth, const StageEffects& e
   if (!q0.allFinite() || !q_ref.allFinite()) throw InputError("initial and reference configurations must be finite");
   if (!effects.com_offset_m.allFinite() || !(effects.force_constant_scale > 0))
     throw InputError("stage effects: com_offset_m must be finite and force_constant_scale positive");
+  if (!(effects.input_delay_s >= 0.0 && effects.input_delay_s <= 0.1))
+    throw InputError(fmt::format("stage effects: input delay {} s; give 0 to 0.1 s", effects.input_delay_s));
 
   const double period = 1.0 / smc.control_rate_hz;
   const int substeps = static_cast<int>(std::llround(period / sim.integration_step_s));
@@ -132,6 +134,9 @@ StageRun simulate_regulation(const StageParameters& truth, const StageEffects& e
   x.head<6>() = q0;
   Vector6d noise_prev = Vector6d::Zero();
   bool currents_initialised = false;
+  // Every command so far (the input delay reaches back into them).
+  std::vector<Vector8d> commands;
+  const Index delay_steps = static_cast<Index>(std::llround(effects.input_delay_s / h));
   for (Eigen::Index k = 0; k < N; ++k) {
     const Vector6d q = x.head<6>(), qd = x.segment<6>(6);
     Vector6d noise, excitation;
@@ -173,11 +178,16 @@ StageRun simulate_regulation(const StageParameters& truth, const StageEffects& e
       x.tail<8>() = i_cmd;  // the current loop starts settled on the first command
       currents_initialised = true;
     }
+    commands.push_back(i_cmd);
     for (int s = 0; s < substeps; ++s) {
-      const Eigen::VectorXd k1 = plant.derivative(x, i_cmd);
-      const Eigen::VectorXd k2 = plant.derivative(x + 0.5 * h * k1, i_cmd);
-      const Eigen::VectorXd k3 = plant.derivative(x + 0.5 * h * k2, i_cmd);
-      const Eigen::VectorXd k4 = plant.derivative(x + h * k3, i_cmd);
+      // The command in force during this step: computed delay_steps steps ago (the
+      // first command before that: the stage starts settled on it).
+      const Index since = static_cast<Index>(commands.size() - 1) * substeps + s - delay_steps;
+      const Vector8d& applied = commands[static_cast<std::size_t>(std::max<Index>(0, since) / substeps)];
+      const Eigen::VectorXd k1 = plant.derivative(x, applied);
+      const Eigen::VectorXd k2 = plant.derivative(x + 0.5 * h * k1, applied);
+      const Eigen::VectorXd k3 = plant.derivative(x + 0.5 * h * k2, applied);
+      const Eigen::VectorXd k4 = plant.derivative(x + h * k3, applied);
       x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
     }
     if (!x.allFinite() || std::abs(x(4)) >= 1.5)

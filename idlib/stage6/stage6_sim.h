@@ -42,6 +42,9 @@ struct StageEffects {
   Eigen::Vector3d com_offset_m = Eigen::Vector3d::Zero();
   // Multiplies every true force constant (the controller assumes 1).
   double force_constant_scale = 1.0;
+  // The motor commands reach the amplifiers this long after the controller computed
+  // them (computation and communication); rounded to whole integration steps.
+  double input_delay_s = 0.0;
 };
 
 struct SimulationOptions {

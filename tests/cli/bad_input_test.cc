@@ -116,6 +116,8 @@ TEST_F(BadInput, OutputFlagNamingAnInput_IsRefusedForEveryOutputFlag) {
   refused("bode --out " + at("G.json") + " " + at("G.json"), "refusing to overwrite input");
   refused("frf --excitation v1 --output u1 --out " + data("exp_T_psi.csv") + " " + data("exp_T_psi.csv"),
           "refusing to overwrite input");
+  refused("frf --excitation v1,v2 --input u1 --output q1 --out " + data("exp_T_psi.csv") + " " + data("exp_T_psi.csv"),
+          "--input names 1 columns and --excitation 2");
   refused("compare " + at("G.json") + " " + data("truth_closed_loop.json") + " --out " + at("G.json"),
           "refusing to overwrite input");
   refused("model export --model " + at("start.json") + " --xb 0 --out " + at("start.json"),
@@ -180,6 +182,9 @@ TEST_F(BadInput, FailedSimulation_LeavesNoFolderAndNoTruthFiles) {
   refused("simulate platform --out sim --positions 5", "outside the stroke");
   refused("simulate platform --out sim --positions left,left", "twice");
   refused("simulate stage6 --out st --step-s 0.0003", "", 2);
+  refused("simulate stage6 --experiment --out st --com-offset-mm 1,2", "--com-offset-mm: 2 values");
+  refused("simulate stage6 --experiment --out st --inertia-kgm2 0.03", "--inertia-kgm2: 1 values");
+  refused("simulate stage6 --experiment --out st --input-delay-ms 500", "--input-delay-ms");
   refused("simulate platform --out sim --profile sweep --analyzer", "--analyzer does not apply to a moving beam");
 }
 

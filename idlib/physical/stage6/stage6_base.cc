@@ -32,6 +32,13 @@ BaseInfo make_stage6_base() {
       // the true force constant over the one the controller allocates with
       par("force_constant_scale", "1", 1.0, 0.05, 20.0, true),
       par("gravity_m_per_s2", "m/s²", stage6::kGravity_m_per_s2, 0.0, 20.0, false),
+      // The attitude the stage hovers at: a controller without integral action
+      // (the sliding-mode law) holds it off zero (measured ~1 mrad in pitch); the
+      // lift then leaks into the horizontal axes (x ← F_z ∝ theta0).  Identifiable
+      // from those couplings; free.
+      par("hover_yaw_rad", "rad", 0.0, -0.05, 0.05, true),
+      par("hover_pitch_rad", "rad", 0.0, -0.05, 0.05, true),
+      par("hover_roll_rad", "rad", 0.0, -0.05, 0.05, true),
   };
   // The designed lever arms (body axes, from the centre of mass to each magnet
   // array's force centre): the geometry the controller allocates with.
@@ -104,7 +111,10 @@ Stage6Indices::Stage6Indices(const PhysicalModel& model) {
   com[2] = model.index_of("com_z_m");
   gamma = model.index_of("gap_decay_per_m");
   back_emf = model.index_of("back_emf_damping_Ns_per_m");
-  for (Index i : {mass, I_xx, I_yy, I_zz, kappa, g}) LPVID_ASSERT(i >= 0);
+  attitude[0] = model.index_of("hover_yaw_rad");
+  attitude[1] = model.index_of("hover_pitch_rad");
+  attitude[2] = model.index_of("hover_roll_rad");
+  for (Index i : {mass, I_xx, I_yy, I_zz, kappa, g, attitude[0], attitude[1], attitude[2]}) LPVID_ASSERT(i >= 0);
   allocation_pinv = stage6::allocation_pseudo_inverse(r);  // @throws InputError: a degenerate geometry
 }
 

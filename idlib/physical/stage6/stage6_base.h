@@ -57,6 +57,7 @@ struct Stage6Indices {
   Index com[3] = {-1, -1, -1};  // com_offset
   Index gamma = -1;             // gap_dependence
   Index back_emf = -1;          // electrical_lag (its time constant is an input block)
+  Index attitude[3] = {-1, -1, -1};  // hover_yaw_rad, hover_pitch_rad, hover_roll_rad
   Eigen::Matrix<double, 8, 6> allocation_pinv;  // A(r)⁺ of the designed arms
   explicit Stage6Indices(const PhysicalModel& model);
 };
@@ -99,26 +100,93 @@ bool near_identity_inverse(const Mat<T>& M, Mat<T>& inv, double (*value)(const T
 
 }  // namespace stage6_detail
 
+namespace stage6_detail {
+
+// R = Rz(psi) Ry(theta) Rx(phi) and its derivatives by psi, theta, phi (d[0..2]).
+template <class T>
+void rotation_and_derivatives(const T& psi, const T& theta, const T& phi, Mat<T>& R, Mat<T> d[3]) {
+  using std::cos;
+  using std::sin;
+  const T zero(0.0), one(1.0);
+  auto rz = [&](const T& a, bool deriv) {
+    Mat<T> m = Mat<T>::Constant(3, 3, zero);
+    const T c = cos(a), s = sin(a);
+    if (deriv) {
+      m(0, 0) = -s; m(0, 1) = -c; m(1, 0) = c; m(1, 1) = -s;
+    } else {
+      m(0, 0) = c; m(0, 1) = -s; m(1, 0) = s; m(1, 1) = c; m(2, 2) = one;
+    }
+    return m;
+  };
+  auto ry = [&](const T& a, bool deriv) {
+    Mat<T> m = Mat<T>::Constant(3, 3, zero);
+    const T c = cos(a), s = sin(a);
+    if (deriv) {
+      m(0, 0) = -s; m(0, 2) = c; m(2, 0) = -c; m(2, 2) = -s;
+    } else {
+      m(0, 0) = c; m(0, 2) = s; m(2, 0) = -s; m(2, 2) = c; m(1, 1) = one;
+    }
+    return m;
+  };
+  auto rx = [&](const T& a, bool deriv) {
+    Mat<T> m = Mat<T>::Constant(3, 3, zero);
+    const T c = cos(a), s = sin(a);
+    if (deriv) {
+      m(1, 1) = -s; m(1, 2) = -c; m(2, 1) = c; m(2, 2) = -s;
+    } else {
+      m(1, 1) = c; m(1, 2) = -s; m(2, 1) = s; m(2, 2) = c; m(0, 0) = one;
+    }
+    return m;
+  };
+  R = rz(psi, false) * ry(theta, false) * rx(phi, false);
+  d[0] = rz(psi, true) * ry(theta, false) * rx(phi, false);
+  d[1] = rz(psi, false) * ry(theta, true) * rx(phi, false);
+  d[2] = rz(psi, false) * ry(theta, false) * rx(phi, true);
+}
+
+}  // namespace stage6_detail
+
 // M, D (zero), K (6×6), B_w (6×6) and the back-EMF feedback F (6×6; zero without
-// electrical_lag) at the hover height z0 (m above the reference gap).  Returns
-// false when A(r − c) A(r)⁺ cannot be inverted (a centre-of-mass offset as large
-// as the platen).  `value` gives the double value of a scalar.
+// electrical_lag) about hover at the height z0 (m above the reference gap) and the
+// attitude (psi0, theta0, phi0) of the base's hover_* parameters.  Returns false
+// when T₀ = kappa A(r − c) diag(alpha) A(r)⁺ cannot be inverted (a centre-of-mass
+// offset as large as the platen).  `value` gives the double value of a scalar.
 template <class T>
 bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*value)(const T&),
                      stage6_detail::Mat<T>& M, stage6_detail::Mat<T>& D, stage6_detail::Mat<T>& K,
                      stage6_detail::Mat<T>& Bw, stage6_detail::Mat<T>& F) {
   using Mat = stage6_detail::Mat<T>;
+  using std::cos;
   using std::exp;
+  using std::sin;
   const T zero(0.0), one(1.0);
   const T m = p[L.mass], kappa = p[L.kappa], g = p[L.g];
+  const T psi0 = p[L.attitude[0]], theta0 = p[L.attitude[1]], phi0 = p[L.attitude[2]];
   M = Mat::Constant(6, 6, zero);
   D = Mat::Constant(6, 6, zero);
   K = Mat::Constant(6, 6, zero);
   F = Mat::Constant(6, 6, zero);
+  // Kinematics at the hover attitude: R₀ and dR₀/d(psi, theta, phi); W₀ (eq 4,
+  // columns in q's order [psi' theta' phi']): omega = W₀ [psi' theta' phi'].
+  Mat R0, dR[3];
+  stage6_detail::rotation_and_derivatives<T>(psi0, theta0, phi0, R0, dR);
+  Mat W0 = Mat::Constant(3, 3, zero);
+  W0(0, 0) = -sin(theta0);
+  W0(0, 2) = one;
+  W0(1, 0) = cos(theta0) * sin(phi0);
+  W0(1, 1) = cos(phi0);
+  W0(2, 0) = cos(theta0) * cos(phi0);
+  W0(2, 1) = -sin(phi0);
+  Mat H = Mat::Constant(3, 3, zero);
+  H(0, 0) = p[L.I_xx];
+  H(1, 1) = p[L.I_yy];
+  H(2, 2) = p[L.I_zz];
   for (int i = 0; i < 3; ++i) M(i, i) = m;
-  M(3, 3) = p[L.I_zz];
-  M(4, 4) = p[L.I_yy];
-  M(5, 5) = p[L.I_xx];
+  M.bottomRightCorner(3, 3) = W0.transpose() * H * W0;
+  // G₀: body wrench (wrench order) → generalised force.
+  Mat G0 = Mat::Constant(6, 6, zero);
+  G0.topLeftCorner(3, 3) = R0;
+  G0.bottomRightCorner(3, 3) = W0.transpose();
   // True lever arms r − c and the true allocation A(r − c) (6×8; columns: the
   // horizontal then vertical force of motors 1..4; horizontal is x for motors 1, 3
   // and y for 2, 4).
@@ -143,52 +211,66 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
     At(3, cv) = r[i][1];
     At(4, cv) = -r[i][0];
   }
-  const T alpha0 = L.gamma >= 0 ? exp(-p[L.gamma] * T(z0)) : one;
-  const Mat Apinv = L.allocation_pinv.cast<T>();
-  const Mat AAp = At * Apinv;  // 6×6, I when c = 0
-  Mat AApInv;
-  if (!stage6_detail::near_identity_inverse<T>(AAp, AApInv, value)) return false;
-  // Π: wrench order (F; tau_x, tau_y, tau_z) ↔ generalised order (F; tau_z, tau_y, tau_x).
-  auto to_generalised = [](const Mat& X) {
-    Mat Y = X;
-    Y.row(3) = X.row(5);
-    Y.row(5) = X.row(3);
-    return Y;
-  };
+  // Each array's gap above the reference at hover, gap_i − z_ref = z0 + ((R₀ − I) r_i)_z,
+  // and ∂gap_i/∂q = [0 0 1, (dR/d(psi, theta, phi) r_i)_z] (J, one row per force).
+  Mat alpha = Mat::Constant(8, 1, one), J = Mat::Constant(8, 6, zero);
+  for (int i = 0; i < 4; ++i) {
+    T height = T(z0) - r[i][2];
+    for (int a = 0; a < 3; ++a) height += R0(2, a) * r[i][a];
+    T dgap[3] = {zero, zero, zero};
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) dgap[k] += dR[k](2, a) * r[i][a];
+    for (int c : {2 * i, 2 * i + 1}) {
+      if (L.gamma >= 0) alpha(c, 0) = exp(-p[L.gamma] * height);
+      J(c, 2) = one;
+      for (int k = 0; k < 3; ++k) J(c, 3 + k) = dgap[k];
+    }
+  }
+  Mat scaled = At;  // A(r − c) diag(alpha)
+  for (Index k = 0; k < 8; ++k) scaled.col(k) *= alpha(k, 0);
+  const Mat T0 = scaled * L.allocation_pinv.cast<T>() * kappa;  // wrench order
+  Mat T0inv;
+  if (!stage6_detail::near_identity_inverse<T>(T0, T0inv, value)) return false;
+  // Generalised order of the inputs: F_x F_y F_z tau_z tau_y tau_x (swap 3 ↔ 5).
   auto from_generalised_inputs = [](const Mat& X) {
     Mat Y = X;
     Y.col(3) = X.col(5);
     Y.col(5) = X.col(3);
     return Y;
   };
-  Bw = from_generalised_inputs(to_generalised(AAp * (kappa * alpha0)));
-  // Tilt of the lift m g (body z force at hover): δ(R F) = ω × (0, 0, m g).
-  K(0, 4) = -m * g;
-  K(1, 5) = m * g;
+  auto to_generalised_rows = [](const Mat& X) {
+    Mat Y = X;
+    Y.row(3) = X.row(5);
+    Y.row(5) = X.row(3);
+    return Y;
+  };
+  Bw = from_generalised_inputs(G0 * T0);
+  // The body force at hover holds the weight: F_b0 = R₀ᵀ (0, 0, m g); the tilt of
+  // that lift with the attitude: ∂(R F_b0)/∂(psi, theta, phi) (a negative stiffness
+  // term: M q'' + K q = ..., so K = −∂u/∂q).
+  Mat Fb0 = R0.transpose().col(2) * (m * g);
+  for (int k = 0; k < 3; ++k) K.block(0, 3 + k, 3, 1) = -(dR[k] * Fb0);
   if (L.gamma >= 0) {
-    // Hover commands w₀ = T₀⁻¹ (0 0 m g 0 0 0)ᵀ, forces f₀ = A⁺ w₀.
-    const Mat w0 = AApInv.col(2) * (m * g / (kappa * alpha0));
-    const Mat f0 = Apinv * w0;  // 8×1
-    // J (8×6): ∂gap/∂q of the array that exerts force k: z + phi r_y − theta r_x.
-    Mat J = Mat::Constant(8, 6, zero);
-    for (int i = 0; i < 4; ++i)
-      for (int k : {2 * i, 2 * i + 1}) {
-        J(k, 2) = one;
-        J(k, 4) = -r[i][0];
-        J(k, 5) = r[i][1];
-      }
-    Mat scaled = At;
-    for (Index k = 0; k < 8; ++k) scaled.col(k) *= f0(k, 0);
-    K += to_generalised(scaled * J) * (kappa * p[L.gamma] * alpha0);
+    // Hover commands w₀ = T₀⁻¹ (F_b0; 0), forces f₀ = A⁺ w₀; the lift changes with
+    // the gaps: δu = G₀ kappa A(r − c) diag(f₀ ⊙ δalpha), δalpha_k = −gamma alpha_k J_k δq.
+    Mat wb = Mat::Constant(6, 1, zero);
+    wb.topRows(3) = Fb0;
+    const Mat f0 = L.allocation_pinv.cast<T>() * (T0inv * wb);
+    Mat lift = At;
+    for (Index k = 0; k < 8; ++k) lift.col(k) *= f0(k, 0) * alpha(k, 0);
+    K += G0 * lift * J * (kappa * p[L.gamma]);
   }
   if (L.back_emf >= 0) {
-    // P (8×6): the velocity along each force (centre-of-mass translation).
+    // P (8×6): the velocity along each force (centre-of-mass translation); the
+    // back-EMF −b alpha_k v_k enters the current loop: w − F q', T₀ F = kappa A diag(alpha²) b P.
     Mat P = Mat::Constant(8, 6, zero);
     for (int i = 0; i < 4; ++i) {
       P(2 * i, (i % 2 == 0) ? 0 : 1) = one;
       P(2 * i + 1, 2) = one;
     }
-    F = to_generalised(AApInv * (At * P) * (alpha0 * p[L.back_emf]));
+    Mat emf = scaled;
+    for (Index k = 0; k < 8; ++k) emf.col(k) *= alpha(k, 0);
+    F = to_generalised_rows(T0inv * emf * P * (kappa * p[L.back_emf]));
   }
   return true;
 }

@@ -24,6 +24,7 @@ using stage6::Vector8d;
 
 struct Truth {
   stage6::StageParameters p;
+  Eigen::Vector3d attitude = Eigen::Vector3d::Zero();  // psi, theta, phi at hover
   Eigen::Vector3d com = Eigen::Vector3d::Zero();
   double kappa = 1.0;
   bool gap = false, lag = false;
@@ -66,6 +67,7 @@ StateSpace linearise(const Truth& t, double z0) {
   const Index n = t.lag ? 20 : 12;
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(n);
   x0(2) = t.p.reference_gap_m + z0;
+  x0.segment<3>(3) = t.attitude;
   auto accel = [&](const Vector6d& w) {
     Eigen::VectorXd x = x0;
     if (t.lag) {
@@ -114,6 +116,9 @@ PhysicalModel model_of(const Truth& t) {
   m.parameter("inertia_zz_kgm2").value = t.p.inertia_kgm2(2, 2);
   m.parameter("mass_kg").value = t.p.mass_kg;
   m.parameter("force_constant_scale").value = t.kappa;
+  m.parameter("hover_yaw_rad").value = t.attitude(0);
+  m.parameter("hover_pitch_rad").value = t.attitude(1);
+  m.parameter("hover_roll_rad").value = t.attitude(2);
   if (t.com.squaredNorm() > 0) {
     m.add_effect("com_offset");
     m.parameter("com_x_m").value = t.com(0);
@@ -188,6 +193,7 @@ TEST(Stage6Base, EachPhysicsEffectEqualsTheLinearisedNonlinearStage) {
 
 TEST(Stage6Base, AllEffectsTogetherEqualTheLinearisedNonlinearStage) {
   Truth t;
+  t.attitude << 2e-3, -1.5e-3, 1e-3;  // hovering tilted (a controller without integral action)
   t.p.inertia_kgm2.diagonal() << 0.031, 0.027, 0.052;
   t.kappa = 0.93;
   t.com << -2.5e-3, 1e-3, -2e-3;
@@ -198,12 +204,16 @@ TEST(Stage6Base, AllEffectsTogetherEqualTheLinearisedNonlinearStage) {
   const auto model = physical_response(model_of(t), z0, grid());
   EXPECT_LT(worst_relative(model, evaluate_response(lin, grid())), kFiniteDifferences);
   // The effects are visible: each changes the response by far more than the
-  // tolerance (measured 0.15 com_offset, 100 gap_dependence, 74 electrical_lag).
+  // tolerance (measured 0.15 com_offset, 100 gap_dependence, 74 electrical_lag), and
+  // so does the attitude (a few 1e-3: the lift leaking into x and y).
   for (const char* e : {"com_offset", "gap_dependence", "electrical_lag"}) {
     PhysicalModel without = model_of(t);
     without.remove_effect(e);
     EXPECT_GT(worst_relative(physical_response(without, z0, grid()), model), 1e-2) << e;
   }
+  PhysicalModel level = model_of(t);
+  for (const char* a : {"hover_yaw_rad", "hover_pitch_rad", "hover_roll_rad"}) level.parameter(a).value = 0.0;
+  EXPECT_GT(worst_relative(physical_response(level, z0, grid()), model), 1e-3);
 }
 
 TEST(Stage6Base, SampledModelAndStateSpaceAgreeWithTheResponse) {
