@@ -136,7 +136,9 @@ struct WindowResidual {
   }
 
   // Lag states at the window start: the exact ZOH response of τ_e ẏ = f − y − bαv
-  // to the commands before the window, with α and v of the window's initial state.
+  // to the commands before the window, with α of the window's initial state
+  // and v over each sample from the measured q (first differences: the mean
+  // velocity over the sample; noise enters as bα·√2σ/Ts, 1e-4 N for 1 nm).
   template <typename T>
   void init_lag(State<T>& x, const T* th) const {
     using std::exp;
@@ -146,14 +148,26 @@ struct WindowResidual {
     }
     const Eigen::Index n = std::min<Eigen::Index>(warmup, k0);
     const T a = exp(-T(log->Ts) / th[9]);
-    const State<T> zero_rate = derivative(th, x, Vector8d::Zero(), log->r, log->z_ref, true);
-    // With y = 0 and f = 0 the lag rate is −bαv/τ_e: the back-EMF offset is −bαv.
+    // α_i from the lag rate at y = 0, f = 0, v = e_axis: −bα/τ_e.
+    std::array<T, 4> b_alpha;
+    for (int i = 0; i < 4; ++i) {
+      State<T> probe = x;
+      probe.template segment<3>(6).setZero();
+      probe(8) = T(1);
+      const State<T> d = derivative(th, probe, Vector8d::Zero(), log->r, log->z_ref, true);
+      b_alpha[static_cast<std::size_t>(i)] = -d(12 + 2 * i + 1) * th[9];
+    }
     for (int i = 0; i < 8; ++i) {
-      const T emf = zero_rate(12 + i) * th[9];
-      T y = T(log->f(k0 - n, i)) + emf;
+      const int axis = i % 2 == 1 ? 2 : ((i / 2) % 2 == 0 ? 0 : 1);  // z for the vertical forces
+      const T& ba = b_alpha[static_cast<std::size_t>(i / 2)];
+      auto target = [&](Eigen::Index j) {
+        const double v = (log->q(j + 1, axis) - log->q(j, axis)) / log->Ts;
+        return T(log->f(j, i)) - ba * T(v);
+      };
+      T y = target(k0 - n);
       for (Eigen::Index j = k0 - n; j < k0; ++j) {
-        const T target = T(log->f(j, i)) + emf;
-        y = target + a * (y - target);
+        const T t = target(j);
+        y = t + a * (y - t);
       }
       x(12 + i) = y;
     }

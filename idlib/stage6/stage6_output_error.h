@@ -12,7 +12,8 @@
 // segments).  The log rows are cut into W windows of about window_s seconds;
 // window w starts at row k_w with its own free initial state
 //   x_w = [q (6); ṗ (3, inertial velocity, m/s); ω (3, body rate, rad/s)]
-// (started from a local quadratic fit of the measured q), and is simulated
+// (started from the measured q at k_w and the first difference of q corrected
+// by half a sample of the start model's acceleration), and is simulated
 // open loop from the logged commanded wrench u (exact: the controller's own
 // record, held over each sample, ZOH) with fixed-step RK4:
 //   ṗ' = R(q) κ F / m − g e_z,  q̇_a = W(θ,φ)⁻¹ ω,  H ω̇ = κ τ − ω × Hω,
@@ -22,8 +23,9 @@
 // the eight states y of τ_e ẏ = f − y − b α v_i (v_i the inertial velocity along
 // motor i's force; the d-q current loop of eq 25 in force units, b the back-EMF
 // damping), the force being α y.  A window's lag states start from the log's
-// commands before it (lag_warmup_samples of the exact ZOH filter at the window's
-// initial velocity; the first window starts settled on f₀, as the simulator).
+// commands before it (lag_warmup_samples of the exact ZOH filter, v from the
+// first differences of the measured q, α at the window's initial state; the
+// first window starts settled on f₀, as the simulator does).
 // Residuals, for every log row k of window w:
 //   e_k = (q_sim,k − q_meas,k) / s_c       (per channel c = 1..6)
 // minimised over θ = [m, H_xx, H_yy, H_zz, κ, c (3), γ, τ_e, b] (the model's
@@ -80,14 +82,18 @@ extern const std::array<const char*, 6> kStageChannelNames;
 
 struct StageOutputErrorOptions {
   bool fix_mass = true;  // as StageFitOptions::fix_mass
-  // Window (segment) length in s; every window has 12 free initial states.  The
-  // last window takes the rows left over (up to 1.5 windows).  Measured
-  // (docs/math.md): 0.1–0.3 s give the same estimates within their σ; shorter
-  // windows cost states, longer ones make the problem more nonlinear.
+  // Window (segment) length in s; every window has 12 free initial states.
+  // Measured on the default experiment (2 s, 3 noisy seeds): 0.1, 0.2, 0.3 s
+  // give errors within 2σ, with σ(H) shrinking 2.5× from 0.1 to 0.2 s and 2×
+  // more to 0.3 s (the free states absorb less of longer windows); from 0.5 s
+  // on H_zz sits 1.5–2σ low on every seed (the 1-step RK4 and the open-loop
+  // drift become visible at σ ≈ 5e-6 relative).  0.2 s also keeps each
+  // window's simulation close to the data from a poor start.
   double window_s = 0.2;
-  // RK4 steps per log sample; 0 = automatic: 1 for the rigid model (its exact
-  // solution under ZOH u is smooth: measured error < 1e-4 of the noise), 4 with
-  // the lag effect (τ_e of about one sample period needs h ≤ τ_e/4).
+  // RK4 steps per log sample; 0 = automatic: 1 for the rigid model (its motion
+  // under ZOH u is smooth: noise-free output error ≤ 1.2e-14 m and rad against
+  // the simulator's 10 steps per sample), 4 with the lag effect (τ_e = 1 ms at
+  // 1 kHz; noise-free output error 3e-11 m with 4 steps, 1.2e-10 m with 2).
   int rk4_substeps = 0;
   // Lag effect: samples of the command history filtered to start each window's
   // lag states (20 τ_e with τ_e = 1 ms at 1 kHz).
@@ -144,9 +150,12 @@ struct StageOutputErrorResult {
 // sample_period_s.  start: an equation-error fit of the same log and model
 // (fit_stage); nullptr = computed here with options.fix_mass.  nominal supplies
 // the lever arms r, z_ref, the allocation and (held) mass.
-// @throws InputError  everything fit_stage rejects; a log shorter than two
-//   windows... precisely: fewer than 2 windows of at least 10 rows; options
-//   invalid; a start whose model differs from `model`.
+// Windows: L = max(10, round(window_s / sample_period_s)) rows each, W = ⌊N/L⌋
+// of them, the last one also taking the N − W·L rows left over.
+// @throws InputError  shapes not N × 6 or unequal N, N < 10, non-finite data, a
+//   non-positive sample period, N < L (shorter than one window), invalid
+//   options or nominal parameters, a start whose model differs from `model`;
+//   without a start, everything fit_stage rejects (e.g. a constant column).
 // @throws NumericalError  Ceres fails to produce any usable solution, or a
 //   window's simulation is not finite at the start values.
 StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, const Eigen::MatrixXd& u,
