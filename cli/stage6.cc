@@ -91,7 +91,9 @@ std::vector<std::string> effect_names(const stage6::StageFitModel& m) {
   return e;
 }
 
-nlohmann::json result_json(const stage6::StageFitResult& r) {
+// The fields both fits share (StageFitResult and StageOutputErrorResult).
+template <typename Result>
+nlohmann::json estimates_json(const Result& r) {
   return {{"model", r.model.name()},
           {"effects", effect_names(r.model)},
           {"mass_kg", r.mass_kg},
@@ -103,10 +105,15 @@ nlohmann::json result_json(const stage6::StageFitResult& r) {
           {"back_emf_damping_Ns_per_m", r.back_emf_damping_Ns_per_m},
           {"parameters", r.num_parameters},
           {"residuals", r.num_residuals},
-          {"rms_residual", r.rms_residual},
-          {"rms_per_row", {{"F_x", r.rms_per_row(0)}, {"F_y", r.rms_per_row(1)}, {"F_z", r.rms_per_row(2)},
-                           {"tau_x", r.rms_per_row(3)}, {"tau_y", r.rms_per_row(4)}, {"tau_z", r.rms_per_row(5)}}},
           {"bic", r.bic}};
+}
+
+nlohmann::json result_json(const stage6::StageFitResult& r) {
+  nlohmann::json j = estimates_json(r);
+  j["rms_residual"] = r.rms_residual;
+  j["rms_per_row"] = {{"F_x", r.rms_per_row(0)},   {"F_y", r.rms_per_row(1)},   {"F_z", r.rms_per_row(2)},
+                      {"tau_x", r.rms_per_row(3)}, {"tau_y", r.rms_per_row(4)}, {"tau_z", r.rms_per_row(5)}};
+  return j;
 }
 
 std::string result_text(const stage6::StageFitResult& r) {
@@ -129,24 +136,13 @@ std::string result_text(const stage6::StageFitResult& r) {
 }
 
 nlohmann::json output_error_json(const stage6::StageOutputErrorResult& r, double sample_period_s) {
-  nlohmann::json j = {{"method", "output"},
-                      {"model", r.model.name()},
-                      {"effects", effect_names(r.model)},
-                      {"mass_kg", r.mass_kg},
-                      {"inertia_diag_kgm2", {r.inertia_diag_kgm2(0), r.inertia_diag_kgm2(1), r.inertia_diag_kgm2(2)}},
-                      {"force_constant_scale", r.force_constant_scale},
-                      {"com_offset_m", {r.com_offset_m(0), r.com_offset_m(1), r.com_offset_m(2)}},
-                      {"gamma_per_m", r.gamma_per_m},
-                      {"electrical_time_constant_s", r.electrical_time_constant_s},
-                      {"back_emf_damping_Ns_per_m", r.back_emf_damping_Ns_per_m},
-                      {"parameters", r.num_parameters},
-                      {"windows", r.num_windows},
-                      {"residuals", r.num_residuals},
-                      {"sigma2", r.sigma2},
-                      {"bic", r.bic},
-                      {"iterations", r.iterations},
-                      {"termination", r.report.termination},
-                      {"warnings", r.report.warnings}};
+  nlohmann::json j = estimates_json(r);
+  j["method"] = "output";
+  j["windows"] = r.num_windows;
+  j["sigma2"] = r.sigma2;
+  j["iterations"] = r.iterations;
+  j["termination"] = r.report.termination;
+  j["warnings"] = r.report.warnings;
   nlohmann::json se = nlohmann::json::object();
   for (int i = 0; i < stage6::kStageThetaSize; ++i)
     if (r.free[static_cast<std::size_t>(i)]) se[stage6::kStageThetaNames[static_cast<std::size_t>(i)]] = r.std_error(i);

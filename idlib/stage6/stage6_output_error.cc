@@ -36,15 +36,19 @@ constexpr double kLeverArm_m = 0.075;
 // A channel whose rms output error after the first pass is below this (m or rad)
 // is a noise-free channel fitted to rounding; its weight is capped there.
 constexpr double kScaleFloor = 1e-14;
-constexpr int kStateSize = 20;  // q (6), ṗ (3), ω (3), lag states y (8)
+// State sizes: q (6), ṗ (3), ω (3), and with the lag effect its states y (8).
+// The size is a template parameter so that the rigid model's Jets carry no
+// unused lag states.
+constexpr int kRigidStates = 12, kLagStates = 20;
 
-template <typename T>
-using State = Eigen::Matrix<T, kStateSize, 1>;
+template <typename T, int NX>
+using State = Eigen::Matrix<T, NX, 1>;
 
 // ẋ of the model in the header comment; th = θ (kStageThetaNames order).
-template <typename T>
-State<T> derivative(const T* th, const State<T>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
-                    double z_ref, bool lag) {
+template <typename T, int NX>
+State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
+                        double z_ref) {
+  constexpr bool lag = NX == kLagStates;
   using std::cos;
   using std::exp;
   using std::sin;
@@ -55,8 +59,7 @@ State<T> derivative(const T* th, const State<T>& x, const Vector8d& f, const Eig
       sps * cth, cps * cph + sps * sth * sph, -cps * sph + sps * cph * sth,  //
       -sth, cth * sph, cth * cph;
   const V3 v = x.template segment<3>(6), w = x.template segment<3>(9);
-  State<T> dx;
-  dx(kStateSize - 1) = T(0);
+  State<T, NX> dx;
   V3 F = V3::Zero(), tau = V3::Zero();
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d ri = r.col(i);
@@ -64,14 +67,13 @@ State<T> derivative(const T* th, const State<T>& x, const Vector8d& f, const Eig
     const T alpha = exp(-th[8] * gap_minus_ref);
     const int h = i % 2 == 0 ? 0 : 1;  // drive axis of motor i (body x for 1, 3; y for 2, 4)
     T fh, fz;
-    if (lag) {
+    if constexpr (lag) {
       const T yh = x(12 + 2 * i), yz = x(12 + 2 * i + 1);
       dx(12 + 2 * i) = (T(f(2 * i)) - yh - th[10] * alpha * v(h)) / th[9];
       dx(12 + 2 * i + 1) = (T(f(2 * i + 1)) - yz - th[10] * alpha * v(2)) / th[9];
       fh = alpha * yh;
       fz = alpha * yz;
     } else {
-      dx(12 + 2 * i) = dx(12 + 2 * i + 1) = T(0);
       fh = alpha * T(f(2 * i));
       fz = alpha * T(f(2 * i + 1));
     }
@@ -114,10 +116,14 @@ struct WindowResidual {
 
   template <typename T>
   bool operator()(const T* x0, const T* th, T* res) const {
-    State<T> x;
+    return lag ? simulate<T, kLagStates>(x0, th, res) : simulate<T, kRigidStates>(x0, th, res);
+  }
+
+  template <typename T, int NX>
+  bool simulate(const T* x0, const T* th, T* res) const {
+    State<T, NX> x;
     for (int i = 0; i < 12; ++i) x(i) = x0[i];
-    for (int i = 12; i < kStateSize; ++i) x(i) = T(0);
-    if (lag) init_lag(x, th);
+    if constexpr (NX == kLagStates) init_lag(x, th);
     const double h = log->Ts / substeps;
     for (Eigen::Index j = 0; j < len; ++j) {
       const Eigen::Index k = k0 + j;
@@ -125,10 +131,11 @@ struct WindowResidual {
       if (j + 1 == len) break;
       const Vector8d f = log->f.row(k).transpose();
       for (int s = 0; s < substeps; ++s) {
-        const State<T> k1 = derivative(th, x, f, log->r, log->z_ref, lag);
-        const State<T> k2 = derivative(th, State<T>(x + (0.5 * h) * k1), f, log->r, log->z_ref, lag);
-        const State<T> k3 = derivative(th, State<T>(x + (0.5 * h) * k2), f, log->r, log->z_ref, lag);
-        const State<T> k4 = derivative(th, State<T>(x + h * k3), f, log->r, log->z_ref, lag);
+        using S = State<T, NX>;
+        const S k1 = derivative<T, NX>(th, x, f, log->r, log->z_ref);
+        const S k2 = derivative<T, NX>(th, S(x + (0.5 * h) * k1), f, log->r, log->z_ref);
+        const S k3 = derivative<T, NX>(th, S(x + (0.5 * h) * k2), f, log->r, log->z_ref);
+        const S k4 = derivative<T, NX>(th, S(x + h * k3), f, log->r, log->z_ref);
         x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
       }
     }
@@ -140,7 +147,7 @@ struct WindowResidual {
   // and v over each sample from the measured q (first differences: the mean
   // velocity over the sample; noise enters as bα·√2σ/Ts, 1e-4 N for 1 nm).
   template <typename T>
-  void init_lag(State<T>& x, const T* th) const {
+  void init_lag(State<T, kLagStates>& x, const T* th) const {
     using std::exp;
     if (k0 == 0) {  // settled on the first command (the simulator's start)
       for (int i = 0; i < 8; ++i) x(12 + i) = T(log->f(0, i));
@@ -151,10 +158,11 @@ struct WindowResidual {
     // α_i from the lag rate at y = 0, f = 0, v = e_axis: −bα/τ_e.
     std::array<T, 4> b_alpha;
     for (int i = 0; i < 4; ++i) {
-      State<T> probe = x;
+      State<T, kLagStates> probe = x;
       probe.template segment<3>(6).setZero();
       probe(8) = T(1);
-      const State<T> d = derivative(th, probe, Vector8d::Zero(), log->r, log->z_ref, true);
+      probe.template tail<8>().setZero();
+      const State<T, kLagStates> d = derivative<T, kLagStates>(th, probe, Vector8d::Zero(), log->r, log->z_ref);
       b_alpha[static_cast<std::size_t>(i)] = -d(12 + 2 * i + 1) * th[9];
     }
     for (int i = 0; i < 8; ++i) {
@@ -190,9 +198,10 @@ void check_log(const Eigen::MatrixXd& u, const Eigen::MatrixXd& q, double Ts) {
 Eigen::Matrix<double, 12, 1> initial_state(const Log& log, Eigen::Index k0, const double* th) {
   Eigen::Matrix<double, 12, 1> x0;
   const Vector6d q0 = log.q.row(k0).transpose(), q1 = log.q.row(k0 + 1).transpose();
-  State<double> x = State<double>::Zero();
+  State<double, kRigidStates> x = State<double, kRigidStates>::Zero();
   x.head<6>() = q0;
-  const State<double> dx = derivative(th, x, log.f.row(k0).transpose(), log.r, log.z_ref, false);
+  const State<double, kRigidStates> dx =
+      derivative<double, kRigidStates>(th, x, log.f.row(k0).transpose(), log.r, log.z_ref);
   const Eigen::Matrix3d W = angular_velocity_map(q0(4), q0(5));
   Vector6d qd = (q1 - q0) / log.Ts;
   qd.head<3>() -= 0.5 * log.Ts * dx.segment<3>(6);
