@@ -50,7 +50,7 @@ void BM_Stage6Fit(benchmark::State& state) {
 }
 BENCHMARK(BM_Stage6Fit)->Arg(2)->Arg(10)->Unit(benchmark::kMillisecond);
 
-// The output-error fit (H, κ; 0.2 s windows, two passes, standard errors) on a
+// The output-error fit (H, κ; 0.3 s windows, two passes, standard errors) on a
 // 2 s / 10 s log with the default sensor noise, started from the equation-error
 // fit (computed outside the timed loop).
 void BM_Stage6FitOutputError(benchmark::State& state) {

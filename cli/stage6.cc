@@ -38,7 +38,7 @@ the measured configuration (x y z psi theta phi).  The fit is an equation error 
 sampled equations of motion (docs/math.md, the 6-DOF stage); the mass is held at 5.47 kg
 and the force constant fitted (--fit-mass: the other way round; only their ratio is
 identifiable).  --method output refines the equation-error fit by output error
-(simulated 0.2 s windows of the logged wrench against the measured q, each window
+(simulated 0.3 s windows of the logged wrench against the measured q, each window
 with its own initial state), which removes the equation error's bias towards low
 inertias on noisy logs and reports standard errors and the rms output error per
 channel and window; --method both prints the two.  Effects: com (centre-of-mass offset), gap (gap-dependent force constant
