@@ -3,6 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include "idlib/stage6/stage6_fit.h"
+#include "idlib/stage6/stage6_output_error.h"
 #include "idlib/stage6/stage6_sim.h"
 
 namespace {
@@ -26,8 +27,9 @@ void BM_Stage6Regulation_8s(benchmark::State& state, bool lag) {
 BENCHMARK_CAPTURE(BM_Stage6Regulation_8s, rigid, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Stage6Regulation_8s, dq_currents, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-StageRun experiment(double duration_s, bool lag) {
+StageRun experiment(double duration_s, bool lag, bool noisy = false) {
   SimulationOptions sim;
+  if (noisy) sim.sensor_noise_std << 1e-9, 1e-9, 1e-8, 1e-7, 1e-7, 1e-7;  // simulate stage6 --experiment
   sim.duration_s = duration_s;
   sim.excitation_std << 2, 2, 2, 0.1, 0.1, 0.1;
   sim.seed = 42;  // fixed seed: same work every run
@@ -47,6 +49,22 @@ void BM_Stage6Fit(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Stage6Fit)->Arg(2)->Arg(10)->Unit(benchmark::kMillisecond);
+
+// The output-error fit (H, κ; 0.3 s windows, two passes, standard errors) on a
+// 2 s / 10 s log with the default sensor noise, started from the equation-error
+// fit (computed outside the timed loop).
+void BM_Stage6FitOutputError(benchmark::State& state) {
+  const StageRun run = experiment(static_cast<double>(state.range(0)), false, true);
+  StageFitModel model;
+  model.com_offset = false;
+  const StageFitResult start = fit_stage(StageParameters{}, run.wrench, run.q_measured, 1e-3, model);
+  for (auto _ : state) {
+    const StageOutputErrorResult r =
+        fit_stage_output_error(StageParameters{}, run.wrench, run.q_measured, 1e-3, model, {}, &start);
+    benchmark::DoNotOptimize(r.sigma2);
+  }
+}
+BENCHMARK(BM_Stage6FitOutputError)->Arg(2)->Arg(10)->Unit(benchmark::kMillisecond);
 
 // The diagnosis (base + three candidates, the lag by golden section) on 2 s.
 void BM_Stage6Diagnose_2s(benchmark::State& state) {

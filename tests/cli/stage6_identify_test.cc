@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "tests/support/run_lpvid.h"
 
@@ -44,6 +46,47 @@ TEST(Stage6IdentifyCli, DiagnoseNamesTheHiddenGapDependenceAndTheHistoryShowsThe
   r = run_lpvid("stage6 diagnose --log " + log + " --effects gap --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_FALSE(nlohmann::json::parse(r.out)["explained"].get<bool>());
+}
+
+// --method output / both on a log with the default sensor noise: the output
+// error's inertias are within 3 of their σ of the truth (H = diag(0.029, 0.029,
+// 0.057), docs/assumptions.md) where the equation error's are ≥ 0.5 % low, and
+// the JSON carries standard errors and the residual per channel and window.
+TEST(Stage6IdentifyCli, OutputErrorMethodRemovesTheInertiaBiasAndReportsStandardErrors) {
+  TempDir d("stage6oe");
+  auto r = run_lpvid("simulate stage6 --experiment --out " + (d / "exp") + " --effects gap --seed 3");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string log = d / "exp/exp_stage6.csv";
+  r = run_lpvid("stage6 fit --log " + log + " --effects gap --method both --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const double truth[3] = {0.029, 0.029, 0.057};
+  ASSERT_TRUE(j.contains("output_error"));
+  const auto& oe = j["output_error"];
+  EXPECT_EQ(oe["method"], "output");
+  EXPECT_EQ(oe["model"], "base+gap");
+  EXPECT_EQ(oe["windows"].get<int>(), 6);
+  EXPECT_EQ(oe["rms_per_window"].size(), 6u);
+  EXPECT_DOUBLE_EQ(oe["rms_per_window"][1]["t_start_s"].get<double>(), 0.3);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_LT(j["inertia_diag_kgm2"][i].get<double>(), 0.995 * truth[i]) << i;
+    const double se = oe["std_error"][std::string("inertia_") + "xyz"[i] + "xyz"[i] + "_kgm2"].get<double>();
+    EXPECT_LT(std::abs(oe["inertia_diag_kgm2"][i].get<double>() - truth[i]), 3 * se) << i;
+  }
+  // The z channel's noise is 10 nm (simulate stage6 --experiment).
+  EXPECT_NEAR(oe["rms_per_channel"]["z"].get<double>(), 1e-8, 0.05e-8);
+  // --method output alone: its estimates on top, the start beside them, and the history.
+  r = run_lpvid("stage6 fit --log " + log + " --effects gap --method output --out " + (d / "stage.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("output error"));
+  std::ifstream in(d / "stage.json");
+  const auto s = nlohmann::json::parse(in);
+  EXPECT_EQ(s["method"], "output");
+  EXPECT_EQ(s["equation_error_start"]["model"], "base+gap");
+  EXPECT_DOUBLE_EQ(s["inertia_diag_kgm2"][2].get<double>(), oe["inertia_diag_kgm2"][2].get<double>());
+  r = run_lpvid("stage6 fit --log " + log + " --method outptu");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--method outptu: use 'equation' (default), 'output' or 'both'"));
 }
 
 TEST(Stage6IdentifyCli, BadInputsGiveOneLineAndExitTwo) {

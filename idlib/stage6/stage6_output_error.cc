@@ -1,0 +1,403 @@
+#include "idlib/stage6/stage6_output_error.h"
+
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace lpvid::stage6 {
+
+const std::array<const char*, kStageThetaSize> kStageThetaNames = {
+    "mass_kg",        "inertia_xx_kgm2", "inertia_yy_kgm2", "inertia_zz_kgm2",
+    "force_constant_scale", "com_offset_x_m", "com_offset_y_m", "com_offset_z_m",
+    "gamma_per_m",    "electrical_time_constant_s", "back_emf_damping_Ns_per_m"};
+const std::array<const char*, 6> kStageChannelNames = {"x", "y", "z", "psi", "theta", "phi"};
+
+void StageOutputErrorOptions::validate() const {
+  if (!std::isfinite(window_s) || window_s <= 0)
+    throw InputError(fmt::format("output-error option window_s = {}: must be a positive number of seconds", window_s));
+  if (rk4_substeps < 0 || rk4_substeps > 100)
+    throw InputError(fmt::format("output-error option rk4_substeps = {}: must be 0 (automatic) to 100", rk4_substeps));
+  if (lag_warmup_samples < 0)
+    throw InputError(fmt::format("output-error option lag_warmup_samples = {}: must be >= 0", lag_warmup_samples));
+  if (max_iterations < 1)
+    throw InputError(fmt::format("output-error option max_iterations = {}: must be >= 1", max_iterations));
+}
+
+namespace {
+
+// The first pass's channel scales: 1 nm, and 1 nm at one lever arm for the angles.
+constexpr double kFirstPassScale_m = 1e-9;
+constexpr double kLeverArm_m = 0.075;
+// A channel whose rms output error after the first pass is below this (m or rad)
+// is a noise-free channel fitted to rounding; its weight is capped there.
+constexpr double kScaleFloor = 1e-14;
+// State sizes: q (6), ṗ (3), ω (3), and with the lag effect its states y (8).
+// The size is a template parameter so that the rigid model's Jets carry no
+// unused lag states.
+constexpr int kRigidStates = 12, kLagStates = 20;
+
+template <typename T, int NX>
+using State = Eigen::Matrix<T, NX, 1>;
+
+// ẋ of the model in the header comment; th = θ (kStageThetaNames order).
+template <typename T, int NX>
+State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
+                        double z_ref) {
+  constexpr bool lag = NX == kLagStates;
+  using std::cos;
+  using std::exp;
+  using std::sin;
+  using V3 = Eigen::Matrix<T, 3, 1>;
+  const T cps = cos(x(3)), sps = sin(x(3)), cth = cos(x(4)), sth = sin(x(4)), cph = cos(x(5)), sph = sin(x(5));
+  Eigen::Matrix<T, 3, 3> R;
+  R << cps * cth, -sps * cph + cps * sth * sph, sps * sph + cps * cph * sth,  //
+      sps * cth, cps * cph + sps * sth * sph, -cps * sph + sps * cph * sth,  //
+      -sth, cth * sph, cth * cph;
+  const V3 v = x.template segment<3>(6), w = x.template segment<3>(9);
+  State<T, NX> dx;
+  V3 F = V3::Zero(), tau = V3::Zero();
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d ri = r.col(i);
+    const T gap_minus_ref = x(2) + R(2, 0) * ri(0) + R(2, 1) * ri(1) + R(2, 2) * ri(2) - ri(2) - z_ref;
+    const T alpha = exp(-th[8] * gap_minus_ref);
+    const int h = i % 2 == 0 ? 0 : 1;  // drive axis of motor i (body x for 1, 3; y for 2, 4)
+    T fh, fz;
+    if constexpr (lag) {
+      const T yh = x(12 + 2 * i), yz = x(12 + 2 * i + 1);
+      dx(12 + 2 * i) = (T(f(2 * i)) - yh - th[10] * alpha * v(h)) / th[9];
+      dx(12 + 2 * i + 1) = (T(f(2 * i + 1)) - yz - th[10] * alpha * v(2)) / th[9];
+      fh = alpha * yh;
+      fz = alpha * yz;
+    } else {
+      fh = alpha * T(f(2 * i));
+      fz = alpha * T(f(2 * i + 1));
+    }
+    V3 fi = V3::Zero();
+    fi(h) = fh;
+    fi(2) = fz;
+    const V3 arm(T(ri(0)) - th[5], T(ri(1)) - th[6], T(ri(2)) - th[7]);
+    F += fi;
+    tau += arm.cross(fi);
+  }
+  const V3 H(th[1], th[2], th[3]);
+  const V3 acc = R * F * (th[4] / th[0]) - V3(T(0), T(0), T(kGravity_m_per_s2));
+  const V3 wdot = (tau * th[4] - w.cross(V3(H.cwiseProduct(w)))).cwiseQuotient(H);
+  // q̇_a = W⁻¹ ω (W of eq 4, columns ψ̇ θ̇ φ̇).
+  const T psid = (sph * w(1) + cph * w(2)) / cth;
+  dx.template head<3>() = v;
+  dx(3) = psid;
+  dx(4) = cph * w(1) - sph * w(2);
+  dx(5) = w(0) + sth * psid;
+  dx.template segment<3>(6) = acc;
+  dx.template segment<3>(9) = wdot;
+  return dx;
+}
+
+struct Log {
+  Eigen::MatrixXd f;  // N × 8 allocated motor forces
+  Eigen::MatrixXd q;  // N × 6 measured
+  double Ts = 0;
+  Eigen::Matrix<double, 3, 4> r;
+  double z_ref = 0;
+};
+
+// One window's output error: parameter blocks x_w (12) and θ (11).
+struct WindowResidual {
+  const Log* log;
+  Eigen::Index k0, len;
+  int substeps, warmup;
+  bool lag;
+  Vector6d inv_scale;
+
+  template <typename T>
+  bool operator()(const T* x0, const T* th, T* res) const {
+    return lag ? simulate<T, kLagStates>(x0, th, res) : simulate<T, kRigidStates>(x0, th, res);
+  }
+
+  template <typename T, int NX>
+  bool simulate(const T* x0, const T* th, T* res) const {
+    State<T, NX> x;
+    for (int i = 0; i < 12; ++i) x(i) = x0[i];
+    if constexpr (NX == kLagStates) init_lag(x, th);
+    const double h = log->Ts / substeps;
+    for (Eigen::Index j = 0; j < len; ++j) {
+      const Eigen::Index k = k0 + j;
+      for (int c = 0; c < 6; ++c) res[6 * j + c] = (x(c) - T(log->q(k, c))) * T(inv_scale(c));
+      if (j + 1 == len) break;
+      const Vector8d f = log->f.row(k).transpose();
+      for (int s = 0; s < substeps; ++s) {
+        using S = State<T, NX>;
+        const S k1 = derivative<T, NX>(th, x, f, log->r, log->z_ref);
+        const S k2 = derivative<T, NX>(th, S(x + (0.5 * h) * k1), f, log->r, log->z_ref);
+        const S k3 = derivative<T, NX>(th, S(x + (0.5 * h) * k2), f, log->r, log->z_ref);
+        const S k4 = derivative<T, NX>(th, S(x + h * k3), f, log->r, log->z_ref);
+        x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+      }
+    }
+    return true;
+  }
+
+  // Lag states at the window start: the exact ZOH response of τ_e ẏ = f − y − bαv
+  // to the commands before the window, with α of the window's initial state
+  // and v over each sample from the measured q (first differences: the mean
+  // velocity over the sample; noise enters as bα·√2σ/Ts, 1e-4 N for 1 nm).
+  template <typename T>
+  void init_lag(State<T, kLagStates>& x, const T* th) const {
+    using std::exp;
+    if (k0 == 0) {  // settled on the first command (the simulator's start)
+      for (int i = 0; i < 8; ++i) x(12 + i) = T(log->f(0, i));
+      return;
+    }
+    const Eigen::Index n = std::min<Eigen::Index>(warmup, k0);
+    const T a = exp(-T(log->Ts) / th[9]);
+    // α_i from the lag rate at y = 0, f = 0, v = e_axis: −bα/τ_e.
+    std::array<T, 4> b_alpha;
+    for (int i = 0; i < 4; ++i) {
+      State<T, kLagStates> probe = x;
+      probe.template segment<3>(6).setZero();
+      probe(8) = T(1);
+      probe.template tail<8>().setZero();
+      const State<T, kLagStates> d = derivative<T, kLagStates>(th, probe, Vector8d::Zero(), log->r, log->z_ref);
+      b_alpha[static_cast<std::size_t>(i)] = -d(12 + 2 * i + 1) * th[9];
+    }
+    for (int i = 0; i < 8; ++i) {
+      const int axis = i % 2 == 1 ? 2 : ((i / 2) % 2 == 0 ? 0 : 1);  // z for the vertical forces
+      const T& ba = b_alpha[static_cast<std::size_t>(i / 2)];
+      auto target = [&](Eigen::Index j) {
+        const double v = (log->q(j + 1, axis) - log->q(j, axis)) / log->Ts;
+        return T(log->f(j, i)) - ba * T(v);
+      };
+      T y = target(k0 - n);
+      for (Eigen::Index j = k0 - n; j < k0; ++j) {
+        const T t = target(j);
+        y = t + a * (y - t);
+      }
+      x(12 + i) = y;
+    }
+  }
+};
+
+void check_log(const Eigen::MatrixXd& u, const Eigen::MatrixXd& q, double Ts) {
+  if (u.cols() != 6 || q.cols() != 6 || u.rows() != q.rows())
+    throw InputError(fmt::format("stage output-error fit: u and q must both be N x 6, got {}x{} and {}x{}", u.rows(),
+                                 u.cols(), q.rows(), q.cols()));
+  if (u.rows() < 10) throw InputError(fmt::format("stage output-error fit: {} samples; need at least 10", u.rows()));
+  if (!u.allFinite() || !q.allFinite()) throw InputError("stage output-error fit: the log has non-finite values");
+  if (!(Ts > 0) || !std::isfinite(Ts))
+    throw InputError(fmt::format("stage output-error fit: sample period {} s must be positive", Ts));
+}
+
+// Initial state of a window from the measurements: q at its first row, and the
+// velocity from the first difference corrected by half a sample of the start
+// model's acceleration under the held command: (q₁ − q₀)/Ts = q̇₀ + q̈₀ Ts/2.
+Eigen::Matrix<double, 12, 1> initial_state(const Log& log, Eigen::Index k0, const double* th) {
+  Eigen::Matrix<double, 12, 1> x0;
+  const Vector6d q0 = log.q.row(k0).transpose(), q1 = log.q.row(k0 + 1).transpose();
+  State<double, kRigidStates> x = State<double, kRigidStates>::Zero();
+  x.head<6>() = q0;
+  const State<double, kRigidStates> dx =
+      derivative<double, kRigidStates>(th, x, log.f.row(k0).transpose(), log.r, log.z_ref);
+  const Eigen::Matrix3d W = angular_velocity_map(q0(4), q0(5));
+  Vector6d qd = (q1 - q0) / log.Ts;
+  qd.head<3>() -= 0.5 * log.Ts * dx.segment<3>(6);
+  qd.tail<3>() -= 0.5 * log.Ts * W.partialPivLu().solve(dx.segment<3>(9));
+  x0.head<6>() = q0;
+  x0.segment<3>(6) = qd.head<3>();
+  x0.segment<3>(9) = W * qd.tail<3>();
+  return x0;
+}
+
+using Theta = Eigen::Matrix<double, kStageThetaSize, 1>;
+using WindowCost = ceres::AutoDiffCostFunction<WindowResidual, ceres::DYNAMIC, 12, kStageThetaSize>;
+
+}  // namespace
+
+StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, const Eigen::MatrixXd& u,
+                                              const Eigen::MatrixXd& q, double sample_period_s,
+                                              const StageFitModel& model, const StageOutputErrorOptions& options,
+                                              const StageFitResult* start) {
+  nominal.validate();
+  options.validate();
+  check_log(u, q, sample_period_s);
+  const double Ts = sample_period_s;
+  const Eigen::Index N = u.rows();
+  const Eigen::Index L = std::max<Eigen::Index>(10, std::llround(options.window_s / Ts));
+  if (N < L)
+    throw InputError(fmt::format("stage output-error fit: the log has {} rows, fewer than one window of {} rows "
+                                 "(window_s = {} s); give a longer log or a shorter window",
+                                 N, L, options.window_s));
+  if (start && (start->model.com_offset != model.com_offset || start->model.gap_dependence != model.gap_dependence ||
+                start->model.electrical_lag != model.electrical_lag))
+    throw InputError(fmt::format("stage output-error fit: the start was fitted with model {} but the fit asks for {}; "
+                                 "start from an equation-error fit of the same model",
+                                 start->model.name(), model.name()));
+
+  StageOutputErrorResult out;
+  out.model = model;
+  if (start) {
+    out.start = *start;
+  } else {
+    StageFitOptions fo;  // also rejects constant columns
+    fo.fix_mass = options.fix_mass;
+    out.start = fit_stage(nominal, u, q, Ts, model, fo);
+  }
+  const StageFitResult& s0 = out.start;
+
+  Log log;
+  log.f = u * allocation_pseudo_inverse(nominal.lever_arms_m).transpose();
+  log.q = q;
+  log.Ts = Ts;
+  log.r = nominal.lever_arms_m;
+  log.z_ref = nominal.reference_gap_m;
+
+  Theta theta;
+  theta << s0.mass_kg, s0.inertia_diag_kgm2, s0.force_constant_scale, s0.com_offset_m, s0.gamma_per_m,
+      model.electrical_lag ? s0.electrical_time_constant_s : nominal.electrical_time_constant_s(),
+      s0.back_emf_damping_Ns_per_m;
+  if (!model.com_offset) theta.segment<3>(5).setZero();
+  if (!model.gap_dependence) theta(8) = 0;
+  if (!model.electrical_lag) theta(10) = 0;
+  out.free.fill(false);
+  out.free[0] = !options.fix_mass;
+  out.free[1] = out.free[2] = out.free[3] = true;
+  out.free[4] = options.fix_mass;
+  out.free[5] = out.free[6] = out.free[7] = model.com_offset;
+  out.free[8] = model.gap_dependence;
+  out.free[9] = out.free[10] = model.electrical_lag;
+  std::vector<int> held, free_index;
+  for (int i = 0; i < kStageThetaSize; ++i) (out.free[static_cast<std::size_t>(i)] ? free_index : held).push_back(i);
+  const int p = static_cast<int>(free_index.size());
+
+  const Eigen::Index W = N / L;
+  std::vector<Eigen::Index> k0(static_cast<std::size_t>(W)), len(static_cast<std::size_t>(W));
+  for (Eigen::Index w = 0; w < W; ++w) {
+    k0[static_cast<std::size_t>(w)] = w * L;
+    len[static_cast<std::size_t>(w)] = w + 1 < W ? L : N - w * L;
+  }
+  std::vector<Eigen::Matrix<double, 12, 1>> xs(static_cast<std::size_t>(W));
+  for (std::size_t w = 0; w < xs.size(); ++w) xs[w] = initial_state(log, k0[w], theta.data());
+
+  const int substeps = options.rk4_substeps > 0 ? options.rk4_substeps : (model.electrical_lag ? 4 : 1);
+  Vector6d scale;
+  scale << kFirstPassScale_m, kFirstPassScale_m, kFirstPassScale_m, Eigen::Vector3d::Constant(kFirstPassScale_m / kLeverArm_m);
+  auto functor = [&](std::size_t w) {
+    return new WindowResidual{&log, k0[w], len[w], substeps, options.lag_warmup_samples, model.electrical_lag,
+                              scale.cwiseInverse()};
+  };
+  auto raw_residual = [&]() {
+    Eigen::MatrixXd e(N, 6);
+    for (std::size_t w = 0; w < xs.size(); ++w) {
+      std::unique_ptr<WindowResidual> f(functor(w));
+      Eigen::VectorXd r(6 * len[w]);
+      (*f)(xs[w].data(), theta.data(), r.data());
+      for (Eigen::Index j = 0; j < len[w]; ++j)
+        e.row(k0[w] + j) = r.segment<6>(6 * j).cwiseProduct(scale).transpose();
+    }
+    return e;
+  };
+
+  ceres::Solver::Summary summary;
+  const int passes = options.reweight ? 2 : 1;
+  for (int pass = 0; pass < passes; ++pass) {
+    if (pass > 0) {
+      const Eigen::MatrixXd e = raw_residual();
+      for (int c = 0; c < 6; ++c) scale(c) = std::max(kScaleFloor, std::sqrt(e.col(c).squaredNorm() / double(N)));
+    }
+    ceres::Problem problem;
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    for (std::size_t w = 0; w < xs.size(); ++w) {
+      problem.AddResidualBlock(new WindowCost(functor(w), static_cast<int>(6 * len[w])), nullptr, xs[w].data(),
+                               theta.data());
+      ordering->AddElementToGroup(xs[w].data(), 0);
+    }
+    ordering->AddElementToGroup(theta.data(), 1);
+    for (int i : {0, 1, 2, 3, 4}) problem.SetParameterLowerBound(theta.data(), i, 1e-9);
+    // τ_e > 0 (it divides); 1 ns is far below any current loop.
+    problem.SetParameterLowerBound(theta.data(), 9, 1e-9);
+    problem.SetManifold(theta.data(), new ceres::SubsetManifold(kStageThetaSize, held));
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_SCHUR;
+    so.linear_solver_ordering = ordering;
+    so.max_num_iterations = options.max_iterations;
+    so.function_tolerance = 1e-12;
+    so.parameter_tolerance = 1e-12;
+    so.gradient_tolerance = 1e-16;
+    so.num_threads = 1;
+    ceres::Solve(so, &problem, &summary);
+    out.iterations += static_cast<int>(summary.iterations.size()) - 1;
+    if (!summary.IsSolutionUsable())
+      throw NumericalError("stage output-error fit: Ceres found no usable solution (" + summary.message +
+                           "); check that the log excites all six axes and that the start is sensible");
+  }
+  out.channel_scale = scale;
+
+  // Residuals, per channel and per window.
+  out.residual = raw_residual();
+  out.num_windows = static_cast<int>(W);
+  out.num_parameters = p;
+  out.num_residuals = 6 * N;
+  out.window_start = k0;
+  out.rms_per_window.resize(W, 6);
+  for (std::size_t w = 0; w < xs.size(); ++w)
+    out.rms_per_window.row(static_cast<Eigen::Index>(w)) =
+        (out.residual.middleRows(k0[w], len[w]).colwise().squaredNorm() / double(len[w])).cwiseSqrt();
+  out.rms_per_channel = (out.residual.colwise().squaredNorm() / double(N)).cwiseSqrt().transpose();
+  const double n = 6.0 * double(N);
+  const double k_total = p + 12.0 * double(W);
+  out.bic = k_total * std::log(n);
+  for (int c = 0; c < 6; ++c)
+    out.bic += double(N) * std::log(std::max(out.residual.col(c).squaredNorm(), 1e-300) / double(N));
+
+  // Parameter covariance with the window states marginalised (Schur complement).
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p);
+  double rss = 0;
+  for (std::size_t w = 0; w < xs.size(); ++w) {
+    const Eigen::Index m = 6 * len[w];
+    WindowCost cost(functor(w), static_cast<int>(m));
+    Eigen::VectorXd r(m);
+    Eigen::Matrix<double, Eigen::Dynamic, 12, Eigen::RowMajor> Jx(m, 12);
+    Eigen::Matrix<double, Eigen::Dynamic, kStageThetaSize, Eigen::RowMajor> Jt(m, kStageThetaSize);
+    const double* params[2] = {xs[w].data(), theta.data()};
+    double* jac[2] = {Jx.data(), Jt.data()};
+    if (!cost.Evaluate(params, r.data(), jac) || !Jt.allFinite() || !Jx.allFinite())
+      throw NumericalError("stage output-error fit: the model is not finite at the solution");
+    rss += r.squaredNorm();
+    Eigen::MatrixXd Jf(m, p);
+    for (int i = 0; i < p; ++i) Jf.col(i) = Jt.col(free_index[static_cast<std::size_t>(i)]);
+    const Eigen::Matrix<double, 12, 12> A = Jx.transpose() * Jx;
+    const Eigen::MatrixXd B = Jx.transpose() * Jf;
+    S += Jf.transpose() * Jf - B.transpose() * A.ldlt().solve(B);
+  }
+  out.sigma2 = rss / std::max(1.0, n - k_total);
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
+  out.covariance = out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+  for (int i = 0; i < p; ++i)
+    out.std_error(free_index[static_cast<std::size_t>(i)]) = std::sqrt(std::max(0.0, out.covariance(i, i)));
+
+  out.theta = theta;
+  out.mass_kg = theta(0);
+  out.inertia_diag_kgm2 = theta.segment<3>(1);
+  out.force_constant_scale = theta(4);
+  out.com_offset_m = theta.segment<3>(5);
+  out.gamma_per_m = theta(8);
+  if (model.electrical_lag) out.electrical_time_constant_s = theta(9), out.back_emf_damping_Ns_per_m = theta(10);
+  out.report.usable = true;
+  out.report.termination =
+      fmt::format("Ceres {} after {} iterations ({} pass{}, {} windows of {} rows): {}",
+                  summary.termination_type == ceres::CONVERGENCE ? "converged" : "stopped", out.iterations, passes,
+                  passes > 1 ? "es" : "", W, L, summary.message);
+  if (summary.termination_type != ceres::CONVERGENCE)
+    out.report.warnings.push_back("stage output-error fit did not meet its tolerances: " + summary.message);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
+    out.report.warnings.push_back(
+        "the parameters' information matrix is singular: some parameter is not determined by this log, and its "
+        "standard error is not meaningful");
+  return out;
+}
+
+}  // namespace lpvid::stage6
