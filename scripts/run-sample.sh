@@ -2,7 +2,8 @@
 # The main job on sample data: install dependencies, build, simulate the sample
 # datasets (3 beam positions at 1 kHz, 60 s per experiment) and identify each one,
 # writing models, PNG plots and reports under samples/out/; then the model-error
-# loop on data with a hidden effect (samples/loop/).
+# loop on data with a hidden effect (samples/loop/), and on the 6-DOF stage
+# (samples/stage6/).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$root/scripts/build.sh"
@@ -11,3 +12,6 @@ echo "results: $root/samples/out/ (one folder per dataset; summary in samples/ou
 # The model-error loop on analyzer data with a hidden 1 ms delay (docs/model-error-walkthrough.md).
 bash "$root/samples/model-error-loop.sh"
 echo "model-error loop: $root/samples/loop/ (where-it-fails.png, history.png)"
+# The same loop on the 6-DOF maglev stage (base stage6; the walkthrough's last part).
+bash "$root/samples/stage6-loop.sh"
+echo "stage6 loop: $root/samples/stage6/ (where-it-fails.png, history.png)"
