@@ -173,7 +173,9 @@ void run_export(const ModelCliOptions& o) {
                                                          {"input_delay_s", ss.input_delay_s},
                                                          {"delay_in_matrices_samples", ss.delay_samples}}}}));
   outputs.commit();
-  std::string text = fmt::format("model export: {} at x_b = {} m, order {}, {}\n", o.model, o.xb, ss.system.order(),
+  const BaseInfo& base = base_info(m.base);
+  std::string text = fmt::format("model export: {} at {} = {} {}, order {}, {}\n", o.model, base.schedule_name, o.xb,
+                                 base.schedule_unit, ss.system.order(),
                                  ts > 0 ? fmt::format("sampled (ZOH) at {} Hz", o.rate_hz) : "continuous");
   double largest = 0;
   for (double t : ss.input_delay_s) largest = std::max(largest, t);
@@ -251,9 +253,11 @@ Command make_model_command() {
             def->callback([o] { run_define(*o); });
             auto* exp = app->add_subcommand("export", "the model at one x_b as a state-space JSON");
             exp->add_option("--model", o->model, "model file")->required();
-            exp->add_option("--xb", o->xb, "beam position x_b in m")
+            exp->add_option("--xb", o->xb,
+                            "the operating point: beam position x_b in m (platform), hover height above the "
+                            "reference gap in m (stage6)")
                 ->required()
-                ->check(number_in(-1e3, 1e3, "the beam position in m"));
+                ->check(number_in(-1e3, 1e3, "the operating point in m"));
             exp->add_option("--rate-hz", o->rate_hz, "sample (ZOH) at this rate (default: continuous)")
                 ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it for continuous time)"));
             exp->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
