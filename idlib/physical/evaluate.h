@@ -51,6 +51,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/core/types.h"
+#include "idlib/physical/gauss_jordan.h"
 #include "idlib/physical/physical_model.h"
 #include "idlib/physical/platform/platform_base.h"
 #include "idlib/physical/stage6/stage6_base.h"
@@ -93,31 +94,12 @@ struct ModelLayout {
 
 namespace physical_detail {
 
-// Cholesky-free inverse of a symmetric positive definite n×n matrix (n <= 6) by
-// Gauss–Jordan without pivoting (SPD needs none), templated; false when a pivot is
-// not positive (not positive definite).
+// Inverse of a symmetric positive definite n×n matrix (n <= 6): Gauss–Jordan
+// without pivoting (SPD needs none); false when a pivot is not positive (not
+// positive definite).
 template <class T>
 bool spd_inverse(const MatrixT<T>& M, MatrixT<T>& inv) {
-  const Index n = M.rows();
-  MatrixT<T> a = M;
-  inv = MatrixT<T>::Identity(n, n);
-  for (Index k = 0; k < n; ++k) {
-    const T piv = a(k, k);
-    if (!(ScalarValue<T>::of(piv) > 0.0)) return false;
-    for (Index j = 0; j < n; ++j) {
-      a(k, j) /= piv;
-      inv(k, j) /= piv;
-    }
-    for (Index i = 0; i < n; ++i) {
-      if (i == k) continue;
-      const T f = a(i, k);
-      for (Index j = 0; j < n; ++j) {
-        a(i, j) -= f * a(k, j);
-        inv(i, j) -= f * inv(k, j);
-      }
-    }
-  }
-  return true;
+  return gauss_jordan_inverse<T>(M, inv, &ScalarValue<T>::of, true, 0.0);
 }
 
 template <class T>

@@ -15,23 +15,26 @@
 // variable is the hover height z_0 above the reference gap (m; 0 = hovering at the
 // reference gap z_ref, where the force constant is the nominal one).
 //
-// Linearised about q_0 = (0, 0, z_0, 0, 0, 0), q' = 0 (docs/math.md, "6-DOF stage
-// as a physical base"):
+// Linearised about q_0 = (0, 0, z_0, psi_0, theta_0, phi_0), q' = 0, the attitude
+// being the base's hover_*_rad parameters (the sliding-mode law, without integral
+// action, holds the stage ~1 mrad off level; the lift then leaks into x and y):
 //
 //   M q'' + K q = B_w w_l,        w_l = the wrench after the input blocks,
 //
 // | term | value (+ the physics effects of this base) |
 // |------|---------------------------------------------|
-// | M    | blockdiag(m I₃, diag(I_zz, I_yy, I_xx)) (eq 5 at zero angles: Wᵀ H W with ω = (phi', theta', psi')) |
-// | B_w  | Π T₀ Π, T₀ = kappa alpha₀ A(r − c) A(r)⁺: the true forces of the allocated commands (eqs 27–30), in wrench order; Π swaps tau_x and tau_z (wrench ↔ generalised order: at zero angles the generalised forces of (psi, theta, phi) are (tau_z, tau_y, tau_x)) |
-// | K    | tilt of the lift m g: K_x,theta = −m g, K_y,phi = +m g; gap_dependence: + Π kappa gamma alpha₀ A(r − c) diag(f₀) J, f₀ = A(r)⁺ w₀ the hover forces (w₀ = T₀⁻¹ [0 0 m g 0 0 0]), J_k = ∂gap/∂q of the magnet array of force k = [0 0 1 0 −r_x r_y] |
-// | feedback | electrical_lag: the back-EMF of eq 25, −b alpha v_k per force channel (v_k the array's velocity along force k: x' for motors 1, 3 horizontal, y' for 2, 4, z' vertical — the centre of mass's velocity, as the simulator writes eq 25), fed into the current loop: the input chain sees w − F q' with F = Π T₀⁻¹ kappa alpha₀² b A(r − c) P |
+// | M    | blockdiag(m I₃, W₀ᵀ H W₀), H = diag(I_xx, I_yy, I_zz), omega = W₀ [psi' theta' phi'] (eqs 4–5 at the attitude; at zero angles diag(I_zz, I_yy, I_xx)) |
+// | B_w  | G₀ T₀ with its columns in generalised order, G₀ = blockdiag(R₀, W₀ᵀ) (eq 8's u = G w), T₀ = kappa A(r − c) diag(alpha) A(r)⁺: the true wrench of the allocated commands (eqs 27–30) |
+// | K    | the tilt of the lift, −∂(R F_b0)/∂(psi, theta, phi) with F_b0 = R₀ᵀ (0, 0, m g) (at zero angles K_x,theta = −m g, K_y,phi = +m g); gap_dependence: + G₀ kappa gamma A(r − c) diag(alpha ⊙ f₀) J, f₀ = A(r)⁺ T₀⁻¹ (F_b0; 0) the hover forces, J_k = ∂gap/∂q of the array that exerts force k = [0 0 1, (∂R/∂(psi, theta, phi) r)_z] |
+// | feedback | electrical_lag: the back-EMF of eq 25, −b alpha v_k per force channel (v_k the array's velocity along force k: x' for motors 1, 3 horizontal, y' for 2, 4, z' vertical — the centre of mass's velocity, as the simulator writes eq 25), fed into the current loop: the input chain sees w − F q' with F = T₀⁻¹ kappa A(r − c) diag(alpha²) b P (rows in generalised order) |
 //
-// with c the centre-of-mass offset (com_offset), alpha₀ = exp(−gamma z_0) the
-// gap factor at the operating point (gap_dependence; else 1), kappa the force-constant
-// scale.  The equations are homogeneous in (m, H, kappa) except through gravity, whose
-// terms (tilt of the lift, gap stiffness) are themselves ∝ m: a response determines
-// H/m and kappa/m only, so the mass is held (weighed) and kappa fitted by default.
+// with c the centre-of-mass offset (com_offset), alpha_k = exp(−gamma (gap_k − z_ref))
+// the gap factor of the array of force k at the operating point (gap_dependence;
+// else 1), kappa the force-constant scale.  The equations are homogeneous in
+// (m, H, kappa) except through gravity, whose terms (tilt of the lift, gap
+// stiffness) are themselves ∝ m: a response determines H/m and kappa/m only, so the
+// mass is held (weighed) and kappa fitted by default.  Checked against a numerical
+// linearisation of the nonlinear stage (tests/idlib/physical/stage6_base_test.cc).
 //
 // The matrices are built by a template on the scalar type (double, or ceres::Jet in
 // idlib/fit for exact derivatives).  The allocation A(r)⁺ is the controller's (its
@@ -39,9 +42,11 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 
 #include "idlib/core/types.h"
+#include "idlib/physical/gauss_jordan.h"
 #include "idlib/physical/physical_model.h"
 
 namespace lpvid {
@@ -62,45 +67,10 @@ struct Stage6Indices {
   explicit Stage6Indices(const PhysicalModel& model);
 };
 
-// The double value of x (Jets: their scalar part).  Defined for double here;
-// idlib/physical/evaluate.h's ScalarValue covers Jets.
 namespace stage6_detail {
 
 template <class T>
 using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
-
-// Inverse by Gauss–Jordan without pivoting, for matrices near a positive diagonal
-// (here A(r − c) A(r)⁺, within a few per cent of I): false when a pivot's size is
-// below 1e-9 of the largest diagonal entry.
-template <class T>
-bool near_identity_inverse(const Mat<T>& M, Mat<T>& inv, double (*value)(const T&)) {
-  const Index n = M.rows();
-  Mat<T> a = M;
-  inv = Mat<T>::Identity(n, n);
-  double scale = 0.0;
-  for (Index k = 0; k < n; ++k) scale = std::max(scale, std::abs(value(a(k, k))));
-  for (Index k = 0; k < n; ++k) {
-    const T piv = a(k, k);
-    if (!(std::abs(value(piv)) > 1e-9 * scale)) return false;
-    for (Index j = 0; j < n; ++j) {
-      a(k, j) /= piv;
-      inv(k, j) /= piv;
-    }
-    for (Index i = 0; i < n; ++i) {
-      if (i == k) continue;
-      const T f = a(i, k);
-      for (Index j = 0; j < n; ++j) {
-        a(i, j) -= f * a(k, j);
-        inv(i, j) -= f * inv(k, j);
-      }
-    }
-  }
-  return true;
-}
-
-}  // namespace stage6_detail
-
-namespace stage6_detail {
 
 // R = Rz(psi) Ry(theta) Rx(phi) and its derivatives by psi, theta, phi (d[0..2]).
 template <class T>
@@ -230,7 +200,9 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
   for (Index k = 0; k < 8; ++k) scaled.col(k) *= alpha(k, 0);
   const Mat T0 = scaled * L.allocation_pinv.cast<T>() * kappa;  // wrench order
   Mat T0inv;
-  if (!stage6_detail::near_identity_inverse<T>(T0, T0inv, value)) return false;
+  double scale = 0.0;  // pivots below 1e-9 of the largest diagonal entry: singular
+  for (Index k = 0; k < 6; ++k) scale = std::max(scale, std::abs(value(T0(k, k))));
+  if (!physical_detail::gauss_jordan_inverse<T>(T0, T0inv, value, false, 1e-9 * scale)) return false;
   // Generalised order of the inputs: F_x F_y F_z tau_z tau_y tau_x (swap 3 ↔ 5).
   auto from_generalised_inputs = [](const Mat& X) {
     Mat Y = X;
