@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "idlib/core/parallel.h"
 #include "idlib/signal/real_fft.h"
 
 namespace lpvid {
@@ -101,10 +102,11 @@ class NormalOperator {
         tail_(signal_detail::alloc_complex(num_exp_ * m * nb_)),
         hspec_(signal_detail::alloc_complex(p * m * nb_)),
         yspec_(signal_detail::alloc_complex(p * m * nb_)),
-        zspec_(signal_detail::alloc_complex(nb_)),
-        buf_(signal_detail::alloc_real(fft_.size())) {
+        zspec_(signal_detail::alloc_complex(num_exp_ * p * nb_)),
+        buf_(static_cast<std::size_t>(std::max(p * m, num_exp_ * p))) {
+    for (auto& b : buf_) b = signal_detail::alloc_real(fft_.size());
     const Index M = fft_.size();
-    double* b = buf_.get();
+    double* b = buf_.front().get();
     for (Index a = 0; a < m; ++a) {
       for (Index c = 0; c < m; ++c) {
         std::fill(b, b + M, 0.0);
@@ -123,41 +125,43 @@ class NormalOperator {
     }
   }
 
+  // Three rounds of tasks (parallel.h), each writing only its own spectra and buffer:
+  // the transforms of h per (c, a); the record-end corrections z per (e, c); the sums
+  // and inverse transforms per (c, a), in the same order of terms as one thread would.
   void apply(const Eigen::MatrixXd& h, Eigen::MatrixXd& y) {
     const Index M = fft_.size();
     const Index m = m_, L = L_, nb = nb_;
-    double* b = buf_.get();
-    for (Index c = 0; c < p_; ++c) {
-      for (Index a = 0; a < m; ++a) {
-        std::fill(b, b + M, 0.0);
-        for (Index k = 0; k <= L; ++k) b[k] = h(k * m + a, c);
-        fft_.forward(b, hspec(c, a));
-      }
-    }
-    std::fill(yspec_.get(), yspec_.get() + p_ * m * nb, Complex(0.0, 0.0));
-    for (Index c = 0; c < p_; ++c)
-      for (Index a = 0; a < m; ++a)
-        for (Index d = 0; d < m; ++d) mac(kernel_.get() + (a * m + d) * nb, hspec(c, d), yspec(c, a));
-    const double scale = 1.0 / static_cast<double>(M);
-    for (Index e = 0; e < num_exp_; ++e) {
-      for (Index c = 0; c < p_; ++c) {
-        std::fill(zspec_.get(), zspec_.get() + nb, Complex(0.0, 0.0));
-        for (Index a = 0; a < m; ++a) mac_conj(hspec(c, a), tail(e, a), zspec_.get());
-        fft_.inverse(zspec_.get(), b);
-        // Keep z(r) for r = 0..L-1 only; fold in the -1 of Phi = T - C and the 1/M.
-        for (Index r = 0; r < L; ++r) b[r] *= -scale;
-        std::fill(b + L, b + M, 0.0);
-        fft_.forward(b, zspec_.get());
-        for (Index a = 0; a < m; ++a) mac(tail(e, a), zspec_.get(), yspec(c, a));
-      }
-    }
     y.resize(m * (L + 1), p_);
-    for (Index c = 0; c < p_; ++c) {
-      for (Index a = 0; a < m; ++a) {
-        fft_.inverse(yspec(c, a), b);
-        for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
-      }
-    }
+    const double scale = 1.0 / static_cast<double>(M);
+    parallel_for(p_ * m, [&](Index task) {
+      const Index c = task / m, a = task % m;
+      double* b = buf(task);
+      std::fill(b, b + M, 0.0);
+      for (Index k = 0; k <= L; ++k) b[k] = h(k * m + a, c);
+      fft_.forward(b, hspec(c, a));
+    });
+    parallel_for(num_exp_ * p_, [&](Index task) {
+      const Index e = task / p_, c = task % p_;
+      double* b = buf(task);
+      Complex* z = zspec(e, c);
+      std::fill(z, z + nb, Complex(0.0, 0.0));
+      for (Index a = 0; a < m; ++a) mac_conj(hspec(c, a), tail(e, a), z);
+      fft_.inverse(z, b);
+      // Keep z(r) for r = 0..L-1 only; fold in the -1 of Phi = T - C and the 1/M.
+      for (Index r = 0; r < L; ++r) b[r] *= -scale;
+      std::fill(b + L, b + M, 0.0);
+      fft_.forward(b, z);
+    });
+    parallel_for(p_ * m, [&](Index task) {
+      const Index c = task / m, a = task % m;
+      double* b = buf(task);
+      Complex* ys = yspec(c, a);
+      std::fill(ys, ys + nb, Complex(0.0, 0.0));
+      for (Index d = 0; d < m; ++d) mac(kernel_.get() + (a * m + d) * nb, hspec(c, d), ys);
+      for (Index e = 0; e < num_exp_; ++e) mac(tail(e, a), zspec(e, c), ys);
+      fft_.inverse(ys, b);
+      for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
+    });
     for (std::size_t e = 0; e < lag_means_.size(); ++e)
       for (Index c = 0; c < p_; ++c)
         y.col(c) -= (lag_count_[e] * lag_means_[e].dot(h.col(c))) * lag_means_[e];
@@ -167,6 +171,8 @@ class NormalOperator {
   Complex* hspec(Index c, Index a) { return hspec_.get() + (c * m_ + a) * nb_; }
   Complex* yspec(Index c, Index a) { return yspec_.get() + (c * m_ + a) * nb_; }
   const Complex* tail(Index e, Index a) const { return tail_.get() + (e * m_ + a) * nb_; }
+  Complex* zspec(Index e, Index c) { return zspec_.get() + (e * p_ + c) * nb_; }
+  double* buf(Index task) { return buf_[static_cast<std::size_t>(task)].get(); }
 
   // acc += x * z, acc += x * conj(z): the real-arithmetic loops of real_fft.h (std::complex
   // products check for NaN and do not vectorise).
@@ -180,7 +186,7 @@ class NormalOperator {
   Index nb_;
   Index num_exp_;
   ComplexArray kernel_, tail_, hspec_, yspec_, zspec_;
-  RealArray buf_;
+  std::vector<RealArray> buf_;  // one per task of a round
 };
 
 struct PcgOutcome {
