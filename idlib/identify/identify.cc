@@ -9,6 +9,7 @@
 
 #include "idlib/closedloop/plant_markov.h"
 #include "idlib/core/error.h"
+#include "idlib/core/parallel.h"
 #include "idlib/identify/response_tail.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/frequency_response.h"
@@ -597,11 +598,12 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     ch.tail_reason = fmt::format("no rounds ({} allowed)", options.max_tail_rounds);
     for (int round = 1; round <= options.max_tail_rounds; ++round) {
       std::vector<ExperimentView> views;
-      for (std::size_t e = 0; e < experiments.size(); ++e) {
-        corrected[e] =
-            experiments[e].output - closed_loop_response_beyond(fit.plant, controller, experiments[e].excitation, L);
-        views.push_back({experiments[e].excitation, corrected[e]});
-      }
+      parallel_for(static_cast<Index>(experiments.size()), [&](Index e) {  // one task per experiment
+        const auto& x = experiments[static_cast<std::size_t>(e)];
+        corrected[static_cast<std::size_t>(e)] =
+            x.output - closed_loop_response_beyond(fit.plant, controller, x.excitation, L);
+      });
+      for (std::size_t e = 0; e < experiments.size(); ++e) views.push_back({experiments[e].excitation, corrected[e]});
       // Where the response had not ended within the horizon, the slow modes' tail
       // amplitudes from the logs (with the last ĝ), not from the model alone
       // (refit_response_beyond): the plain rounds contract too slowly there (measured
