@@ -37,6 +37,10 @@ constexpr Index kMinHorizonLags = 256;
 // noise").  Measured on drawn plants: a horizon of 1 s where 2.8 s held 99 % of the
 // energy failed (the first fit landed in a wrong minimum); halves holding ≤ 5 % worked.
 constexpr double kHorizonTailEnergyFraction = 0.05;
+// The first Markov estimate computes the correlations up to 2^this times its horizon (at
+// about the cost of its own: estimate_markov's `reuse`), so that up to this many
+// doublings need no new correlation pass; 4x the lags cost ~75 MB of FFT sums at 10 kHz.
+constexpr int kHorizonCorrelationSteps = 2;
 constexpr double kHorizonNoiseSigmas = 5.0;
 
 // ---- fit band ----
@@ -267,20 +271,25 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   bool response_beyond = false;  // the response has not ended within the horizon
   const bool given = options.num_lags > 0 || options.markov_horizon_s > 0.0;
   Index L = 0;
+  // R_vv and R_qv, computed once for the horizon steps (up to kHorizonCorrelationSteps
+  // doublings ahead); R_vv is reused by the tail rounds.
+  MarkovCorrelations corr;
   if (given) {
     L = choose_num_lags(options, Ts, shortest);
     mo.num_lags = L;
-    result.markov = estimate_markov(experiments, mo);
+    corr.max_lag = L;
+    result.markov = estimate_markov(experiments, mo, &corr);
     ch.horizon_reason = fmt::format("{} lags were given", L);
     std::string why;
     response_beyond = !response_ended(scaled_energy(result.markov), L, &why);
   } else {
     const Index cap = std::max<Index>(kMinHorizonLags, pow2_at_most(shortest / 4));
     L = std::min(cap, std::max(kMinHorizonLags, pow2_at_least(shortest / kHorizonRecordDivisor)));
+    corr.max_lag = std::min(cap, L << kHorizonCorrelationSteps);
     std::string why;
     for (;;) {
       mo.num_lags = L;
-      result.markov = estimate_markov(experiments, mo);
+      result.markov = estimate_markov(experiments, mo, &corr);
       const ScaledEnergy e = scaled_energy(result.markov);
       if (response_ended(e, L, &why)) {
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s): {}", L, static_cast<double>(L) * Ts, why);
@@ -299,6 +308,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   }
   ch.num_lags = L;
   result.num_lags = L;
+  corr.qv.clear();  // the tail rounds' outputs are corrected ones; R_vv stays
   for (const auto& w : result.markov.report.warnings) result.warnings.push_back("markov: " + w);
   const MarkovSequence g0(result.markov.g.begin(), result.markov.g.begin() + L + 1);
 
@@ -614,7 +624,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       }
       mo.num_lags = L;
       mo.initial_guess = g_final;  // the previous round's ĝ: the correction is small
-      const MarkovResult mr = estimate_markov(views, mo);
+      const MarkovResult mr = estimate_markov(views, mo, &corr);
       if (round == 1 && pass == 0) spectrum = fir_residual_spectrum(views, mr.g, L, L / 2 + 1);
       const MarkovBins data = bins_at(mr.g, spectrum, L);
       g_final = mr.g;

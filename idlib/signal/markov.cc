@@ -289,7 +289,7 @@ void MarkovOptions::validate() const {
 }
 
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
-                             const MarkovOptions& options) {
+                             const MarkovOptions& options, MarkovCorrelations* reuse) {
   options.validate();
   if (experiments.empty())
     throw InputError(
@@ -408,14 +408,53 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
         "excitation and by the record end; use the least-squares method for accurate "
         "Markov parameters");
   } else {
-    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together.
+    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together
+    // (rows 0..p-1 and p..p+m-1 of corr[k]); with `reuse`, see the header.
     std::vector<Eigen::MatrixXd> corr(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p + m, m));
+    if (reuse != nullptr && reuse->max_lag >= L && !reuse->vv.empty()) {
+      if (static_cast<Index>(reuse->vv.size()) != reuse->max_lag + 1 || reuse->vv.front().rows() != m ||
+          (!reuse->qv.empty() && (reuse->qv.size() != reuse->vv.size() || reuse->qv.front().rows() != p)))
+        throw InputError("estimate_markov: the reused correlations do not match these experiments' channels");
+      for (Index k = 0; k <= L; ++k) corr[k].bottomRows(m) = reuse->vv[static_cast<std::size_t>(k)];
+      if (!reuse->qv.empty()) {
+        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = reuse->qv[static_cast<std::size_t>(k)];
+      } else {
+        std::vector<Eigen::MatrixXd> qv(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
+        for (Index e = 0; e < E; ++e)
+          signal_detail::accumulate_cross_correlation(qs[e], vs[e], experiments[e].excitation.rows(), L, qv);
+        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = qv[static_cast<std::size_t>(k)];
+      }
+    } else {
+      const bool store = reuse != nullptr && reuse->max_lag > 0;
+      const Index Lc = store ? std::max(reuse->max_lag, L) : L;
+      if (store) {
+        // The longest lag must leave N > Lc in every record (the FFT blocks' rule).
+        Index shortest = experiments[0].excitation.rows();
+        for (Index e = 1; e < E; ++e) shortest = std::min<Index>(shortest, experiments[e].excitation.rows());
+        if (Lc >= shortest) throw InputError(fmt::format("estimate_markov: correlations up to lag {} asked of a "
+                                                         "record of {} samples", Lc, shortest));
+      }
+      std::vector<Eigen::MatrixXd> full(store ? static_cast<size_t>(Lc + 1) : 0, Eigen::MatrixXd::Zero(p + m, m));
+      for (Index e = 0; e < E; ++e) {
+        std::vector<ChannelView> xs = qs[e];
+        xs.insert(xs.end(), vs[e].begin(), vs[e].end());
+        signal_detail::accumulate_cross_correlation(xs, vs[e], experiments[e].excitation.rows(), Lc,
+                                                    store ? full : corr);
+      }
+      if (store) {
+        reuse->max_lag = Lc;
+        reuse->vv.clear();
+        reuse->qv.clear();
+        for (Index k = 0; k <= Lc; ++k) {
+          reuse->qv.push_back(full[static_cast<std::size_t>(k)].topRows(p));
+          reuse->vv.push_back(full[static_cast<std::size_t>(k)].bottomRows(m));
+        }
+        for (Index k = 0; k <= L; ++k) corr[k] = full[static_cast<std::size_t>(k)];
+      }
+    }
     std::vector<Eigen::MatrixXd> tails;
     for (Index e = 0; e < E; ++e) {
-      std::vector<ChannelView> xs = qs[e];
-      xs.insert(xs.end(), vs[e].begin(), vs[e].end());
       const Index n = experiments[e].excitation.rows();
-      signal_detail::accumulate_cross_correlation(xs, vs[e], n, L, corr);
       Eigen::MatrixXd w = Eigen::MatrixXd::Zero(L, m);  // row s-1: v(N - s), s = 1..L
       for (Index a = 0; a < m; ++a) {
         if (!vs[e][a].active) continue;
