@@ -88,7 +88,7 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
 //   Correction:    (C h)(j) = sum_r w(j - r) z(r),  z(r) = sum_k w(k - r)^T h(k),
 //                  w(s) = v(N - s) for s = 1..L (zero elsewhere), r = 0..L-1,
 //   which is C(j, k) = sum_{t=N}^{N-1+min(j,k)} v(t - j) v(t - k)^T with t = N + r.
-// FFT size M >= 2L + 2 keeps every product free of wrap-around.
+// FFT size M >= 2L + 2 keeps every product free of wrap-around (the smallest 2^a 3^b).
 class NormalOperator {
  public:
   // lag_means[e] (empty, or m (L+1) in the unknowns' layout) and lag_count[e]: the
@@ -96,7 +96,7 @@ class NormalOperator {
   NormalOperator(const std::vector<Eigen::MatrixXd>& rvv, const std::vector<Eigen::MatrixXd>& tails,
                  Index m, Index L, Index p, std::vector<Eigen::VectorXd> lag_means = {},
                  std::vector<double> lag_count = {})
-      : lag_means_(std::move(lag_means)), lag_count_(std::move(lag_count)), m_(m), L_(L), p_(p), fft_(signal_detail::next_pow2(2 * L + 2)), nb_(fft_.bins()),
+      : lag_means_(std::move(lag_means)), lag_count_(std::move(lag_count)), m_(m), L_(L), p_(p), fft_(signal_detail::next_fft_size(2 * L + 2)), nb_(fft_.bins()),
         num_exp_(static_cast<Index>(tails.size())),
         kernel_(signal_detail::alloc_complex(m * m * nb_)),
         tail_(signal_detail::alloc_complex(num_exp_ * m * nb_)),

@@ -114,10 +114,20 @@ void RealFft::inverse(Complex* in, double* out) const {
   fftw_execute_dft_c2r(inverse_, reinterpret_cast<fftw_complex*>(in), out);
 }
 
+Index next_fft_size(Index n) {
+  Index best = next_pow2(n);
+  for (Index three = 3; three < best; three *= 3) {  // 3^b 2^a for b >= 1
+    Index size = three;
+    while (size < n) size *= 2;
+    best = std::min(best, size);
+  }
+  return best;
+}
+
 Index block_fft_size(Index n, Index max_lag) {
-  const Index wanted = next_pow2(std::max(kMinBlockFftSize, kBlockLagFactor * (max_lag + 1)));
+  const Index wanted = next_fft_size(std::max(kMinBlockFftSize, kBlockLagFactor * (max_lag + 1)));
   // A short record needs no more than one block: n + max_lag points avoid wrap-around.
-  const Index enough = next_pow2(std::max<Index>(n + max_lag + 1, 2));
+  const Index enough = next_fft_size(std::max<Index>(n + max_lag + 1, 2));
   return std::min(wanted, enough);
 }
 
