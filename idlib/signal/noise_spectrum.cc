@@ -171,15 +171,29 @@ std::vector<std::vector<Eigen::MatrixXcd>> markov_error_replicates(const std::ve
       segs.push_back({x, t0, t1, dof_scale, active});
     }
   }
+  // One transform per segment length (the plans are made once, before the tasks).
+  std::vector<std::unique_ptr<signal_detail::RealFft>> ffts;
+  auto fft_for = [&](Index M) -> const signal_detail::RealFft* {
+    for (const auto& f : ffts)
+      if (f->size() == M) return f.get();
+    return nullptr;
+  };
+  for (const Segment& sg : segs) {
+    const Index M = signal_detail::next_fft_size(sg.t1 - sg.t0 + K);
+    if (fft_for(M) == nullptr) ffts.push_back(std::make_unique<signal_detail::RealFft>(M));
+  }
+  // w^-(f+1), w = e^(2πi/K): the K-point transform's bins shifted by one lag.
+  std::vector<Complex> shift(static_cast<std::size_t>(num_bins));
+  for (Index f = 0; f < num_bins; ++f)
+    shift[static_cast<std::size_t>(f)] = std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(K));
   std::vector<std::vector<Eigen::MatrixXcd>> out(segs.size());
   parallel_for(static_cast<Index>(segs.size()), [&](Index si) {
     const Segment& sg = segs[static_cast<std::size_t>(si)];
     const auto& ex = experiments[sg.x];
     const Eigen::MatrixXd& e = residual[sg.x];
     const Index n = ex.excitation.rows(), t0 = sg.t0, Ls = sg.t1 - sg.t0;
-    Index M = 1;
-    while (M < Ls + K) M *= 2;
-    const signal_detail::RealFft fft(M);
+    const signal_detail::RealFft& fft = *fft_for(signal_detail::next_fft_size(Ls + K));
+    const Index M = fft.size();
     auto kin = signal_detail::alloc_real(K);
     auto kout = signal_detail::alloc_complex(dft.bins());
     auto buf = signal_detail::alloc_real(M);
@@ -206,8 +220,7 @@ std::vector<std::vector<Eigen::MatrixXcd>> markov_error_replicates(const std::ve
         for (Index k = 1; k <= K; ++k) kin[k - 1] = buf[K - k] / static_cast<double>(M);
         dft.forward(kin.get(), kout.get());
         for (Index f = 0; f < num_bins; ++f)  // Σ_{k≥1} z(k) w^-k = w^-1 Σ_{k'≥0} z(k'+1) w^-k'
-          Z[static_cast<std::size_t>(f)](i, a) =
-              kout[f] * std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(K));
+          Z[static_cast<std::size_t>(f)](i, a) = kout[f] * shift[static_cast<std::size_t>(f)];
       }
     }
     for (auto& z : Z) z = sg.dof_scale * (z * R0inv);
