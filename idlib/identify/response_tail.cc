@@ -81,7 +81,8 @@ Eigen::MatrixXd closed_loop_response_beyond(const StateSpace& plant, const State
     cri.topRows(K) = c.real().transpose();
     cri.bottomRows(K) = -c.imag().transpose();
     constexpr Index kBlock = 512;
-    Eigen::MatrixXd hist(kBlock, 2 * K);  // row s: [Re ξ, Im ξ] at t0 + s
+    // row s: [Re ξ, Im ξ] at t0 + s; row-major, so that each sample writes one run of memory
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> hist(kBlock, 2 * K);
     std::vector<double> u(static_cast<std::size_t>(std::max<Index>(ma, 1)));
     for (Index t0 = 0; t0 + lag < T; t0 += kBlock) {
       const Index len = std::min(kBlock, T - lag - t0);
