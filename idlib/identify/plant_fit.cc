@@ -363,11 +363,19 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
         for (Index h = g; h < 3; ++h) {
           const Index k = pair_index(g, h);
           const Group &G1 = groups[g], &G2 = groups[h];
-          const MatrixXcd bu = Gu.block(G1.a0, G2.a0, G1.na, G2.na), bv = Gv.block(G1.b0, G2.b0, G1.nb, G2.nb);
-          AuRe[k].col(f) = Eigen::Map<const VectorXd>(bu.real().eval().data(), bu.size());
-          AuIm[k].col(f) = Eigen::Map<const VectorXd>(bu.imag().eval().data(), bu.size());
-          AvRe[k].col(f) = Eigen::Map<const VectorXd>(bv.real().eval().data(), bv.size());
-          AvIm[k].col(f) = Eigen::Map<const VectorXd>(bv.imag().eval().data(), bv.size());
+          // Column f holds the block in column-major order (no temporaries).
+          for (Index j = 0, r = 0; j < G2.na; ++j)
+            for (Index i = 0; i < G1.na; ++i, ++r) {
+              const Complex x = Gu(G1.a0 + i, G2.a0 + j);
+              AuRe[k](r, f) = x.real();
+              AuIm[k](r, f) = x.imag();
+            }
+          for (Index j = 0, r = 0; j < G2.nb; ++j)
+            for (Index i = 0; i < G1.nb; ++i, ++r) {
+              const Complex x = Gv(G1.b0 + i, G2.b0 + j);
+              AvRe[k](r, f) = x.real();
+              AvIm[k](r, f) = x.imag();
+            }
         }
       gj.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
       for (std::size_t r = 0; r < S; ++r)
@@ -389,10 +397,10 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
   std::array<MatrixXd, 6> K2;
   if (jac)
-    for (Index k = 0; k < 6; ++k) {
+    parallel_for(6, [&](Index k) {  // one task per pair of groups
       K2[k].noalias() = AuRe[k] * AvRe[k].transpose();
       K2[k].noalias() -= AuIm[k] * AvIm[k].transpose();
-    }
+    });
   // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
   std::vector<Index> col_alpha, col_beta, col_group;
   if (jac) {
