@@ -40,8 +40,12 @@ class Pool {
   // false: the pool is busy (or has no workers); the caller runs the tasks itself.
   bool run(Index n, const std::function<void(Index)>& task) {
     if (threads_.empty()) return false;
-    std::unique_lock<std::mutex> busy(busy_, std::try_to_lock);
-    if (!busy.owns_lock()) return false;
+    // A flag, not a mutex: a nested call comes from a thread that may hold it already.
+    if (busy_.exchange(true)) return false;
+    struct Release {
+      std::atomic<bool>& flag;
+      ~Release() { flag = false; }
+    } release{busy_};
     errors_.assign(static_cast<std::size_t>(n), nullptr);
     {
       std::lock_guard<std::mutex> lock(m_);
@@ -95,7 +99,7 @@ class Pool {
   }
 
   std::vector<std::thread> threads_;
-  std::mutex busy_;  // one parallel_for at a time
+  std::atomic<bool> busy_{false};  // one parallel_for at a time
   std::mutex m_;
   std::condition_variable wake_, done_;
   bool stop_ = false;
