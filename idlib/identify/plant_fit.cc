@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 
+#include "idlib/core/parallel.h"
 #include "idlib/signal/real_fft.h"
 
 namespace lpvid {
@@ -39,6 +40,11 @@ constexpr double kGaugeRankTolerance = 1e-10;
 // Eigenvalues of the reduced normal matrix below this fraction of the largest are
 // dropped in the covariance (unidentifiable combinations get no finite variance).
 constexpr double kCovarianceRankTolerance = 1e-14;
+// Model::evaluate runs its bins as this many tasks (idlib/core/parallel.h; two cores on
+// the reference machine), each at least kMinBinsPerChunk bins (below that the hand-off
+// costs about as much as the bins).  Fixed numbers: the sums do not depend on the machine.
+constexpr Index kEvaluateChunks = 2;
+constexpr Index kMinBinsPerChunk = 32;
 
 struct Loop {  // closed loop in scaled coordinates
   MatrixXd A, B, C;
@@ -73,6 +79,79 @@ MatrixXd matrix_power(MatrixXd base, Index e) {
   }
   return r;
 }
+
+// LU with partial pivoting of a small complex matrix in place (P Z = L U, L unit lower,
+// swaps in LAPACK's order), pivots chosen by |Re| + |Im| (LAPACK's cabs1; no hypot), and
+// the two solves the evaluation needs: X = Z⁻¹ B and Y = C Z⁻¹.  Written out because
+// Eigen's PartialPivLU on these 6-20-state matrices spends most of its time in hypot,
+// complex division and temporaries (measured: ~40 % of a plant fit).
+class SmallLu {
+ public:
+  void factor(MatrixXcd& a) {
+    const Index N = a.rows();
+    piv_.resize(static_cast<std::size_t>(N));
+    inv_diag_.resize(N);
+    for (Index k = 0; k < N; ++k) {
+      Index r = k;
+      double best = -1.0;
+      for (Index i = k; i < N; ++i) {
+        const double v = std::abs(a(i, k).real()) + std::abs(a(i, k).imag());
+        if (v > best) best = v, r = i;
+      }
+      piv_[static_cast<std::size_t>(k)] = r;
+      if (r != k) a.row(k).swap(a.row(r));
+      const Complex d = a(k, k);
+      const double d2 = d.real() * d.real() + d.imag() * d.imag();
+      const Complex inv = d2 > 0.0 ? Complex(d.real() / d2, -d.imag() / d2) : Complex(INFINITY, 0.0);
+      inv_diag_(k) = inv;
+      for (Index i = k + 1; i < N; ++i) a(i, k) *= inv;
+      for (Index j = k + 1; j < N; ++j) {
+        const Complex akj = a(k, j);
+        for (Index i = k + 1; i < N; ++i) a(i, j) -= a(i, k) * akj;
+      }
+    }
+    lu_ = &a;
+  }
+  // x = Z⁻¹ b (b overwritten with x).
+  void solve_right(MatrixXcd& b) const {
+    const MatrixXcd& a = *lu_;
+    const Index N = a.rows();
+    for (Index k = 0; k < N; ++k)
+      if (piv_[static_cast<std::size_t>(k)] != k) b.row(k).swap(b.row(piv_[static_cast<std::size_t>(k)]));
+    for (Index c = 0; c < b.cols(); ++c) {
+      for (Index k = 0; k < N; ++k)  // L
+        for (Index i = k + 1; i < N; ++i) b(i, c) -= a(i, k) * b(k, c);
+      for (Index k = N - 1; k >= 0; --k) {  // U
+        b(k, c) *= inv_diag_(k);
+        for (Index i = 0; i < k; ++i) b(i, c) -= a(i, k) * b(k, c);
+      }
+    }
+  }
+  // y = c Z⁻¹ (c overwritten with y): y P⁻¹ L U = c.
+  void solve_left(MatrixXcd& c) const {
+    const MatrixXcd& a = *lu_;
+    const Index N = a.rows();
+    for (Index r = 0; r < c.rows(); ++r) {
+      for (Index j = 0; j < N; ++j) {  // w' U = c
+        Complex s = c(r, j);
+        for (Index k = 0; k < j; ++k) s -= c(r, k) * a(k, j);
+        c(r, j) = s * inv_diag_(j);
+      }
+      for (Index j = N - 1; j >= 0; --j) {  // w L = w'
+        Complex s = c(r, j);
+        for (Index k = j + 1; k < N; ++k) s -= c(r, k) * a(k, j);
+        c(r, j) = s;
+      }
+    }
+    for (Index k = N - 1; k >= 0; --k)  // y = w P
+      if (piv_[static_cast<std::size_t>(k)] != k) c.col(k).swap(c.col(piv_[static_cast<std::size_t>(k)]));
+  }
+
+ private:
+  const MatrixXcd* lu_ = nullptr;
+  std::vector<Index> piv_;
+  VectorXcd inv_diag_;
+};
 
 // Everything an evaluation needs from θ.
 class Model {
@@ -215,7 +294,7 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   const std::array<Group, 3> groups = {Group{0, n, 0, n + 2 * m}, Group{n, nk, n + m, m}, Group{N, p, 0, n}};
   std::array<MatrixXd, 6> AuRe, AuIm, AvRe, AvIm;  // pair (g, h), g ≤ h, index g * 3 + h − g (g + 1) / 2
   auto pair_index = [](Index g, Index h) { return g * 3 + h - g * (g + 1) / 2; };
-  MatrixXcd GJsum, U, V;
+  MatrixXcd GJsum;
   const std::size_t S = reps != nullptr ? reps->size() : 0;
   std::vector<MatrixXcd> GJrep(S);
   const MatrixXcd DkC = (k_.Dk * C).cast<Complex>(), BDk = (B * k_.Dk).cast<Complex>();
@@ -230,67 +309,98 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
         AvRe[k].resize(groups[g].nb * groups[h].nb, F);
         AvIm[k].resize(groups[g].nb * groups[h].nb, F);
       }
-    GJsum.setZero(NU, NV);
-    for (auto& x : GJrep) x.setZero(NU, NV);
-    U.resize(p, NU);
-    V.resize(m, NV);
-    V.rightCols(m).setIdentity();
   }
   const MatrixXcd Ac = l.A.cast<Complex>();
-  MatrixXcd Z(N, N);
-  Eigen::PartialPivLU<MatrixXcd> lu(N);
+  // The bins run as kEvaluateChunks contiguous runs (fewer for few bins), one task each
+  // (idlib/core/parallel.h) with its own workspace and partial sums, added in chunk order.
+  const Index chunks = std::max<Index>(1, std::min<Index>(kEvaluateChunks, F / kMinBinsPerChunk));
+  std::vector<double> cost_part(static_cast<std::size_t>(chunks), 0.0);
+  std::vector<MatrixXcd> GJpart(static_cast<std::size_t>(chunks));
+  std::vector<std::vector<MatrixXcd>> GJrep_part(static_cast<std::size_t>(chunks), std::vector<MatrixXcd>(S));
+  parallel_for(chunks, [&](Index chunk) {
+    MatrixXcd Z(N, N), X, Y, U, V;
+    SmallLu lu;
+    double cost = 0.0;
+    MatrixXcd gj;  // Σ over this chunk's bins of GJsum's terms, and of GJrep's
+    std::vector<MatrixXcd>& gj_rep = GJrep_part[static_cast<std::size_t>(chunk)];
+    if (jac) {
+      gj.setZero(NU, NV);
+      for (auto& x : gj_rep) x.setZero(NU, NV);
+      U.resize(p, NU);
+      V.resize(m, NV);
+      V.rightCols(m).setIdentity();
+    }
+    for (Index f = chunk * F / chunks; f < (chunk + 1) * F / chunks; ++f) {
+      const double w = data_.omega_rad_s(f) * data_.sample_period_s;
+      const Complex z = std::polar(1.0, w);
+      Z = -Ac;
+      Z.diagonal().array() += z;
+      lu.factor(Z);
+      X = Bq;
+      lu.solve_right(X);
+      const MatrixXcd Rf = data_.response[static_cast<std::size_t>(f)] - Cc * X;
+      const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
+      const bool real_bin = f == 0 || 2 * f == L;
+      const double s = real_bin ? 1.0 : 2.0;
+      const MatrixXcd RD = Rf * D2;
+      cost += s * (Rf.adjoint() * Phi * RD).trace().real();
+      if (!jac) continue;
+      // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
+      Y = Cc;
+      lu.solve_left(Y);
+      U.leftCols(N) = Y;
+      MatrixXcd Wt = -(Y.leftCols(n) * BDk + Y.rightCols(nk) * Bkc);
+      Wt.diagonal().array() += 1.0;
+      U.rightCols(p) = Wt;
+      V.leftCols(n) = X.topRows(n).transpose();
+      MatrixXcd Zt = -DkC * X.topRows(n) + Ckc * X.bottomRows(nk);  // m × m
+      Zt.diagonal().array() += 1.0;
+      V.middleCols(n, m) = Zt.transpose();
+      const MatrixXcd T1 = Phi * U;
+      const MatrixXcd Gu = s * (U.adjoint() * T1);
+      const MatrixXcd Gv = V.adjoint() * (D2 * V);
+      for (Index g = 0; g < 3; ++g)
+        for (Index h = g; h < 3; ++h) {
+          const Index k = pair_index(g, h);
+          const Group &G1 = groups[g], &G2 = groups[h];
+          // Column f holds the block in column-major order (no temporaries).
+          for (Index j = 0, r = 0; j < G2.na; ++j)
+            for (Index i = 0; i < G1.na; ++i, ++r) {
+              const Complex x = Gu(G1.a0 + i, G2.a0 + j);
+              AuRe[k](r, f) = x.real();
+              AuIm[k](r, f) = x.imag();
+            }
+          for (Index j = 0, r = 0; j < G2.nb; ++j)
+            for (Index i = 0; i < G1.nb; ++i, ++r) {
+              const Complex x = Gv(G1.b0 + i, G2.b0 + j);
+              AvRe[k](r, f) = x.real();
+              AvIm[k](r, f) = x.imag();
+            }
+        }
+      gj.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
+      for (std::size_t r = 0; r < S; ++r)
+        gj_rep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2)) * V.conjugate());
+    }
+    cost_part[static_cast<std::size_t>(chunk)] = cost;
+    GJpart[static_cast<std::size_t>(chunk)] = std::move(gj);
+  });
   double cost = 0.0;
-  for (Index f = 0; f < F; ++f) {
-    const double w = data_.omega_rad_s(f) * data_.sample_period_s;
-    const Complex z = std::polar(1.0, w);
-    Z = -Ac;
-    Z.diagonal().array() += z;
-    lu.compute(Z);
-    const MatrixXcd X = lu.solve(Bq);
-    const MatrixXcd Rf = data_.response[static_cast<std::size_t>(f)] - Cc * X;
-    const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
-    const bool real_bin = f == 0 || 2 * f == L;
-    const double s = real_bin ? 1.0 : 2.0;
-    const MatrixXcd RD = Rf * D2;
-    cost += s * (Rf.adjoint() * Phi * RD).trace().real();
-    if (!jac) continue;
-    // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
-    MatrixXcd Y = Cc;
-    lu.matrixLU().triangularView<Eigen::Upper>().solveInPlace<Eigen::OnTheRight>(Y);
-    lu.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace<Eigen::OnTheRight>(Y);
-    Y = Y * lu.permutationP();
-    U.leftCols(N) = Y;
-    MatrixXcd Wt = -(Y.leftCols(n) * BDk + Y.rightCols(nk) * Bkc);
-    Wt.diagonal().array() += 1.0;
-    U.rightCols(p) = Wt;
-    V.leftCols(n) = X.topRows(n).transpose();
-    MatrixXcd Zt = -DkC * X.topRows(n) + Ckc * X.bottomRows(nk);  // m × m
-    Zt.diagonal().array() += 1.0;
-    V.middleCols(n, m) = Zt.transpose();
-    const MatrixXcd T1 = Phi * U;
-    const MatrixXcd Gu = s * (U.adjoint() * T1);
-    const MatrixXcd Gv = V.adjoint() * (D2 * V);
-    for (Index g = 0; g < 3; ++g)
-      for (Index h = g; h < 3; ++h) {
-        const Index k = pair_index(g, h);
-        const Group &G1 = groups[g], &G2 = groups[h];
-        const MatrixXcd bu = Gu.block(G1.a0, G2.a0, G1.na, G2.na), bv = Gv.block(G1.b0, G2.b0, G1.nb, G2.nb);
-        AuRe[k].col(f) = Eigen::Map<const VectorXd>(bu.real().eval().data(), bu.size());
-        AuIm[k].col(f) = Eigen::Map<const VectorXd>(bu.imag().eval().data(), bu.size());
-        AvRe[k].col(f) = Eigen::Map<const VectorXd>(bv.real().eval().data(), bv.size());
-        AvIm[k].col(f) = Eigen::Map<const VectorXd>(bv.imag().eval().data(), bv.size());
-      }
-    GJsum.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
-    for (std::size_t r = 0; r < S; ++r)
-      GJrep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2)) * V.conjugate());
+  for (const double c : cost_part) cost += c;
+  if (jac) {
+    GJsum = GJpart.front();
+    for (Index c = 1; c < chunks; ++c) GJsum += GJpart[static_cast<std::size_t>(c)];
+    for (std::size_t r = 0; r < S; ++r) {
+      GJrep[r] = GJrep_part.front()[r];
+      for (Index c = 1; c < chunks; ++c) GJrep[r] += GJrep_part[static_cast<std::size_t>(c)][r];
+    }
   }
   // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
   std::array<MatrixXd, 6> K2;
   if (jac)
-    for (Index k = 0; k < 6; ++k) {
+    parallel_for(6, [&](Index k) {  // one task per pair of groups
       K2[k].noalias() = AuRe[k] * AvRe[k].transpose();
       K2[k].noalias() -= AuIm[k] * AvIm[k].transpose();
-    }
+    });
   // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
   std::vector<Index> col_alpha, col_beta, col_group;
   if (jac) {

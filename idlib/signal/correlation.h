@@ -25,11 +25,13 @@ namespace lpvid {
 //
 // Units: product of the units of x and y (summed over samples).
 // Algorithm: overlap-save in FFT blocks of max(16384, 4 (max_lag + 1)) points
-// (rounded up to a power of two, smaller for short records), FFTW r2c/c2r with
+// (rounded up to the next 2^a 3^b; one power-of-two block for short records), FFTW r2c/c2r with
 // FFTW_ESTIMATE plans made once per call; the cross-spectra of all blocks are summed
 // and inverted once per channel pair.  Cost O(N (nx + ny) log max_lag + nx ny N);
 // memory O(block (nx ny)), no copy of the data.  Relative error ~1e-15 * log2(block)
-// of sum_t |x||y|.  Thread-safe (FFTW planning is serialised by a mutex).
+// of sum_t |x||y|.  The blocks run as two tasks on the cores (idlib/core/parallel.h;
+// the result does not depend on the schedule).  Thread-safe (FFTW planning is
+// serialised by a mutex).
 //
 // @throws InputError if x and y have different numbers of rows, max_lag < 0,
 //         max_lag >= N, or an entry is NaN/Inf.

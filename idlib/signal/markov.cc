@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "idlib/core/parallel.h"
 #include "idlib/signal/real_fft.h"
 
 namespace lpvid {
@@ -87,7 +88,7 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
 //   Correction:    (C h)(j) = sum_r w(j - r) z(r),  z(r) = sum_k w(k - r)^T h(k),
 //                  w(s) = v(N - s) for s = 1..L (zero elsewhere), r = 0..L-1,
 //   which is C(j, k) = sum_{t=N}^{N-1+min(j,k)} v(t - j) v(t - k)^T with t = N + r.
-// FFT size M >= 2L + 2 keeps every product free of wrap-around.
+// FFT size M >= 2L + 2 keeps every product free of wrap-around (the smallest 2^a 3^b).
 class NormalOperator {
  public:
   // lag_means[e] (empty, or m (L+1) in the unknowns' layout) and lag_count[e]: the
@@ -95,16 +96,17 @@ class NormalOperator {
   NormalOperator(const std::vector<Eigen::MatrixXd>& rvv, const std::vector<Eigen::MatrixXd>& tails,
                  Index m, Index L, Index p, std::vector<Eigen::VectorXd> lag_means = {},
                  std::vector<double> lag_count = {})
-      : lag_means_(std::move(lag_means)), lag_count_(std::move(lag_count)), m_(m), L_(L), p_(p), fft_(signal_detail::next_pow2(2 * L + 2)), nb_(fft_.bins()),
+      : lag_means_(std::move(lag_means)), lag_count_(std::move(lag_count)), m_(m), L_(L), p_(p), fft_(signal_detail::next_fft_size(2 * L + 2)), nb_(fft_.bins()),
         num_exp_(static_cast<Index>(tails.size())),
         kernel_(signal_detail::alloc_complex(m * m * nb_)),
         tail_(signal_detail::alloc_complex(num_exp_ * m * nb_)),
         hspec_(signal_detail::alloc_complex(p * m * nb_)),
         yspec_(signal_detail::alloc_complex(p * m * nb_)),
-        zspec_(signal_detail::alloc_complex(nb_)),
-        buf_(signal_detail::alloc_real(fft_.size())) {
+        zspec_(signal_detail::alloc_complex(num_exp_ * p * nb_)),
+        buf_(static_cast<std::size_t>(std::max(p * m, num_exp_ * p))) {
+    for (auto& b : buf_) b = signal_detail::alloc_real(fft_.size());
     const Index M = fft_.size();
-    double* b = buf_.get();
+    double* b = buf_.front().get();
     for (Index a = 0; a < m; ++a) {
       for (Index c = 0; c < m; ++c) {
         std::fill(b, b + M, 0.0);
@@ -123,41 +125,43 @@ class NormalOperator {
     }
   }
 
+  // Three rounds of tasks (parallel.h), each writing only its own spectra and buffer:
+  // the transforms of h per (c, a); the record-end corrections z per (e, c); the sums
+  // and inverse transforms per (c, a), in the same order of terms as one thread would.
   void apply(const Eigen::MatrixXd& h, Eigen::MatrixXd& y) {
     const Index M = fft_.size();
     const Index m = m_, L = L_, nb = nb_;
-    double* b = buf_.get();
-    for (Index c = 0; c < p_; ++c) {
-      for (Index a = 0; a < m; ++a) {
-        std::fill(b, b + M, 0.0);
-        for (Index k = 0; k <= L; ++k) b[k] = h(k * m + a, c);
-        fft_.forward(b, hspec(c, a));
-      }
-    }
-    std::fill(yspec_.get(), yspec_.get() + p_ * m * nb, Complex(0.0, 0.0));
-    for (Index c = 0; c < p_; ++c)
-      for (Index a = 0; a < m; ++a)
-        for (Index d = 0; d < m; ++d) mac(kernel_.get() + (a * m + d) * nb, hspec(c, d), yspec(c, a));
-    const double scale = 1.0 / static_cast<double>(M);
-    for (Index e = 0; e < num_exp_; ++e) {
-      for (Index c = 0; c < p_; ++c) {
-        std::fill(zspec_.get(), zspec_.get() + nb, Complex(0.0, 0.0));
-        for (Index a = 0; a < m; ++a) mac_conj(hspec(c, a), tail(e, a), zspec_.get());
-        fft_.inverse(zspec_.get(), b);
-        // Keep z(r) for r = 0..L-1 only; fold in the -1 of Phi = T - C and the 1/M.
-        for (Index r = 0; r < L; ++r) b[r] *= -scale;
-        std::fill(b + L, b + M, 0.0);
-        fft_.forward(b, zspec_.get());
-        for (Index a = 0; a < m; ++a) mac(tail(e, a), zspec_.get(), yspec(c, a));
-      }
-    }
     y.resize(m * (L + 1), p_);
-    for (Index c = 0; c < p_; ++c) {
-      for (Index a = 0; a < m; ++a) {
-        fft_.inverse(yspec(c, a), b);
-        for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
-      }
-    }
+    const double scale = 1.0 / static_cast<double>(M);
+    parallel_for(p_ * m, [&](Index task) {
+      const Index c = task / m, a = task % m;
+      double* b = buf(task);
+      std::fill(b, b + M, 0.0);
+      for (Index k = 0; k <= L; ++k) b[k] = h(k * m + a, c);
+      fft_.forward(b, hspec(c, a));
+    });
+    parallel_for(num_exp_ * p_, [&](Index task) {
+      const Index e = task / p_, c = task % p_;
+      double* b = buf(task);
+      Complex* z = zspec(e, c);
+      std::fill(z, z + nb, Complex(0.0, 0.0));
+      for (Index a = 0; a < m; ++a) mac_conj(hspec(c, a), tail(e, a), z);
+      fft_.inverse(z, b);
+      // Keep z(r) for r = 0..L-1 only; fold in the -1 of Phi = T - C and the 1/M.
+      for (Index r = 0; r < L; ++r) b[r] *= -scale;
+      std::fill(b + L, b + M, 0.0);
+      fft_.forward(b, z);
+    });
+    parallel_for(p_ * m, [&](Index task) {
+      const Index c = task / m, a = task % m;
+      double* b = buf(task);
+      Complex* ys = yspec(c, a);
+      std::fill(ys, ys + nb, Complex(0.0, 0.0));
+      for (Index d = 0; d < m; ++d) mac(kernel_.get() + (a * m + d) * nb, hspec(c, d), ys);
+      for (Index e = 0; e < num_exp_; ++e) mac(tail(e, a), zspec(e, c), ys);
+      fft_.inverse(ys, b);
+      for (Index k = 0; k <= L; ++k) y(k * m + a, c) = b[k] * scale;
+    });
     for (std::size_t e = 0; e < lag_means_.size(); ++e)
       for (Index c = 0; c < p_; ++c)
         y.col(c) -= (lag_count_[e] * lag_means_[e].dot(h.col(c))) * lag_means_[e];
@@ -167,6 +171,8 @@ class NormalOperator {
   Complex* hspec(Index c, Index a) { return hspec_.get() + (c * m_ + a) * nb_; }
   Complex* yspec(Index c, Index a) { return yspec_.get() + (c * m_ + a) * nb_; }
   const Complex* tail(Index e, Index a) const { return tail_.get() + (e * m_ + a) * nb_; }
+  Complex* zspec(Index e, Index c) { return zspec_.get() + (e * p_ + c) * nb_; }
+  double* buf(Index task) { return buf_[static_cast<std::size_t>(task)].get(); }
 
   // acc += x * z, acc += x * conj(z): the real-arithmetic loops of real_fft.h (std::complex
   // products check for NaN and do not vectorise).
@@ -180,7 +186,7 @@ class NormalOperator {
   Index nb_;
   Index num_exp_;
   ComplexArray kernel_, tail_, hspec_, yspec_, zspec_;
-  RealArray buf_;
+  std::vector<RealArray> buf_;  // one per task of a round
 };
 
 struct PcgOutcome {
@@ -283,7 +289,7 @@ void MarkovOptions::validate() const {
 }
 
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
-                             const MarkovOptions& options) {
+                             const MarkovOptions& options, MarkovCorrelations* reuse) {
   options.validate();
   if (experiments.empty())
     throw InputError(
@@ -402,14 +408,53 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
         "excitation and by the record end; use the least-squares method for accurate "
         "Markov parameters");
   } else {
-    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together.
+    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together
+    // (rows 0..p-1 and p..p+m-1 of corr[k]); with `reuse`, see the header.
     std::vector<Eigen::MatrixXd> corr(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p + m, m));
+    if (reuse != nullptr && reuse->max_lag >= L && !reuse->vv.empty()) {
+      if (static_cast<Index>(reuse->vv.size()) != reuse->max_lag + 1 || reuse->vv.front().rows() != m ||
+          (!reuse->qv.empty() && (reuse->qv.size() != reuse->vv.size() || reuse->qv.front().rows() != p)))
+        throw InputError("estimate_markov: the reused correlations do not match these experiments' channels");
+      for (Index k = 0; k <= L; ++k) corr[k].bottomRows(m) = reuse->vv[static_cast<std::size_t>(k)];
+      if (!reuse->qv.empty()) {
+        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = reuse->qv[static_cast<std::size_t>(k)];
+      } else {
+        std::vector<Eigen::MatrixXd> qv(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
+        for (Index e = 0; e < E; ++e)
+          signal_detail::accumulate_cross_correlation(qs[e], vs[e], experiments[e].excitation.rows(), L, qv);
+        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = qv[static_cast<std::size_t>(k)];
+      }
+    } else {
+      const bool store = reuse != nullptr && reuse->max_lag > 0;
+      const Index Lc = store ? std::max(reuse->max_lag, L) : L;
+      if (store) {
+        // The longest lag must leave N > Lc in every record (the FFT blocks' rule).
+        Index shortest = experiments[0].excitation.rows();
+        for (Index e = 1; e < E; ++e) shortest = std::min<Index>(shortest, experiments[e].excitation.rows());
+        if (Lc >= shortest) throw InputError(fmt::format("estimate_markov: correlations up to lag {} asked of a "
+                                                         "record of {} samples", Lc, shortest));
+      }
+      std::vector<Eigen::MatrixXd> full(store ? static_cast<size_t>(Lc + 1) : 0, Eigen::MatrixXd::Zero(p + m, m));
+      for (Index e = 0; e < E; ++e) {
+        std::vector<ChannelView> xs = qs[e];
+        xs.insert(xs.end(), vs[e].begin(), vs[e].end());
+        signal_detail::accumulate_cross_correlation(xs, vs[e], experiments[e].excitation.rows(), Lc,
+                                                    store ? full : corr);
+      }
+      if (store) {
+        reuse->max_lag = Lc;
+        reuse->vv.clear();
+        reuse->qv.clear();
+        for (Index k = 0; k <= Lc; ++k) {
+          reuse->qv.push_back(full[static_cast<std::size_t>(k)].topRows(p));
+          reuse->vv.push_back(full[static_cast<std::size_t>(k)].bottomRows(m));
+        }
+        for (Index k = 0; k <= L; ++k) corr[k] = full[static_cast<std::size_t>(k)];
+      }
+    }
     std::vector<Eigen::MatrixXd> tails;
     for (Index e = 0; e < E; ++e) {
-      std::vector<ChannelView> xs = qs[e];
-      xs.insert(xs.end(), vs[e].begin(), vs[e].end());
       const Index n = experiments[e].excitation.rows();
-      signal_detail::accumulate_cross_correlation(xs, vs[e], n, L, corr);
       Eigen::MatrixXd w = Eigen::MatrixXd::Zero(L, m);  // row s-1: v(N - s), s = 1..L
       for (Index a = 0; a < m; ++a) {
         if (!vs[e][a].active) continue;

@@ -126,7 +126,28 @@ struct MarkovResult {
 //   inputs always identical), naming them.
 // Returns report.usable == false (with the reached residual in report.termination)
 // when PCG stops at max_iterations without reaching the tolerance.
+//
+// `reuse` (kLeastSquares only; ignored by kCorrelation): correlations kept between calls
+// on the same excitation, so that a longer horizon or new outputs do not recompute what
+// has not changed.  The caller guarantees what the fields say:
+//   - max_lag > 0 and vv empty (or max_lag < L): this call computes R_vv and R_qv up
+//     to lag max(max_lag, L) (at about the cost of computing them up to L: the FFT
+//     blocks grow with the lag, their number shrinks) and stores them there; later calls
+//     with L <= max_lag take them from here.
+//   - vv filled: taken as R_vv of these experiments' excitation (same remove_mean);
+//   - qv filled: taken as R_qv of these experiments' outputs, which must be the very
+//     outputs it was computed from; clear qv (keep vv) for new outputs over the same
+//     excitation (e.g. corrected ones): then only R_qv (p x m channel pairs, not
+//     (p + m) x m) is computed, up to L, and not stored.
+// The estimate equals that of a call without `reuse` to round-off (the FFT block
+// length differs when max_lag > L).
+struct MarkovCorrelations {
+  Index max_lag = 0;
+  std::vector<Eigen::MatrixXd> vv;  // [k] m x m: sum over experiments of sum_t v(t) v(t - k)^T, k = 0..max_lag
+  std::vector<Eigen::MatrixXd> qv;  // [k] p x m: sum over experiments of sum_t q(t) v(t - k)^T (q centred per experiment)
+};
+
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
-                             const MarkovOptions& options);
+                             const MarkovOptions& options, MarkovCorrelations* reuse = nullptr);
 
 }  // namespace lpvid

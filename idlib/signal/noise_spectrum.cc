@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "idlib/core/error.h"
+#include "idlib/core/parallel.h"
 #include "idlib/signal/real_fft.h"
 
 namespace lpvid {
@@ -69,20 +70,24 @@ std::vector<Eigen::MatrixXcd> fir_residual_spectrum(const std::vector<Experiment
                                  segment_length, segment_length / 2 + 1));
   check_experiments("residual spectrum", experiments, p, m, segment_length, output_correction);
   const signal_detail::RealFft fft(segment_length);
-  auto buf = signal_detail::alloc_real(segment_length);
-  auto spec = signal_detail::alloc_complex(p * fft.bins());
   Eigen::VectorXd window(segment_length);
   for (Index t = 0; t < segment_length; ++t)
     window(t) = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(t) / static_cast<double>(segment_length));
   const double window_energy = window.squaredNorm();
-  std::vector<Eigen::MatrixXcd> psd(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, p));
-  Index segments = 0;
   const Index hop = segment_length / 2;
-  Eigen::MatrixXd e;  // residual of one experiment, N × p
-  for (std::size_t x = 0; x < experiments.size(); ++x) {
-    const auto& ex = experiments[x];
+  // One task per experiment (idlib/core/parallel.h), summed in experiment order.
+  const Index E = static_cast<Index>(experiments.size());
+  std::vector<std::vector<Eigen::MatrixXcd>> part(static_cast<std::size_t>(E));
+  std::vector<Index> part_segments(static_cast<std::size_t>(E), 0);
+  parallel_for(E, [&](Index x) {
+    auto buf = signal_detail::alloc_real(segment_length);
+    auto spec = signal_detail::alloc_complex(p * fft.bins());
+    std::vector<Eigen::MatrixXcd>& psd = part[static_cast<std::size_t>(x)];
+    psd.assign(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, p));
+    const auto& ex = experiments[static_cast<std::size_t>(x)];
     const Index n = ex.excitation.rows();
-    fir_residual(ex, g, output_correction.empty() ? nullptr : &output_correction[x], e);
+    Eigen::MatrixXd e;  // residual of the experiment, N × p
+    fir_residual(ex, g, output_correction.empty() ? nullptr : &output_correction[static_cast<std::size_t>(x)], e);
     for (Index s0 = 0; s0 + segment_length <= n; s0 += hop) {
       for (Index i = 0; i < p; ++i) {
         for (Index t = 0; t < segment_length; ++t) buf[t] = window(t) * e(s0 + t, i);
@@ -92,8 +97,14 @@ std::vector<Eigen::MatrixXcd> fir_residual_spectrum(const std::vector<Experiment
         for (Index j = 0; j < p; ++j)
           for (Index i = 0; i < p; ++i)
             psd[static_cast<std::size_t>(f)](i, j) += spec[i * fft.bins() + f] * std::conj(spec[j * fft.bins() + f]);
-      ++segments;
+      ++part_segments[static_cast<std::size_t>(x)];
     }
+  });
+  std::vector<Eigen::MatrixXcd> psd = std::move(part.front());
+  Index segments = part_segments.front();
+  for (Index x = 1; x < E; ++x) {
+    for (Index f = 0; f < num_bins; ++f) psd[static_cast<std::size_t>(f)] += part[static_cast<std::size_t>(x)][static_cast<std::size_t>(f)];
+    segments += part_segments[static_cast<std::size_t>(x)];
   }
   const double scale = 1.0 / (static_cast<double>(segments) * window_energy);
   for (auto& s : psd) s *= scale;
@@ -124,15 +135,25 @@ std::vector<std::vector<Eigen::MatrixXcd>> markov_error_replicates(const std::ve
   const Eigen::MatrixXd R0inv = gram.solve(Eigen::MatrixXd::Identity(m, m));
 
   const signal_detail::RealFft dft(K);
-  auto kin = signal_detail::alloc_real(K);
-  auto kout = signal_detail::alloc_complex(dft.bins());
-  std::vector<std::vector<Eigen::MatrixXcd>> out;
-  Eigen::MatrixXd e;
-  std::unique_ptr<signal_detail::RealFft> fft;
-  for (std::size_t x = 0; x < experiments.size(); ++x) {
+  // Tasks (idlib/core/parallel.h): the residual of each experiment, then each segment;
+  // the replicates are in experiment, then segment order.
+  const std::size_t E = experiments.size();
+  std::vector<Eigen::MatrixXd> residual(E);
+  parallel_for(static_cast<Index>(E), [&](Index x) {
+    fir_residual(experiments[static_cast<std::size_t>(x)], g,
+                 output_correction.empty() ? nullptr : &output_correction[static_cast<std::size_t>(x)],
+                 residual[static_cast<std::size_t>(x)]);
+  });
+  struct Segment {
+    std::size_t x;
+    Index t0, t1;
+    double dof_scale;
+    std::vector<Index> active;
+  };
+  std::vector<Segment> segs;
+  for (std::size_t x = 0; x < E; ++x) {
     const auto& ex = experiments[x];
     const Index n = ex.excitation.rows();
-    fir_residual(ex, g, output_correction.empty() ? nullptr : &output_correction[x], e);
     std::vector<Index> active;
     for (Index a = 0; a < m; ++a) {
       const auto col = ex.excitation.col(a);
@@ -146,42 +167,65 @@ std::vector<std::vector<Eigen::MatrixXcd>> markov_error_replicates(const std::ve
     const double dof_scale = static_cast<double>(n) / std::max(static_cast<double>(n) - used, 1.0);
     const Index segments = std::max<Index>(1, n / segment_length);
     for (Index s = 0; s < segments; ++s) {
-      const Index t0 = s * segment_length, t1 = s + 1 == segments ? n : t0 + segment_length, Ls = t1 - t0;
-      Index M = 1;
-      while (M < Ls + K) M *= 2;
-      if (!fft || fft->size() != M) fft = std::make_unique<signal_detail::RealFft>(M);
-      auto buf = signal_detail::alloc_real(M);
-      auto X = signal_detail::alloc_complex(p * fft->bins());
-      auto Y = signal_detail::alloc_complex(fft->bins());
-      auto prod = signal_detail::alloc_complex(fft->bins());
-      for (Index i = 0; i < p; ++i) {
-        std::fill(buf.get(), buf.get() + M, 0.0);
-        for (Index t = 0; t < Ls; ++t) buf[t] = e(t0 + t, i);
-        fft->forward(buf.get(), X.get() + i * fft->bins());
-      }
-      // Z_f(i, a): the K-point transform of z(k) = Σ_{t∈s} e_i(t) v_a(t − k), k = 1..K.
-      std::vector<Eigen::MatrixXcd> Z(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, m));
-      for (const Index a : active) {
-        std::fill(buf.get(), buf.get() + M, 0.0);
-        for (Index tau = 0; tau < Ls + K; ++tau) {  // y(τ) = v_a(t0 − K + τ), zero before the record
-          const Index t = t0 - K + tau;
-          if (t >= 0 && t < n) buf[tau] = ex.excitation(t, a);
-        }
-        fft->forward(buf.get(), Y.get());
-        for (Index i = 0; i < p; ++i) {
-          for (Index f = 0; f < fft->bins(); ++f) prod[f] = std::conj(X[i * fft->bins() + f]) * Y[f];
-          fft->inverse(prod.get(), buf.get());  // M · c(d), c(d) = Σ_τ x(τ) y(τ + d); z(k) = c(K − k)
-          for (Index k = 1; k <= K; ++k) kin[k - 1] = buf[K - k] / static_cast<double>(M);
-          dft.forward(kin.get(), kout.get());
-          for (Index f = 0; f < num_bins; ++f)  // Σ_{k≥1} z(k) w^-k = w^-1 Σ_{k'≥0} z(k'+1) w^-k'
-            Z[static_cast<std::size_t>(f)](i, a) =
-                kout[f] * std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(K));
-        }
-      }
-      for (auto& z : Z) z = dof_scale * (z * R0inv);
-      out.push_back(std::move(Z));
+      const Index t0 = s * segment_length, t1 = s + 1 == segments ? n : t0 + segment_length;
+      segs.push_back({x, t0, t1, dof_scale, active});
     }
   }
+  // One transform per segment length (the plans are made once, before the tasks).
+  std::vector<std::unique_ptr<signal_detail::RealFft>> ffts;
+  auto fft_for = [&](Index M) -> const signal_detail::RealFft* {
+    for (const auto& f : ffts)
+      if (f->size() == M) return f.get();
+    return nullptr;
+  };
+  for (const Segment& sg : segs) {
+    const Index M = signal_detail::next_fft_size(sg.t1 - sg.t0 + K);
+    if (fft_for(M) == nullptr) ffts.push_back(std::make_unique<signal_detail::RealFft>(M));
+  }
+  // w^-(f+1), w = e^(2πi/K): the K-point transform's bins shifted by one lag.
+  std::vector<Complex> shift(static_cast<std::size_t>(num_bins));
+  for (Index f = 0; f < num_bins; ++f)
+    shift[static_cast<std::size_t>(f)] = std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(K));
+  std::vector<std::vector<Eigen::MatrixXcd>> out(segs.size());
+  parallel_for(static_cast<Index>(segs.size()), [&](Index si) {
+    const Segment& sg = segs[static_cast<std::size_t>(si)];
+    const auto& ex = experiments[sg.x];
+    const Eigen::MatrixXd& e = residual[sg.x];
+    const Index n = ex.excitation.rows(), t0 = sg.t0, Ls = sg.t1 - sg.t0;
+    const signal_detail::RealFft& fft = *fft_for(signal_detail::next_fft_size(Ls + K));
+    const Index M = fft.size();
+    auto kin = signal_detail::alloc_real(K);
+    auto kout = signal_detail::alloc_complex(dft.bins());
+    auto buf = signal_detail::alloc_real(M);
+    auto X = signal_detail::alloc_complex(p * fft.bins());
+    auto Y = signal_detail::alloc_complex(fft.bins());
+    auto prod = signal_detail::alloc_complex(fft.bins());
+    for (Index i = 0; i < p; ++i) {
+      std::fill(buf.get(), buf.get() + M, 0.0);
+      for (Index t = 0; t < Ls; ++t) buf[t] = e(t0 + t, i);
+      fft.forward(buf.get(), X.get() + i * fft.bins());
+    }
+    // Z_f(i, a): the K-point transform of z(k) = Σ_{t∈s} e_i(t) v_a(t − k), k = 1..K.
+    std::vector<Eigen::MatrixXcd> Z(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, m));
+    for (const Index a : sg.active) {
+      std::fill(buf.get(), buf.get() + M, 0.0);
+      for (Index tau = 0; tau < Ls + K; ++tau) {  // y(τ) = v_a(t0 − K + τ), zero before the record
+        const Index t = t0 - K + tau;
+        if (t >= 0 && t < n) buf[tau] = ex.excitation(t, a);
+      }
+      fft.forward(buf.get(), Y.get());
+      for (Index i = 0; i < p; ++i) {
+        for (Index f = 0; f < fft.bins(); ++f) prod[f] = std::conj(X[i * fft.bins() + f]) * Y[f];
+        fft.inverse(prod.get(), buf.get());  // M · c(d), c(d) = Σ_τ x(τ) y(τ + d); z(k) = c(K − k)
+        for (Index k = 1; k <= K; ++k) kin[k - 1] = buf[K - k] / static_cast<double>(M);
+        dft.forward(kin.get(), kout.get());
+        for (Index f = 0; f < num_bins; ++f)  // Σ_{k≥1} z(k) w^-k = w^-1 Σ_{k'≥0} z(k'+1) w^-k'
+          Z[static_cast<std::size_t>(f)](i, a) = kout[f] * shift[static_cast<std::size_t>(f)];
+      }
+    }
+    for (auto& z : Z) z = sg.dof_scale * (z * R0inv);
+    out[static_cast<std::size_t>(si)] = std::move(Z);
+  });
   return out;
 }
 

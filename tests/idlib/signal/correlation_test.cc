@@ -6,6 +6,7 @@
 #include <random>
 
 #include "idlib/core/error.h"
+#include "idlib/signal/real_fft.h"
 
 namespace lpvid {
 namespace {
@@ -99,6 +100,22 @@ TEST(Autocorrelation, IsCrossCorrelationWithItselfAndSymmetricAtLagZero) {
   const auto ref = direct(x, x, 10);
   EXPECT_LE(worst_error(r, ref), kFftVsDirectRelTol * 2000 * x.cwiseAbs().maxCoeff() * x.cwiseAbs().maxCoeff());
   EXPECT_EQ((r[0] - r[0].transpose()).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// The blocks' and the Markov operator's transform sizes: the smallest 2^a 3^b >= n,
+// checked against a direct search.
+TEST(NextFftSize, IsTheSmallestTwoThreeSmoothSizeAtLeastN) {
+  auto smooth = [](Index k) {
+    while (k % 2 == 0) k /= 2;
+    while (k % 3 == 0) k /= 3;
+    return k == 1;
+  };
+  for (Index n = 1; n <= 5000; ++n) {
+    Index want = n;
+    while (!smooth(want)) ++want;
+    ASSERT_EQ(signal_detail::next_fft_size(n), want) << "n = " << n;
+  }
+  EXPECT_EQ(signal_detail::next_fft_size(2 * 32768 + 2), 69984);  // 2^5 3^7
 }
 
 TEST(CrossCorrelation, RejectsDifferentSampleCounts) {

@@ -297,6 +297,39 @@ TEST(EstimateMarkov, AWarmStartGivesTheSameEstimateInFewerIterations) {
   EXPECT_THROW(estimate_markov(f.views(), wrong), InputError);
 }
 
+// Reused correlations (computed at 4x the horizon, then the same outputs at 2x, then new
+// outputs over the same excitation) give the estimates of calls without them, to the
+// round-off of the FFT block length (~1e-15 relative to Σ|q||v|; PCG's 1e-12 tolerance
+// dominates the comparison).
+TEST(EstimateMarkov, ReusedCorrelationsGiveTheSameEstimates) {
+  constexpr double kReuseRelTol = 1e-9;
+  Fixture f = one_input_per_experiment(20000);
+  std::mt19937_64 noise_rng(kNoiseSeed + 5);
+  for (auto& q : f.q) q += white(q.rows(), kOutputs, noise_rng, 0.5);
+  MarkovCorrelations corr;
+  corr.max_lag = 4 * (kLags / 2);
+  const MarkovOptions half = options(Method::kLeastSquares, kLags / 2, true);
+  const MarkovResult a = estimate_markov(f.views(), half, &corr);
+  EXPECT_EQ(corr.max_lag, 4 * (kLags / 2));
+  ASSERT_EQ(corr.vv.size(), static_cast<std::size_t>(corr.max_lag + 1));
+  ASSERT_EQ(corr.qv.size(), corr.vv.size());
+  EXPECT_LE(relative_error(a.g, estimate_markov(f.views(), half).g), kReuseRelTol);
+  const MarkovOptions full = options(Method::kLeastSquares, kLags, true);
+  const MarkovResult b = estimate_markov(f.views(), full, &corr);
+  EXPECT_LE(relative_error(b.g, estimate_markov(f.views(), full).g), kReuseRelTol);
+  EXPECT_NEAR(b.noise_std(0, 0), estimate_markov(f.views(), full).noise_std(0, 0), 1e-9 * b.noise_std(0, 0));
+  Fixture g = f;
+  for (auto& q : g.q) q *= 0.9;
+  corr.qv.clear();
+  const MarkovResult c = estimate_markov(g.views(), full, &corr);
+  EXPECT_LE(relative_error(c.g, estimate_markov(g.views(), full).g), kReuseRelTol);
+  EXPECT_TRUE(corr.qv.empty());
+  // Correlations of other channels are refused.
+  MarkovCorrelations wrong = corr;
+  for (auto& x : wrong.vv) x = Eigen::MatrixXd::Zero(kInputs + 1, kInputs);
+  EXPECT_THROW(estimate_markov(g.views(), full, &wrong), InputError);
+}
+
 TEST(EstimateMarkov, DefaultOffsetEstimateKeepsZeroColumnsZeroWithOneInputPerExperiment) {
   const Fixture f = one_input_per_experiment(6000);
   MarkovOptions o;  // defaults: least squares, remove_mean = true (output offsets estimated)
