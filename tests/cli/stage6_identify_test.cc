@@ -102,3 +102,42 @@ TEST(Stage6IdentifyCli, BadInputsGiveOneLineAndExitTwo) {
 
 }  // namespace
 }  // namespace lpvid
+
+namespace lpvid {
+namespace {
+
+// The stage through the SAME commands as the platform (issue 13): the plant from
+// one closed-loop log by `frf --input`, `model init --base stage6`, `diagnose`
+// names the hidden gap dependence, `model add` + `fit` bring the error to the noise,
+// `compare` against the simulator's truth model finds nothing beyond the noise.
+TEST(Stage6LoopCli, TheSharedCommandsNameTheHiddenGapDependenceAndTheErrorFallsToTheNoise) {
+  TempDir d("stage6loop");
+  auto r = run_lpvid("simulate stage6 --experiment --hover --duration-s 30 --effects gap --seed 4 --out " +
+                     (d / "rig"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("frf --excitation v1,v2,v3,v6,v5,v4 --input u1,u2,u3,u6,u5,u4 --output q1,q2,q3,q4,q5,q6 "
+                "--quantity P --segment 512 --out " + (d / "P.csv") + " " + (d / "rig/exp_stage6.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string data = " --data " + (d / "P.csv") + "@0 --rate-hz 1000";
+  ASSERT_EQ(run_lpvid("model init --base stage6 --out " + (d / "model.json")).exit_code, 0);
+  r = run_lpvid("diagnose --model " + (d / "model.json") + data + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["missing"], "gap_dependence") << r.out.substr(0, 2000);
+  EXPECT_TRUE(j["explained"].get<bool>());
+  ASSERT_EQ(run_lpvid("model add gap_dependence --model " + (d / "model.json") + " --out " + (d / "start2.json"))
+                .exit_code,
+            0);
+  r = run_lpvid("fit --model " + (d / "start2.json") + data + " --out " + (d / "fit2.json") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto f = nlohmann::json::parse(r.out);
+  // Within the noise: the weighted cost per real residual (a χ² per degree of
+  // freedom when the noise is known) near 1 (the sample: 0.96).
+  EXPECT_LT(f["cost_final"].get<double>() / f["residuals"].get<double>(), 1.5) << r.out.substr(0, 2000);
+  r = run_lpvid("compare --model " + (d / "rig/truth_model.json") + data);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("no failing band"));
+}
+
+}  // namespace
+}  // namespace lpvid
