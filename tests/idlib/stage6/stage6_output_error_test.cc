@@ -7,6 +7,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/stage6/stage6_sim.h"
+#include "tests/support/statistics.h"
 
 namespace lpvid::stage6 {
 namespace {
@@ -120,7 +121,9 @@ TEST(Stage6OutputError, DefaultSensorNoiseRemovesTheEquationErrorBiasOverFiveSee
   effects.force_constant_scale = 0.97;
   StageFitModel model;
   model.com_offset = false;
-  constexpr int kSeeds = 5;
+  // Sanitizer build: two seeds, each still held to 3σ; the mean over them is no
+  // statistical evidence and is not tested (tests/support/statistics.h).
+  constexpr int kSeeds = testing::kFullStatistics ? 5 : 2;
   // An attenuation above 0.5 % on every axis (the law gives ≥ 0.9 % here).
   constexpr double kEquationErrorBiasAtLeast = 0.005;
   constexpr double kMaxZ = 3.0, kMaxMeanZ = 1.0;
@@ -149,7 +152,9 @@ TEST(Stage6OutputError, DefaultSensorNoiseRemovesTheEquationErrorBiasOverFiveSee
     EXPECT_NEAR(r.sigma2, 1.0, 0.05);
   }
   std::cout << "mean error over seeds in σ (H_xx H_yy H_zz κ): " << mean_z.transpose() << "\n";
-  EXPECT_LT(mean_z.cwiseAbs().maxCoeff(), kMaxMeanZ);
+  if (testing::kFullStatistics) {
+    EXPECT_LT(mean_z.cwiseAbs().maxCoeff(), kMaxMeanZ);
+  }
 }
 
 // Each effect, present in the simulated stage (with the default sensor noise),
