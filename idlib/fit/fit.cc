@@ -185,29 +185,15 @@ class Engine {
           Ch = C.cast<Cx>() * V;
           Bhn = Vinv * Bn.cast<Cx>();
           Bho = Vinv * Bo.cast<Cx>();
-          if (dT != nullptr && p > 0) {
-            const Index ni0 = Bn.cols(), no0 = C.rows();
-            dAv.resize(n * n_inner, n);
-            dBvn.resize(n * n_inner, ni0);
-            if (any_old) dBvo.resize(n * n_inner, ni0);
-            dCv.resize(no0 * n_outer, n);
-            for (Index q = 0; q < p; ++q) {
-              const auto s = static_cast<std::size_t>(q);
-              if (const Index r = pos_inner[s]; r >= 0) {
-                dAv.middleRows(r * n, n).noalias() = Vinv * (dA[s].cast<Cx>() * V);
-                dBvn.middleRows(r * n, n).noalias() = Vinv * dBn[s].cast<Cx>();
-                if (any_old) dBvo.middleRows(r * n, n).noalias() = Vinv * dBo[s].cast<Cx>();
-              }
-              if (const Index r = pos_outer[s]; r >= 0) dCv.middleRows(r * no0, no0).noalias() = dC[s].cast<Cx>() * V;
-            }
-          }
         }
       }
     }
-    if (!modal && dT != nullptr && p > 0) {
-      // The resolvent route stacks the derivatives the same way, untransformed:
-      // dAv = [dA_q], dBv = [dB_q], dCv = [dC_q], so that with X = (λI − A)⁻¹ B_z and
-      // Y = C (λI − A)⁻¹ every frequency needs three GEMMs for all parameters.
+    if (dT != nullptr && p > 0) {
+      // Stacked derivatives: in modal coordinates (V⁻¹ dA_q V, V⁻¹ dB_q, dC_q V) on the
+      // modal route; untransformed on the resolvent route, where with X = (λI − A)⁻¹ B_z
+      // and Y = C (λI − A)⁻¹ every frequency likewise needs three GEMMs for all parameters.
+      const Eigen::MatrixXcd Vr = modal ? V : Eigen::MatrixXcd::Identity(n, n);
+      const Eigen::MatrixXcd Vl = modal ? Vinv : Eigen::MatrixXcd::Identity(n, n);
       dAv.resize(n * n_inner, n);
       dBvn.resize(n * n_inner, ni);
       if (any_old) dBvo.resize(n * n_inner, ni);
@@ -215,11 +201,11 @@ class Engine {
       for (Index q = 0; q < p; ++q) {
         const auto s = static_cast<std::size_t>(q);
         if (const Index r = pos_inner[s]; r >= 0) {
-          dAv.middleRows(r * n, n) = dA[s].cast<Cx>();
-          dBvn.middleRows(r * n, n) = dBn[s].cast<Cx>();
-          if (any_old) dBvo.middleRows(r * n, n) = dBo[s].cast<Cx>();
+          dAv.middleRows(r * n, n).noalias() = Vl * (dA[s].cast<Cx>() * Vr);
+          dBvn.middleRows(r * n, n).noalias() = Vl * dBn[s].cast<Cx>();
+          if (any_old) dBvo.middleRows(r * n, n).noalias() = Vl * dBo[s].cast<Cx>();
         }
-        if (const Index r = pos_outer[s]; r >= 0) dCv.middleRows(r * no, no) = dC[s].cast<Cx>();
+        if (const Index r = pos_outer[s]; r >= 0) dCv.middleRows(r * no, no).noalias() = dC[s].cast<Cx>() * Vr;
       }
     }
     const Eigen::MatrixXcd Ac = A.cast<Cx>(), Bnc = Bn.cast<Cx>(), Boc = Bo.cast<Cx>(), Cc = C.cast<Cx>();
