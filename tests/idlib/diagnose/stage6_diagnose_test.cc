@@ -13,7 +13,7 @@
 //
 // Criteria (issue 13, "What must hold"): the hidden effect named first and the error
 // falls >= 10x or to within 1.5x the noise floor; a clean stage: nothing significant
-// in >= 9 of 10 seeds.  Sanitizer build: one seed per effect and three clean seeds
+// in >= 9 of 10 seeds.  Sanitizer build: two hidden effects and one clean seed
 // (tests/support/statistics.h); no statistical evidence.
 #include <gtest/gtest.h>
 
@@ -195,8 +195,10 @@ std::vector<HiddenCase> hidden_cases() {
   std::vector<HiddenCase> full;
   for (Hidden e : {Hidden::kGap, Hidden::kLag, Hidden::kCom, Hidden::kDelay})
     for (std::uint64_t s : {501, 502, 503}) full.push_back({e, s});
-  return testing::statistical_cases(full, {{Hidden::kGap, 501}, {Hidden::kLag, 501}, {Hidden::kCom, 501},
-                                           {Hidden::kDelay, 501}});
+  // Sanitizer build: two cases (each takes 70–90 s under ASan): the gap's
+  // stiffness and the delay's fractional-sample path; the lag and the offset run
+  // the same diagnose code.
+  return testing::statistical_cases(full, {{Hidden::kGap, 501}, {Hidden::kDelay, 501}});
 }
 
 std::string case_name(const ::testing::TestParamInfo<HiddenCase>& info) {
@@ -206,7 +208,8 @@ std::string case_name(const ::testing::TestParamInfo<HiddenCase>& info) {
 INSTANTIATE_TEST_SUITE_P(Stage6, StageHiddenEffectIsNamed, ::testing::ValuesIn(hidden_cases()), case_name);
 
 TEST(Stage6Clean, NothingIsSignificantInAtLeastNineOfTenSeeds) {
-  constexpr int kSeeds = 10, kAllowedFalseAlarms = 1, kSubsetSeeds = 3;
+  // Sanitizer build: one seed (three took 328 s under ASan), no alarm allowed.
+  constexpr int kSeeds = 10, kAllowedFalseAlarms = 1, kSubsetSeeds = 1;
   constexpr int kRuns = testing::kFullStatistics ? kSeeds : kSubsetSeeds;
   constexpr int kAllowed = testing::scaled_allowance(kAllowedFalseAlarms, kSeeds, kRuns);
   static_assert(kAllowed < kRuns, "the criterion over the seeds run must be able to fail");
