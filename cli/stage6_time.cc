@@ -402,17 +402,10 @@ std::vector<unsigned char> stage_overlay_png(const Eigen::VectorXd& t, const Eig
   po.panel_height_px = 110;
   cv::Mat image = render_time_plot(series, po);
   const TimePlotLayout layout = layout_time_plot(series, po);
-  cv::Mat shade = image.clone();
-  for (const auto& w : r.failures) {
-    const cv::Rect& panel = layout.panels_px[static_cast<std::size_t>(6 + w.channel)];
-    const int x0 = static_cast<int>(std::floor(layout.time.to_px(w.t_start_s)));
-    const int x1 = static_cast<int>(std::ceil(layout.time.to_px(w.t_end_s)));
-    cv::rectangle(shade, cv::Rect(cv::Point(std::max(x0, panel.x), panel.y),
-                                  cv::Point(std::min(x1, panel.x + panel.width), panel.y + panel.height)),
-                  cv::Scalar(80, 80, 255), cv::FILLED);
-  }
-  constexpr double kShadeAlpha = 0.25;  // the curves stay readable under the red
-  cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
+  std::vector<TimeWindowMark> marks;
+  for (const auto& w : r.failures)
+    marks.push_back({static_cast<std::size_t>(6 + w.channel), w.t_start_s, w.t_end_s});
+  shade_time_windows(image, layout, marks);
   return plot::encode_png(image);
 }
 
