@@ -97,8 +97,9 @@ struct ExcitationSpec {
   // Non-periodic signals (noise; PRBS with period_samples = 0): N >= 2 rows.
   Index samples = 0;
 
-  // Largest N * n accepted (4 x 10^8 values = 3.2 GB): a larger request is a unit mistake.
-  static constexpr double kMaxValues = 4e8;
+  // Largest N * n accepted: 10^8 values are 800 MB of samples (the CLI holds a
+  // second copy with t); far beyond a lab experiment, so a larger request is a mistake.
+  static constexpr double kMaxValues = 1e8;
 
   // @throws InputError naming the field and the rule: fs, n, limits, L, P, T, R,
   //   band outside (0, fs/2) or with no bin, a grid parameter, a MIMO design that
