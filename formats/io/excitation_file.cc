@@ -13,26 +13,15 @@
 #include <mutex>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/matio_detail.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
 namespace {
 
-struct MatCloser {
-  void operator()(mat_t* mat) const { Mat_Close(mat); }
-};
-struct VarFreer {
-  void operator()(matvar_t* var) const { Mat_VarFree(var); }
-};
-using MatPtr = std::unique_ptr<mat_t, MatCloser>;
-using VarPtr = std::unique_ptr<matvar_t, VarFreer>;
-
-// matio reports problems through a log function that prints; here every problem
-// becomes an InputError instead.
-void silence_matio() {
-  static std::once_flag once;
-  std::call_once(once, [] { Mat_LogInitFunc("lpvid", [](int, char*) {}); });
-}
+using detail::MatPtr;
+using detail::silence_matio;
+using detail::VarPtr;
 
 std::vector<std::string> expected_names(Index channels) {
   std::vector<std::string> names = {"t"};
