@@ -20,6 +20,7 @@
 #include <optional>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/matio_detail.h"
 #include "formats/io/frd_detail.h"
 #include "formats/io/text.h"
 #include "idlib/core/error.h"
@@ -42,21 +43,9 @@ void append_utf8(std::string& text, unsigned u) {
   }
 }
 
-// matio reports problems through a global log function that prints to stderr;
-// every problem here becomes an InputError instead, so the log is silenced.
-void silence_matio() {
-  static std::once_flag once;
-  std::call_once(once, [] { Mat_LogInitFunc("lpvid", [](int, char*) {}); });
-}
-
-struct MatCloser {
-  void operator()(mat_t* mat) const { Mat_Close(mat); }
-};
-struct VarFreer {
-  void operator()(matvar_t* var) const { Mat_VarFree(var); }
-};
-using MatPtr = std::unique_ptr<mat_t, MatCloser>;
-using VarPtr = std::unique_ptr<matvar_t, VarFreer>;
+using detail::MatPtr;
+using detail::silence_matio;
+using detail::VarPtr;
 
 // Converts n elements of a matio numeric array to double.
 bool to_double(const matvar_t* var, const void* data, size_t n, std::vector<double>& out) {
