@@ -65,31 +65,6 @@ bool given(const FrfCliOptions& o, const std::string& name) {
   return std::find(o.given.begin(), o.given.end(), name) != o.given.end();
 }
 
-// Contiguous runs of at least kMinBandLines lines whose mean σ̂²_BLA/σ̂²_n over the
-// entries exceeds kDistortionRatio: for a linear system that mean is an average of
-// F(2(R−1), 2R(P−1)) variates (mean ≈ 1), so 2 is far in its tail for a MIMO line and
-// three neighbours in a row are rare for a SISO one (docs/subcommands.md).
-constexpr double kDistortionRatio = 2.0;
-constexpr size_t kMinBandLines = 3;
-
-std::vector<std::pair<double, double>> distortion_bands(const PeriodicFrfResult& r) {
-  const auto ratio = distortion_to_noise_ratio(r);
-  std::vector<std::pair<double, double>> bands;
-  size_t run = 0;
-  for (size_t k = 0; k <= ratio.size(); ++k) {
-    const bool hit = k < ratio.size() && ratio[k].mean() > kDistortionRatio;
-    if (hit) {
-      ++run;
-      continue;
-    }
-    if (run >= kMinBandLines)
-      bands.emplace_back(r.frd.omega_rad_s(static_cast<Index>(k - run)) / (2 * std::numbers::pi),
-                         r.frd.omega_rad_s(static_cast<Index>(k - 1)) / (2 * std::numbers::pi));
-    run = 0;
-  }
-  return bands;
-}
-
 std::vector<Index> parse_bins(const std::string& text) {
   std::vector<Index> bins;
   if (text.empty()) return bins;
@@ -132,8 +107,7 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
     }
     popt.sample_period_s = set.sample_period_s;
     PeriodicFrfResult r = estimate_periodic_frf(v, z, plant ? m : 0, popt);
-    frd = std::move(r.frd);
-    r.frd = frd;  // distortion_bands reads the grid
+    frd = r.frd;
     const auto& lay = popt.layout;
     comments.push_back(fmt::format("lpvid frf --method periodic: {} from {} log(s), Ts = {:.6g} s, L = {}, P = {}, "
                                    "T = {}, R = {}, E = {}; var_ = noise{} (dof {}{})",
@@ -156,17 +130,20 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
                        frd.num_frequencies(), frd.omega_rad_s(0) / (2 * std::numbers::pi),
                        frd.omega_rad_s(frd.num_frequencies() - 1) / (2 * std::numbers::pi), noise);
     if (lay.realisations >= 2) {
-      const auto bands = distortion_bands(r);
       nlohmann::json jb = nlohmann::json::array();
       std::string tb;
-      for (const auto& [lo, hi] : bands) {
+      const auto bands = distortion_bands(r);
+      for (const auto& [first, last] : bands) {
+        const double lo = r.frd.omega_rad_s(first) / (2 * std::numbers::pi);
+        const double hi = r.frd.omega_rad_s(last) / (2 * std::numbers::pi);
         jb.push_back({lo, hi});
         tb += fmt::format("{}{:.4g}-{:.4g} Hz", tb.empty() ? "" : ", ", lo, hi);
       }
       summary["distortion_bands_hz"] = jb;
       text += bands.empty() ? "  nonlinear distortion: not above the noise at any band of the excited lines\n"
-                            : fmt::format("  nonlinear distortion above the noise (sigma2_BLA > {} sigma2_noise) in: {}\n",
-                                          kDistortionRatio, tb);
+                            : fmt::format("  nonlinear distortion above the noise (sigma2_BLA / sigma2_noise beyond "
+                                          "{} sd of its linear-system distribution over {} lines) in: {}\n",
+                                          kDistortionSigmas, kDistortionWindow, tb);
     } else {
       text += "  one realisation: nonlinear distortions cannot be told from the system (use --realisations >= 2)\n";
     }

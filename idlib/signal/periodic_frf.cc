@@ -278,6 +278,15 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
     } else {
       frd.variance[kk] = noise;
     }
+    if (flagged[kk]) {  // Ŝ singular in some realisation: no value, never an unreliable one
+      frd.response[kk].setZero();
+      frd.variance[kk].setZero();
+      result.noise_variance[kk].setZero();
+      if (R >= 2) {
+        frd.distortion_variance[kk].setZero();
+        result.scatter_variance[kk].setZero();
+      }
+    }
   }
   if (plant_inputs != 0) frd.flagged = flagged;
   result.bins = std::move(bins);
@@ -304,6 +313,33 @@ std::vector<Eigen::MatrixXd> distortion_to_noise_ratio(const PeriodicFrfResult& 
     ratio.push_back(q);
   }
   return ratio;
+}
+
+std::vector<std::pair<Index, Index>> distortion_bands(const PeriodicFrfResult& result) {
+  std::vector<std::pair<Index, Index>> bands;
+  const auto ratio = distortion_to_noise_ratio(result);
+  const double d1 = 2.0 * static_cast<double>(result.realisation_dof), d2 = 2.0 * static_cast<double>(result.noise_dof);
+  const Index F = static_cast<Index>(ratio.size());
+  if (F == 0 || d1 < 2 || d2 <= 4) return bands;
+  const double mu0 = d2 / (d2 - 2);
+  const double sd0 = std::sqrt(2 * d2 * d2 * (d1 + d2 - 2) / (d1 * (d2 - 2) * (d2 - 2) * (d2 - 4)));
+  const Index W = std::min(kDistortionWindow, F);
+  const double threshold = mu0 + kDistortionSigmas * sd0 / std::sqrt(static_cast<double>(W));
+  std::vector<bool> hit(static_cast<size_t>(F), false);
+  for (Index s = 0; s + W <= F; ++s) {
+    double mean = 0;
+    for (Index k = s; k < s + W; ++k) mean += ratio[static_cast<size_t>(k)].mean();
+    if (mean / static_cast<double>(W) > threshold)
+      for (Index k = s; k < s + W; ++k) hit[static_cast<size_t>(k)] = true;
+  }
+  for (Index k = 0; k < F; ++k) {
+    if (!hit[static_cast<size_t>(k)]) continue;
+    if (!bands.empty() && bands.back().second == k - 1)
+      bands.back().second = k;
+    else
+      bands.emplace_back(k, k);
+  }
+  return bands;
 }
 
 }  // namespace lpvid

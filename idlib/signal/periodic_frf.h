@@ -59,6 +59,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <utility>
 #include <vector>
 
 #include "idlib/core/error.h"
@@ -136,5 +137,17 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
 // For the "distortion above noise" test: per line and entry the ratio σ̂²_BLA / σ̂²_n (≈ 1 for a linear system: an F(2(R−1), 2R(P−1)) variate;
 // well above 1 where nonlinear distortions dominate).  Empty when R = 1.
 std::vector<Eigen::MatrixXd> distortion_to_noise_ratio(const PeriodicFrfResult& result);
+
+// Lines where the distortion stands above the noise, as runs [first, last] of line
+// indices.  Test: under "linear" each line's σ̂²_BLA/σ̂²_n (the mean over its entries,
+// treated as ONE variate since entries of a line are correlated) is F(d1, d2) with
+// d1 = 2(R−1), d2 = 2·noise_dof, mean μ0 = d2/(d2−2) and variance
+// σ0² = 2 d2² (d1+d2−2) / (d1 (d2−2)² (d2−4)); a window of kDistortionWindow
+// consecutive lines is "distorted" when its mean ratio exceeds
+// μ0 + kDistortionSigmas · σ0 / sqrt(window), and the union of such windows is returned.
+// Empty when R = 1 or d2 <= 4 (too few degrees of freedom for the moments).
+inline constexpr Index kDistortionWindow = 5;
+inline constexpr double kDistortionSigmas = 5.0;
+std::vector<std::pair<Index, Index>> distortion_bands(const PeriodicFrfResult& result);
 
 }  // namespace lpvid

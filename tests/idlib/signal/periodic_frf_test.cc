@@ -232,8 +232,10 @@ TEST(PeriodicFrf, FiveTimesMoreAccurateThanWelchFromWhiteNoiseAtEqualExperimentT
 
 TEST(PeriodicFrf, SaturationShowsAsDistortionAboveNoiseAndALinearLoopDoesNot) {
   constexpr Index kPeriods = 4, kRealisations = 4;
+  std::vector<size_t> bands;
   const auto mean_ratio = [&](double saturation, std::uint64_t seed) {
     const auto p = plant(periodic_data(kPeriods, kRealisations, 1.0, saturation, seed), kPeriods, kRealisations);
+    bands.push_back(distortion_bands(p).size());
     const auto ratio = distortion_to_noise_ratio(p);
     double m = 0;
     for (const auto& r : ratio) m += r.diagonal().sum() / 3.0;
@@ -249,6 +251,10 @@ TEST(PeriodicFrf, SaturationShowsAsDistortionAboveNoiseAndALinearLoopDoesNot) {
   EXPECT_LT(linear, 1.5);
   EXPECT_GT(linear, 0.7);
   EXPECT_GT(clipped, 5.0);
+  // The band test (5 sd over 5-line windows) finds nothing in the linear loop and at
+  // least one band with the saturation.
+  EXPECT_EQ(bands[0], 0u);
+  EXPECT_GE(bands[1], 1u);
 }
 
 TEST(PeriodicFrf, RefusesASingularExperimentMatrix) {
