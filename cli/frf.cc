@@ -3,6 +3,7 @@
 // the closed loop G, so both identification approaches run on one experiment.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <charconv>
@@ -106,7 +107,16 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
       at += set.excitations[e].rows();
     }
     popt.sample_period_s = set.sample_period_s;
-    PeriodicFrfResult r = estimate_periodic_frf(v, z, plant ? m : 0, popt);
+    const std::string where = set.paths.size() == 1 ? set.paths.front()
+                                                    : fmt::format("the {} logs concatenated", set.paths.size());
+    PeriodicFrfResult r;
+    try {
+      r = estimate_periodic_frf(v, z, plant ? m : 0, popt);
+    } catch (const InputError& e) {  // name the file and the columns the message counts
+      throw InputError(fmt::format("{}: {} (excitation columns {}; measured {}{}{})", where, e.what(),
+                                   fmt::join(excitation, ","), fmt::join(output, ","), plant ? "," : "",
+                                   fmt::join(input, ",")));
+    }
     frd = r.frd;
     const auto& lay = popt.layout;
     comments.push_back(fmt::format("lpvid frf --method periodic: {} from {} log(s), Ts = {:.6g} s, L = {}, P = {}, "
