@@ -210,7 +210,7 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
         throw InputError(fmt::format("the excitation matrix V ({}×{}) at {:.6g} Hz (bin {}) of realisation {} is singular "
                                      "(condition {:.3g}): the experiments do not excite the inputs independently at "
                                      "that line; use a design whose experiment matrix is invertible at every excited "
-                                     "line, or give --excited-bins",
+                                     "line, or restrict the excited bins",
                                      m, E, hz(k), bin, r + 1, cond));
       const Eigen::MatrixXcd Vp = V.adjoint() * gram.inverse();  // E × m
       const Eigen::MatrixXcd Gz = Z * Vp;                        // nz × m
