@@ -99,6 +99,12 @@ LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index
   frd.flagged.assign(static_cast<size_t>(F), false);
   Eigen::MatrixXcd K(npar, E * width), Zw(nz, E * width);
   Eigen::VectorXd powers(R1);
+  // Work space reused for every bin (allocation would dominate the small solves).
+  Eigen::VectorXd d(npar);
+  Eigen::MatrixXcd Ks(npar, E * width), gram(npar, npar), Q(npar, npar), ZK(nz, npar), Theta(nz, npar),
+      resid(nz, E * width), Cv(nz, nz), Gz(nz, m), Qgg(m, m);
+  const Eigen::MatrixXcd identity = Eigen::MatrixXcd::Identity(npar, npar);
+  Eigen::LDLT<Eigen::MatrixXcd> ldlt(npar);
   Index nflag = 0;
   for (Index f = 0; f < F; ++f) {
     const Index k = result.bins[static_cast<size_t>(f)];
@@ -118,21 +124,24 @@ LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index
         Zw.col(col) = Z[static_cast<size_t>(e)].row(j).transpose();
       }
     // Row scaling D (unit row norms) for conditioning: Q = D (D K Kᴴ D)⁻¹ D.
-    const Eigen::VectorXd d = K.rowwise().norm().cwiseMax(1e-300).cwiseInverse();
-    const Eigen::MatrixXcd Ks = d.asDiagonal() * K;
-    const Eigen::MatrixXcd gram = Ks * Ks.adjoint();
-    Eigen::LDLT<Eigen::MatrixXcd> ldlt(gram);
+    d = K.rowwise().norm().cwiseMax(1e-300).cwiseInverse();
+    Ks.noalias() = d.asDiagonal() * K;
+    gram.noalias() = Ks * Ks.adjoint();
+    ldlt.compute(gram);
     const double rc = ldlt.rcond();
     if (ldlt.info() != Eigen::Success || !(rc > 0) || 1.0 / rc > options.max_condition) {
       frd.flagged[static_cast<size_t>(f)] = true;
       ++nflag;
       continue;
     }
-    const Eigen::MatrixXcd Q = d.asDiagonal() * ldlt.solve(Eigen::MatrixXcd::Identity(npar, npar)) * d.asDiagonal();
-    const Eigen::MatrixXcd Theta = Zw * K.adjoint() * Q;  // nz × npar
-    const Eigen::MatrixXcd resid = Zw - Theta * K;
-    const Eigen::MatrixXcd Cv = resid * resid.adjoint() / static_cast<double>(q);
-    Eigen::MatrixXcd Gz(nz, m), Qgg(m, m);
+    Q = ldlt.solve(identity);
+    Q = d.asDiagonal() * Q * d.asDiagonal();
+    ZK.noalias() = Zw * K.adjoint();
+    Theta.noalias() = ZK * Q;  // nz × npar
+    resid = Zw;
+    resid.noalias() -= Theta * K;
+    Cv.noalias() = resid * resid.adjoint();
+    Cv /= static_cast<double>(q);
     for (Index a = 0; a < m; ++a) {
       Gz.col(a) = Theta.col(a * R1);
       for (Index b = 0; b < m; ++b) Qgg(a, b) = Q(a * R1, b * R1);
