@@ -3,6 +3,11 @@
 // the closed loop G, so both identification approaches run on one experiment.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <charconv>
+#include <numbers>
 
 #include "cli/common.h"
 #include "cli/logs.h"
@@ -12,6 +17,8 @@
 #include "formats/io/frd_csv.h"
 #include "idlib/core/error.h"
 #include "idlib/signal/frf.h"
+#include "idlib/signal/lpm.h"
+#include "idlib/signal/periodic_frf.h"
 
 namespace lpvid::cli {
 namespace {
@@ -27,7 +34,17 @@ frequencies where the excitation's spectral matrix is ill-conditioned.  With --i
 PLANT u -> y from the closed loop, S_yv S_uv^-1 (v as instrument: unbiased by the loop, any
 controller), its variance from the residual y - P u (docs/math.md, "Plant from closed-loop
 logs").  6-DOF stage logs (u1..u6 = F_x F_y F_z tau_x tau_y tau_z): name the columns in the
-base's order, --excitation v1,v2,v3,v6,v5,v4 --input u1,u2,u3,u6,u5,u4 --output q1,...,q6.)";
+base's order, --excitation v1,v2,v3,v6,v5,v4 --input u1,u2,u3,u6,u5,u4 --output q1,...,q6.
+
+Periodic (multisine) data, --method periodic: the logs (concatenated in the order given)
+hold R realisations x E experiments blocks of (T + P) periods of L samples, T discarded:
+  lpvid frf --method periodic --period-samples 4096 --periods 8 --transient-periods 2 \
+    --experiments 3 --realisations 4 --excitation v1,v2,v3 --input u1,u2,u3 --output q1,q2,q3 \
+    --quantity P --out P.csv multisine.csv
+gives the plant (PS) S^-1 at the excited lines with its noise variance (var_) and, with
+R >= 2, the nonlinear-distortion variance (dvar_) of the Best Linear Approximation.
+Random data, --method lpm: the Local Polynomial Method (transient removal) on each log's
+whole-record DFT, same flags as welch plus --lpm-order and --lpm-half-width.)";
 
 struct FrfCliOptions {
   std::vector<std::string> logs;
@@ -35,9 +52,156 @@ struct FrfCliOptions {
   Index segment = 0;
   double overlap = 0.5;
   bool json = false;
+  std::string method = "welch";
+  // periodic
+  Index period_samples = 0, periods = 0, transient_periods = 0, realisations = 1, experiments = 1;
+  std::string excited_bins;
+  // lpm
+  int lpm_order = 2;
+  Index lpm_half_width = 0, lpm_stride = 1;
+  std::vector<std::string> given;  // long names of the options given
 };
 
+bool given(const FrfCliOptions& o, const std::string& name) {
+  return std::find(o.given.begin(), o.given.end(), name) != o.given.end();
+}
+
+std::vector<Index> parse_bins(const std::string& text) {
+  std::vector<Index> bins;
+  if (text.empty()) return bins;
+  for (const std::string& item : split_names(text, "--excited-bins")) {
+    Index v = 0;
+    const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
+    if (ec != std::errc() || end != item.data() + item.size())
+      throw InputError(fmt::format("--excited-bins '{}': '{}' is not a bin number; give DFT bins of one period, e.g. "
+                                   "--excited-bins 1,2,5",
+                                   text, item));
+    bins.push_back(v);
+  }
+  return bins;
+}
+
+// --method periodic / lpm: estimate, write the FRD (excited lines / LPM bins, var_ and
+// dvar_ columns), print the noise and distortion summary.
+void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vector<std::string>& excitation,
+               const std::vector<std::string>& output, const std::vector<std::string>& input, OutputSet& outputs,
+               PeriodicFrfOptions popt) {
+  const bool plant = !input.empty();
+  const Index m = static_cast<Index>(excitation.size());
+  FrequencyResponse frd;
+  std::vector<std::string> comments;
+  nlohmann::json summary = {{"method", o.method}, {"sample_period_s", set.sample_period_s}, {"out", o.out}};
+  std::string text;
+  const std::string what = plant ? fmt::format("plant {} = (PS) S^-1 from v -> [y u] (indirect route, variance "
+                                               "propagated)",
+                                               o.quantity)
+                                 : fmt::format("{} from v -> y", o.quantity);
+  if (o.method == "periodic") {
+    Index total = 0;
+    for (const auto& x : set.excitations) total += x.rows();
+    Eigen::MatrixXd v(total, m), z(total, static_cast<Index>(output.size() + input.size()));
+    Index at = 0;
+    for (size_t e = 0; e < set.excitations.size(); ++e) {
+      v.middleRows(at, set.excitations[e].rows()) = set.excitations[e];
+      z.middleRows(at, set.outputs[e].rows()) = set.outputs[e];
+      at += set.excitations[e].rows();
+    }
+    popt.sample_period_s = set.sample_period_s;
+    const std::string where = set.paths.size() == 1 ? set.paths.front()
+                                                    : fmt::format("the {} logs concatenated", set.paths.size());
+    PeriodicFrfResult r;
+    try {
+      r = estimate_periodic_frf(v, z, plant ? m : 0, popt);
+    } catch (const InputError& e) {  // name the file and the columns the message counts
+      throw InputError(fmt::format("{}: {} (excitation columns {}; measured {}{}{})", where, e.what(),
+                                   fmt::join(excitation, ","), fmt::join(output, ","), plant ? "," : "",
+                                   fmt::join(input, ",")));
+    }
+    frd = r.frd;
+    const auto& lay = popt.layout;
+    comments.push_back(fmt::format("lpvid frf --method periodic: {} from {} log(s), Ts = {:.6g} s, L = {}, P = {}, "
+                                   "T = {}, R = {}, E = {}; var_ = noise{} (dof {}{})",
+                                   what, set.paths.size(), set.sample_period_s, lay.period_samples, lay.periods,
+                                   lay.transient_periods, lay.realisations, lay.experiments,
+                                   lay.realisations >= 2 ? " + nonlinear distortion, dvar_ = distortion" : "",
+                                   r.noise_dof,
+                                   lay.realisations >= 2 ? fmt::format(", realisation dof {}", r.realisation_dof) : ""));
+    std::string noise;
+    nlohmann::json noise_json = nlohmann::json::object();
+    for (size_t c = 0; c < output.size() + input.size(); ++c) {
+      const std::string& name = c < output.size() ? output[c] : input[c - output.size()];
+      noise += fmt::format("{}{} {:.3g}", c ? ", " : "", name, r.channel_noise_rms(static_cast<Index>(c)));
+      noise_json[name] = r.channel_noise_rms(static_cast<Index>(c));
+    }
+    summary["lines"] = frd.num_frequencies();
+    summary["noise_rms"] = noise_json;
+    summary["noise_dof"] = r.noise_dof;
+    text = fmt::format("frf (periodic): {} excited lines ({:.4g} to {:.4g} Hz), noise rms per sample: {}\n",
+                       frd.num_frequencies(), frd.omega_rad_s(0) / (2 * std::numbers::pi),
+                       frd.omega_rad_s(frd.num_frequencies() - 1) / (2 * std::numbers::pi), noise);
+    if (lay.realisations >= 2) {
+      nlohmann::json jb = nlohmann::json::array();
+      std::string tb;
+      const auto bands = distortion_bands(r);
+      for (const auto& [first, last] : bands) {
+        const double lo = r.frd.omega_rad_s(first) / (2 * std::numbers::pi);
+        const double hi = r.frd.omega_rad_s(last) / (2 * std::numbers::pi);
+        jb.push_back({lo, hi});
+        tb += fmt::format("{}{:.4g}-{:.4g} Hz", tb.empty() ? "" : ", ", lo, hi);
+      }
+      summary["distortion_bands_hz"] = jb;
+      text += bands.empty() ? "  nonlinear distortion: not above the noise at any band of the excited lines\n"
+                            : fmt::format("  nonlinear distortion above the noise (sigma2_BLA / sigma2_noise beyond "
+                                          "{} sd of its linear-system distribution over {} lines) in: {}\n",
+                                          kDistortionSigmas, kDistortionWindow, tb);
+    } else {
+      text += "  one realisation: nonlinear distortions cannot be told from the system (use --realisations >= 2)\n";
+    }
+    for (const auto& w : r.report.warnings) text += "  warning: " + w + "\n";
+  } else {
+    LpmOptions lo;
+    lo.order = o.lpm_order;
+    lo.half_width = o.lpm_half_width;
+    lo.stride = o.lpm_stride;
+    lo.sample_period_s = set.sample_period_s;
+    LpmResult r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
+    frd = std::move(r.frd);
+    comments.push_back(fmt::format("lpvid frf --method lpm: {} from {} log(s), Ts = {:.6g} s, local polynomial order "
+                                   "{}, {} bins per window, {} degrees of freedom; var_ = noise",
+                                   what, set.paths.size(), set.sample_period_s, lo.order, 2 * r.half_width + 1, r.dof));
+    Index flagged = 0;
+    for (bool f : frd.flagged) flagged += f ? 1 : 0;
+    summary["frequencies"] = frd.num_frequencies();
+    summary["flagged"] = flagged;
+    summary["dof"] = r.dof;
+    text = fmt::format("frf (lpm): {} frequencies ({:.4g} to {:.4g} rad/s), {} flagged, {} bins per window, {} dof\n",
+                       frd.num_frequencies(), frd.omega_rad_s(0), frd.omega_rad_s(frd.num_frequencies() - 1), flagged,
+                       2 * r.half_width + 1, r.dof);
+  }
+  frd.input_names = plant ? input : excitation;
+  frd.output_names = output;
+  write_frd_csv(outputs.stage(o.out), frd, o.quantity, comments);
+  text += fmt::format("  written to {}\n", o.out);
+  outputs.commit();
+  if (!outputs.to_stdout()) print_summary(o.json, summary, text);
+}
+
 void run(const FrfCliOptions& o) {
+  if (o.method != "welch" && o.method != "lpm" && o.method != "periodic")
+    throw InputError(fmt::format("--method '{}': use welch, lpm or periodic", o.method));
+  for (const char* flag : {"--period-samples", "--periods", "--transient-periods", "--realisations", "--experiments",
+                           "--excited-bins"})
+    if (o.method != "periodic" && given(o, flag))
+      throw InputError(fmt::format("{} describes periodic data: use it with --method periodic", flag));
+  for (const char* flag : {"--lpm-order", "--lpm-half-width", "--lpm-stride"})
+    if (o.method != "lpm" && given(o, flag))
+      throw InputError(fmt::format("{} is an option of the Local Polynomial Method: use it with --method lpm", flag));
+  for (const char* flag : {"--segment", "--overlap", "--window"})
+    if (o.method != "welch" && given(o, flag))
+      throw InputError(fmt::format("{} is a Welch option: --method {} does not cut segments", flag, o.method));
+  if (o.method == "periodic" && (!given(o, "--period-samples") || !given(o, "--periods")))
+    throw InputError("--method periodic needs the layout: --period-samples L and --periods P (and "
+                     "--transient-periods, --realisations, --experiments when not 0, 1, 1)");
   FrfOptions options;
   options.segment_length = o.segment;
   options.overlap = o.overlap;
@@ -70,7 +234,18 @@ void run(const FrfCliOptions& o) {
   outputs.inputs(o.logs);
   outputs.file("--out", o.out);
   outputs.check();
+  PeriodicFrfOptions popt;
+  if (o.method == "periodic") {
+    popt.layout = {o.period_samples, o.periods, o.transient_periods, o.realisations, o.experiments};
+    popt.excited_bins = parse_bins(o.excited_bins);
+    popt.sample_period_s = 1;  // replaced by the logs' below; checks the layout before any log is read
+    popt.validate();
+  }
   const ExperimentSet set = read_experiments(o.logs, excitation, read);
+  if (o.method != "welch") {
+    run_other(o, set, excitation, output, input, outputs, popt);
+    return;
+  }
   options.sample_period_s = set.sample_period_s;
   FrequencyResponse frd = plant ? estimate_plant_frf(set.views(), options) : estimate_frf(set.views(), options);
   frd.input_names = plant ? input : excitation;
@@ -116,7 +291,32 @@ Command make_frf_command() {
                 ->check(number_in(0, 0.95, "the segment overlap fraction", false, true));
             app->add_option("--window", o->window, "hann (default) or rect");
             app->add_flag("--json", o->json, "print the summary as JSON");
-            app->callback([o] { run(*o); });
+            app->add_option("--method", o->method, "welch (H1, default), lpm (Local Polynomial Method) or periodic");
+            app->add_option("--period-samples", o->period_samples, "periodic: samples per period L")
+                ->check(integer_in(4, kMaxSegment, "the samples per period"));
+            app->add_option("--periods", o->periods, "periodic: measured periods P per block (>= 2)")
+                ->check(integer_in(2, 1000000, "the measured periods per block"));
+            app->add_option("--transient-periods", o->transient_periods,
+                            "periodic: periods T at the start of each block to discard (default 0)")
+                ->check(integer_in(0, 1000000, "the transient periods"));
+            app->add_option("--realisations", o->realisations, "periodic: random-phase realisations R (default 1)")
+                ->check(integer_in(1, 1000000, "the realisations"));
+            app->add_option("--experiments", o->experiments, "periodic: experiments E per realisation (default 1)")
+                ->check(integer_in(1, 1000000, "the experiments per realisation"));
+            app->add_option("--excited-bins", o->excited_bins,
+                            "periodic: DFT bins of one period to use (default: found from the excitation)");
+            app->add_option("--lpm-order", o->lpm_order, "lpm: local polynomial order R (default 2)")
+                ->check(integer_in(0, 4, "the LPM order"));
+            app->add_option("--lpm-half-width", o->lpm_half_width,
+                            "lpm: n, the window is 2n+1 bins (default: the smallest with >= 6 degrees of freedom)")
+                ->check(integer_in(1, 100000, "the LPM half width"));
+            app->add_option("--lpm-stride", o->lpm_stride, "lpm: write every k-th bin (default 1)")
+                ->check(integer_in(1, 1000000, "the LPM bin stride"));
+            app->callback([o, app] {
+              for (const CLI::Option* opt : app->get_options())
+                if (opt->count() > 0 && !opt->get_lnames().empty()) o->given.push_back("--" + opt->get_lnames()[0]);
+              run(*o);
+            });
           }};
 }
 

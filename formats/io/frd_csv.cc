@@ -98,10 +98,11 @@ struct Slot {
   std::array<Index, kParts> col{-1, -1, -1, -1};  // csv column of each part
   Index coh = -1;
   Index var = -1;
+  Index dvar = -1;
 };
 
 // Which column kind an extra per-pair column is.
-enum class Extra { kNone, kCoherence, kVariance };
+enum class Extra { kNone, kCoherence, kVariance, kDistortion };
 
 struct Axis {
   bool indexed = true;
@@ -242,6 +243,9 @@ class FrdCsvReader {
       } else if (name.rfind("var_", 0) == 0) {
         extra = Extra::kVariance;
         rest = std::string_view(name).substr(4);
+      } else if (name.rfind("dvar_", 0) == 0) {
+        extra = Extra::kDistortion;
+        rest = std::string_view(name).substr(5);
       } else {
         const size_t last = name.rfind('_');
         const size_t first = name.find('_');
@@ -250,7 +254,7 @@ class FrdCsvReader {
         if (it == kSuffix.end() || first == last || !frd_detail::quantity_allowed(std::string_view(name).substr(0, first)))
           fail_header(column, fmt::format("column '{}' is not an FRD column; the columns are freq_hz, "
                                           "<Q>_<output>_<input>_re and _im (or _db and _deg), coh_<output>_<input>, "
-                                          "var_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...): rename or remove the column",
+                                          "var_<output>_<input>, dvar_<output>_<input> and flag, with <Q> letters and digits (S, P, G, ...): rename or remove the column",
                                           name));
         part = static_cast<Part>(it - kSuffix.begin());
         const std::string quantity = name.substr(0, first);
@@ -403,7 +407,10 @@ class FrdCsvReader {
         j = find(ins_, c.in);
       }
       Slot& slot = slots_[static_cast<size_t>(i * ins_.size + j)];
-      Index& at = c.extra == Extra::kCoherence ? slot.coh : c.extra == Extra::kVariance ? slot.var : slot.col[c.part];
+      Index& at = c.extra == Extra::kCoherence    ? slot.coh
+                  : c.extra == Extra::kVariance   ? slot.var
+                  : c.extra == Extra::kDistortion ? slot.dvar
+                                                  : slot.col[c.part];
       if (at >= 0)
         fail_header(c.column, fmt::format("column '{}' repeats column {} '{}' ({} of {}); give each column once",
                                           name_of(c.column), at + 1, name_of(at),
@@ -417,7 +424,9 @@ class FrdCsvReader {
     return all_digits(token) ? token : "'" + token + "'";
   }
 
-  static const char* extra_words(Extra extra) { return extra == Extra::kCoherence ? "coherence" : "variance"; }
+  static const char* extra_words(Extra extra) {
+    return extra == Extra::kCoherence ? "coherence" : extra == Extra::kVariance ? "variance" : "distortion variance";
+  }
 
   static const char* part_words(Part part) {
     switch (part) {
@@ -432,10 +441,12 @@ class FrdCsvReader {
   void check_slots(bool allow_missing_pairs, std::vector<std::pair<Index, Index>>& pairs) {
     const bool any_coherence = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.coh >= 0; });
     const bool any_variance = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.var >= 0; });
-    Index first_coh = -1, first_var = -1;
+    const bool any_distortion = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.dvar >= 0; });
+    Index first_coh = -1, first_var = -1, first_dvar = -1;
     for (const Slot& s : slots_) {
       if (s.coh >= 0 && (first_coh < 0 || s.coh < first_coh)) first_coh = s.coh;
       if (s.var >= 0 && (first_var < 0 || s.var < first_var)) first_var = s.var;
+      if (s.dvar >= 0 && (first_dvar < 0 || s.dvar < first_dvar)) first_dvar = s.dvar;
     }
     for (Index i = 0; i < outs_.size; ++i)
       for (Index j = 0; j < ins_.size; ++j) {
@@ -453,6 +464,10 @@ class FrdCsvReader {
             fail_header(s.var, fmt::format("column '{}' is the variance of {}, which has no response columns; "
                                            "give variance only for pairs with a response",
                                            name_of(s.var), label(i, j)));
+          if (s.dvar >= 0)
+            fail_header(s.dvar, fmt::format("column '{}' is the distortion variance of {}, which has no response "
+                                            "columns; give it only for pairs with a response",
+                                            name_of(s.dvar), label(i, j)));
           if (allow_missing_pairs) continue;
           detail::fail_at(path_, csv_.header_line, 1,
                           fmt::format("no columns for {}; every output/input pair needs a response: {}", label(i, j),
@@ -478,6 +493,14 @@ class FrdCsvReader {
           fail_header(first_var, fmt::format("no column 'var_{}_{}' for the variance of {}; give variance for "
                                              "every pair or for none",
                                              token(outs_, i), token(ins_, j), label(i, j)));
+        if (any_distortion && s.dvar < 0)
+          fail_header(first_dvar, fmt::format("no column 'dvar_{}_{}' for the distortion variance of {}; give it for "
+                                              "every pair or for none",
+                                              token(outs_, i), token(ins_, j), label(i, j)));
+        if (s.dvar >= 0 && s.var < 0)
+          fail_header(s.dvar, fmt::format("column '{}' gives a distortion variance but there is no column 'var_{}_{}' "
+                                          "for the total variance it is part of; give both",
+                                          name_of(s.dvar), token(outs_, i), token(ins_, j)));
         pairs.emplace_back(i, j);
       }
   }
@@ -543,6 +566,9 @@ class FrdCsvReader {
     if (any_coherence) frd.coherence.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
     const bool any_variance = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.var >= 0; });
     if (any_variance) frd.variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
+    const bool any_distortion = std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.dvar >= 0; });
+    if (any_distortion)
+      frd.distortion_variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
     frd.averages = averages_;
     for (const auto& [i, j] : pairs) {
       const Slot& s = slots_[static_cast<size_t>(i * ins_.size + j)];
@@ -569,6 +595,17 @@ class FrdCsvReader {
             fail_cell(k, s.var, fmt::format("variance {} in column '{}' is negative; write a variance >= 0", v,
                                             name_of(s.var)));
           frd.variance[static_cast<size_t>(k)](i, j) = v;
+        }
+        if (s.dvar >= 0) {
+          const double v = csv_.data(k, s.dvar);
+          if (!(v >= 0))
+            fail_cell(k, s.dvar, fmt::format("distortion variance {} in column '{}' is negative; write a variance >= 0",
+                                             v, name_of(s.dvar)));
+          if (v > csv_.data(k, s.var) * (1 + 1e-12))
+            fail_cell(k, s.dvar, fmt::format("distortion variance {} in column '{}' exceeds the total variance {} in "
+                                             "column '{}'; the total (var_) includes the distortion part",
+                                             v, name_of(s.dvar), csv_.data(k, s.var), name_of(s.var)));
+          frd.distortion_variance[static_cast<size_t>(k)](i, j) = v;
         }
       }
     }
@@ -700,6 +737,27 @@ void check_frd_for_writing(const std::string& path, const FrequencyResponse& frd
                                          path, k + 1, i + 1, j + 1, v(i, j)));
     }
   }
+  if (!frd.distortion_variance.empty()) {
+    if (frd.variance.empty())
+      throw InputError(fmt::format("cannot write '{}': a distortion variance without the total variance", path));
+    if (static_cast<Index>(frd.distortion_variance.size()) != nf)
+      throw InputError(fmt::format("cannot write '{}': {} distortion variance matrices for {} frequencies; give one "
+                                   "per frequency or none",
+                                   path, frd.distortion_variance.size(), nf));
+    for (Index k = 0; k < nf; ++k) {
+      const Eigen::MatrixXd& v = frd.distortion_variance[static_cast<size_t>(k)];
+      if (v.rows() != ny || v.cols() != nu)
+        throw InputError(fmt::format("cannot write '{}': distortion variance {} is {}×{}, expected {}×{} (outputs × "
+                                     "inputs)",
+                                     path, k + 1, v.rows(), v.cols(), ny, nu));
+      for (Index i = 0; i < ny; ++i)
+        for (Index j = 0; j < nu; ++j)
+          if (!(v(i, j) >= 0) || !std::isfinite(v(i, j)) || v(i, j) > frd.variance[static_cast<size_t>(k)](i, j))
+            throw InputError(fmt::format("cannot write '{}': distortion variance {} ({}, {}) is {}; it is finite, >= 0 "
+                                         "and at most the total variance",
+                                         path, k + 1, i + 1, j + 1, v(i, j)));
+    }
+  }
   if (!(frd.averages == 0 || (frd.averages >= 1 && std::isfinite(frd.averages))))
     throw InputError(fmt::format("cannot write '{}': averages {} is not 0 (unknown) or a number >= 1", path,
                                  frd.averages));
@@ -764,6 +822,10 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
     for (Index i = 0; i < ny; ++i)
       for (Index j = 0; j < nu; ++j)
         names.push_back(fmt::format("var_{}_{}", outs[static_cast<size_t>(i)], ins[static_cast<size_t>(j)]));
+  if (!frd.distortion_variance.empty())
+    for (Index i = 0; i < ny; ++i)
+      for (Index j = 0; j < nu; ++j)
+        names.push_back(fmt::format("dvar_{}_{}", outs[static_cast<size_t>(i)], ins[static_cast<size_t>(j)]));
   if (!frd.flagged.empty()) names.push_back("flag");
   detail::check_header_names(out.path(), names);
 
@@ -783,6 +845,9 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
     if (!frd.variance.empty())
       for (Index i = 0; i < ny; ++i)
         for (Index j = 0; j < nu; ++j) rows(k, c++) = frd.variance[kk](i, j);
+    if (!frd.distortion_variance.empty())
+      for (Index i = 0; i < ny; ++i)
+        for (Index j = 0; j < nu; ++j) rows(k, c++) = frd.distortion_variance[kk](i, j);
     if (!frd.flagged.empty()) rows(k, c++) = frd.flagged[kk] ? 1.0 : 0.0;
   }
   std::string head;
@@ -854,6 +919,13 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
                                    "in none",
                                    kFail, shown(with), shown(without)));
     }
+    if (p.frd.distortion_variance.empty() != first.frd.distortion_variance.empty()) {
+      const FrdPart& with = first.frd.distortion_variance.empty() ? p : first;
+      const FrdPart& without = first.frd.distortion_variance.empty() ? first : p;
+      throw InputError(fmt::format("{}: '{}' has distortion variance (dvar_) columns but '{}' has none; give them in "
+                                   "every file or in none",
+                                   kFail, shown(with), shown(without)));
+    }
     if (p.frd.averages != first.frd.averages)
       throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; give files measured with the "
                                    "same number of averages (0 = not stated)",
@@ -913,6 +985,8 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
     merged.coherence.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
   if (!first.frd.variance.empty())
     merged.variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
+  if (!first.frd.distortion_variance.empty())
+    merged.distortion_variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
   merged.averages = first.frd.averages;
   std::vector<Index> owner(static_cast<size_t>(outs.size * ins.size), -1);
   for (size_t p = 0; p < parts.size(); ++p) {
@@ -930,6 +1004,8 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
         merged.response[kk](i, j) = part.frd.response[kk](pi, pj);
         if (!merged.coherence.empty()) merged.coherence[kk](i, j) = part.frd.coherence[kk](pi, pj);
         if (!merged.variance.empty()) merged.variance[kk](i, j) = part.frd.variance[kk](pi, pj);
+        if (!merged.distortion_variance.empty())
+          merged.distortion_variance[kk](i, j) = part.frd.distortion_variance[kk](pi, pj);
       }
     }
     if (!part.frd.flagged.empty()) {

@@ -19,6 +19,9 @@
 //                         (i, j): re with im, or db with deg — never mixed.
 //   coh_<i>_<j>           optional coherence in [0, 1]; when one is given,
 //                         every (i, j) needs one.
+//   var_<i>_<j>           optional variance E|Ĥ − H|² (total), >= 0; all pairs or none.
+//   dvar_<i>_<j>          optional part of var_<i>_<j> due to nonlinear distortions
+//                         (a BLA), 0 <= dvar <= var; all pairs or none; needs var_.
 //   flag                  optional, 0 or 1 per frequency (1 = untrusted).
 // <Q> is the quantity (S, P, G, ...): letters and digits, not "coh", the text
 // before the first '_'.  FrdReadOptions::quantity selects one; other quantities

@@ -590,6 +590,28 @@ class MatReader {
             frd.variance[k](static_cast<Index>(i), static_cast<Index>(j)) = v;
           }
     }
+    if (has("dvar")) {
+      if (frd.variance.empty())
+        fail("distortion variance 'dvar' without the total variance 'var'; give both (var includes the distortion "
+             "part)");
+      const Array c = source_->load("dvar", false);
+      const auto [cy, cu] = shape(c, "dvar", nf, "distortion variance");
+      if (cy != ny || cu != nu)
+        fail(fmt::format("distortion variance 'dvar' is {}×{} per frequency but response '{}' is {}×{}; give it of the "
+                         "response's shape",
+                         cy, cu, response_name, ny, nu));
+      frd.distortion_variance.assign(nf, Eigen::MatrixXd(static_cast<Index>(ny), static_cast<Index>(nu)));
+      for (size_t k = 0; k < nf; ++k)
+        for (size_t j = 0; j < nu; ++j)
+          for (size_t i = 0; i < ny; ++i) {
+            const double v = c.re[i + ny * (j + nu * k)];
+            if (!(v >= 0) || !std::isfinite(v) || v > frd.variance[k](static_cast<Index>(i), static_cast<Index>(j)) * (1 + 1e-12))
+              fail(fmt::format("distortion variance 'dvar' is {} at output {}, input {}, frequency {}; it is finite, "
+                               ">= 0 and at most the total variance 'var'",
+                               v, i + 1, j + 1, k + 1));
+            frd.distortion_variance[k](static_cast<Index>(i), static_cast<Index>(j)) = v;
+          }
+    }
     if (has("averages")) {
       const Array a = source_->load("averages", false);
       if (a.re.size() != 1 || !std::isfinite(a.re[0]) || a.re[0] < 1 || a.re[0] > 1e9)
@@ -862,6 +884,14 @@ void write_frd_mat(AtomicFileWriter& file, const FrequencyResponse& frd, const s
         for (size_t i = 0; i < ny; ++i)
           var[i + ny * (j + nu * k)] = frd.variance[k](static_cast<Index>(i), static_cast<Index>(j));
     out.add(real_array("var", {ny, nu, nf}, var));
+  }
+  if (!frd.distortion_variance.empty()) {
+    std::vector<double> dvar(ny * nu * nf);
+    for (size_t k = 0; k < nf; ++k)
+      for (size_t j = 0; j < nu; ++j)
+        for (size_t i = 0; i < ny; ++i)
+          dvar[i + ny * (j + nu * k)] = frd.distortion_variance[k](static_cast<Index>(i), static_cast<Index>(j));
+    out.add(real_array("dvar", {ny, nu, nf}, dvar));
   }
   if (frd.averages > 0) {
     std::vector<double> averages{frd.averages};

@@ -17,6 +17,8 @@
 //                       ny x nu matrix when nf = 1, or a vector of nf entries
 //                       for one output and one input.  Finite.
 //   coh (optional)      coherence, real, the same shape as the response, in [0, 1].
+//   var, dvar (optional) variance (total) and its nonlinear-distortion part, real,
+//                       the response's shape, >= 0, dvar <= var (dvar needs var).
 //   flag (optional)     nf entries, 0 or 1 (double or logical): 1 = untrusted.
 //   outputs, inputs     (optional) cell arrays of ny / nu char names.
 // Numeric classes double, single and the integer classes are read (converted

@@ -56,12 +56,17 @@ struct StateSpace {
 // the number of independent averages behind the coherence (n_d of an H1
 // estimate, which turns coherence into a variance); 0 = not stated by the data.
 // flagged, when not empty, marks frequencies whose values the producer could not
-// trust (one entry per frequency).
+// trust (one entry per frequency).  distortion_variance, when not empty (a Best
+// Linear Approximation from several random-phase realisations, periodic_frf.h),
+// has the layout of variance and holds the part of variance that the stochastic
+// nonlinear distortions explain (E|Ĝ_BLA − G_BLA|² above the measurement noise);
+// variance stays the TOTAL (noise + distortion) that fits and bands weight with.
 struct FrequencyResponse {
   Eigen::VectorXd omega_rad_s;
   std::vector<Eigen::MatrixXcd> response;
   std::vector<Eigen::MatrixXd> coherence;
   std::vector<Eigen::MatrixXd> variance;
+  std::vector<Eigen::MatrixXd> distortion_variance;
   double averages = 0;
   std::vector<bool> flagged;
   std::vector<std::string> input_names;

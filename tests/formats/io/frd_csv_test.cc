@@ -346,7 +346,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "2:7: flag 2 is not 0 or 1; write 1 for an untrusted frequency, else 0"},
         BadFile{"UnknownColumn", "freq_hz,S_1_1_re,S_1_1_im,temp\n1,2,3,4\n",
                 "1:27: column 'temp' is not an FRD column; the columns are freq_hz, <Q>_<output>_<input>_re and _im "
-                "(or _db and _deg), coh_<output>_<input>, var_<output>_<input> and flag, with <Q> letters and digits (S, P, "
+                "(or _db and _deg), coh_<output>_<input>, var_<output>_<input>, dvar_<output>_<input> and flag, with <Q> letters and digits (S, P, "
                 "G, ...): rename or remove the column"},
         BadFile{"UnderscoreNameWithoutMetadata", "freq_hz,S_q_1_v_re,S_q_1_v_im\n1,2,3\n",
                 "1:9: cannot split 'q_1_v' of column 'S_q_1_v_re' into an output and an input; without '# outputs:' "

@@ -1,0 +1,345 @@
+// lpvid — periodic FRF, closed-loop ratio and BLA (periodic_frf.h; docs/math.md).
+#include "idlib/signal/periodic_frf.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "idlib/signal/real_fft.h"
+
+namespace lpvid {
+
+using signal_detail::alloc_complex;
+using signal_detail::alloc_real;
+using signal_detail::RealFft;
+
+void PeriodicLayout::validate() const {
+  if (period_samples < 4)
+    throw InputError(fmt::format("period length {} samples is below 4; give the samples per period of the excitation",
+                                 period_samples));
+  if (periods < 2)
+    throw InputError(fmt::format("{} measured period(s) per block: the noise variance needs at least 2; measure more "
+                                 "periods",
+                                 periods));
+  if (transient_periods < 0)
+    throw InputError(fmt::format("{} transient periods is negative; give 0 or more", transient_periods));
+  if (realisations < 1) throw InputError(fmt::format("{} realisations: give at least 1", realisations));
+  if (experiments < 1) throw InputError(fmt::format("{} experiments per realisation: give at least 1", experiments));
+  const double total = static_cast<double>(realisations) * static_cast<double>(experiments) *
+                       static_cast<double>(transient_periods + periods) * static_cast<double>(period_samples);
+  if (total > 4e12) throw InputError(fmt::format("the layout holds {:.3g} samples: too many; check its numbers", total));
+}
+
+void PeriodicFrfOptions::validate() const {
+  layout.validate();
+  if (!(std::isfinite(sample_period_s) && sample_period_s > 0))
+    throw InputError(fmt::format("sample period {} s: give a finite sample period > 0", sample_period_s));
+  if (!(max_condition > 1)) throw InputError(fmt::format("max_condition {} must be > 1", max_condition));
+  for (size_t i = 0; i < excited_bins.size(); ++i) {
+    const Index k = excited_bins[i];
+    if (k < 1 || 2 * k >= layout.period_samples)
+      throw InputError(fmt::format("excited bin {} is outside 1..{} (DC and Nyquist excluded) for a period of {} "
+                                   "samples; give bins of one period's DFT",
+                                   k, (layout.period_samples - 1) / 2, layout.period_samples));
+    if (i > 0 && k <= excited_bins[i - 1])
+      throw InputError(fmt::format("excited bins must increase: {} follows {}", k, excited_bins[i - 1]));
+  }
+}
+
+namespace {
+
+void check_finite(const Eigen::MatrixXd& x, Index rows, const char* what) {
+  for (Index c = 0; c < x.cols(); ++c)
+    for (Index t = 0; t < rows; ++t)
+      if (!std::isfinite(x(t, c)))
+        throw InputError(fmt::format("{} column {} sample {} is {}; give finite samples", what, c + 1, t + 1, x(t, c)));
+}
+
+// Condition number (1-norm estimate) of a Hermitian positive matrix after scaling to a
+// unit diagonal; +inf when it is not positive definite.
+double normalised_condition(const Eigen::MatrixXcd& A) {
+  const Eigen::VectorXd d = A.diagonal().real();
+  if ((d.array() <= 0).any()) return INFINITY;
+  const Eigen::VectorXd s = d.cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXcd N = s.asDiagonal() * A * s.asDiagonal();
+  Eigen::LLT<Eigen::MatrixXcd> llt(N);
+  if (llt.info() != Eigen::Success) return INFINITY;
+  const double rc = llt.rcond();
+  return rc > 0 ? 1.0 / rc : INFINITY;
+}
+
+}  // namespace
+
+PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const Eigen::MatrixXd& measured,
+                                        Index plant_inputs, const PeriodicFrfOptions& options) {
+  options.validate();
+  const PeriodicLayout& lay = options.layout;
+  const Index L = lay.period_samples, P = lay.periods, T = lay.transient_periods, R = lay.realisations,
+              E = lay.experiments;
+  const Index m = reference.cols(), nz = measured.cols();
+  if (m < 1) throw InputError("no excitation column; give at least one");
+  if (reference.rows() != measured.rows())
+    throw InputError(fmt::format("the excitation has {} samples but the measured channels {}; give equally long columns",
+                                 reference.rows(), measured.rows()));
+  if (plant_inputs != 0 && plant_inputs != m)
+    throw InputError(fmt::format("{} plant input columns for {} excitation columns; give one plant input per excitation",
+                                 plant_inputs, m));
+  const Index ny = nz - plant_inputs;
+  if (ny < 1) throw InputError("no output column besides the plant inputs; give at least one output");
+  if (m > E)
+    throw InputError(fmt::format("{} inputs but {} experiment(s) per realisation: the periodic MIMO estimate needs at "
+                                 "least as many experiments as inputs (--experiments)",
+                                 m, E));
+  const Index block = lay.block_samples(), blocks = R * E, needed = lay.total_samples();
+  if (reference.rows() < needed)
+    throw InputError(fmt::format("the log has {} samples but the layout needs R·E·(T+P)·L = {}·{}·({}+{})·{} = {}; "
+                                 "check --period-samples, --periods, --transient-periods, --realisations, --experiments",
+                                 reference.rows(), R, E, T, P, L, needed));
+  check_finite(reference, needed, "excitation");
+  check_finite(measured, needed, "measured");
+
+  PeriodicFrfResult result;
+  if (reference.rows() > needed)
+    result.report.warnings.push_back(fmt::format("{} samples after the layout's {} were ignored",
+                                                 reference.rows() - needed, needed));
+  const Index nb = L / 2 + 1;
+  RealFft fft(L);
+  auto in = alloc_real(L);
+  auto out = alloc_complex(nb);
+
+  // 1. The reference: period mean per block, periodicity check, its DFT.
+  std::vector<Eigen::MatrixXcd> vspec(static_cast<size_t>(blocks), Eigen::MatrixXcd(nb, m));
+  for (Index b = 0; b < blocks; ++b) {
+    const Index start = b * block + T * L;
+    for (Index j = 0; j < m; ++j) {
+      const double* x = reference.col(j).data() + start;
+      double peak = 0, deviation = 0;
+      for (Index t = 0; t < L; ++t) in[t] = 0;
+      for (Index p = 0; p < P; ++p)
+        for (Index t = 0; t < L; ++t) {
+          const double value = x[p * L + t];
+          peak = std::max(peak, std::abs(value));
+          deviation = std::max(deviation, std::abs(value - x[t]));
+          in[t] += value / static_cast<double>(P);
+        }
+      if (deviation > kPeriodicityTolerance * peak)
+        throw InputError(fmt::format("excitation column {} is not periodic with {} samples in block {} (realisation {}, "
+                                     "experiment {}): periods differ by {:.3g} of its peak; check --period-samples and "
+                                     "the block layout",
+                                     j + 1, L, b + 1, b / E + 1, b % E + 1, deviation / peak));
+      fft.forward(in.get(), out.get());
+      for (Index k = 0; k < nb; ++k) vspec[static_cast<size_t>(b)](k, j) = out[k];
+    }
+  }
+
+  // 2. The excited bins.
+  std::vector<Index> bins = options.excited_bins;
+  if (bins.empty()) {
+    Eigen::VectorXd power = Eigen::VectorXd::Zero(nb);
+    for (const auto& V : vspec) power += V.rowwise().squaredNorm();
+    double top = 0;
+    for (Index k = 1; 2 * k < L; ++k) top = std::max(top, power(k));
+    for (Index k = 1; 2 * k < L; ++k)
+      if (top > 0 && power(k) >= kExcitedLineFraction * top) bins.push_back(k);
+    if (bins.empty()) throw InputError("the excitation carries no power at any bin 1..L/2−1; excite the system");
+  }
+  const Index K = static_cast<Index>(bins.size());
+
+  // 3. The measured channels: per block the period mean at the bins and its covariance.
+  std::vector<Eigen::MatrixXcd> zbar(static_cast<size_t>(blocks), Eigen::MatrixXcd(K, nz));
+  std::vector<std::vector<Eigen::MatrixXcd>> zcov(static_cast<size_t>(blocks),
+                                                  std::vector<Eigen::MatrixXcd>(static_cast<size_t>(K)));
+  Eigen::VectorXd noise_ss = Eigen::VectorXd::Zero(nz);
+  std::vector<Eigen::MatrixXcd> periods(static_cast<size_t>(P), Eigen::MatrixXcd(K, nz));
+  Eigen::VectorXd mean(L);
+  for (Index b = 0; b < blocks; ++b) {
+    const Index start = b * block + T * L;
+    for (Index c = 0; c < nz; ++c) {
+      const double* x = measured.col(c).data() + start;
+      mean.setZero();
+      for (Index p = 0; p < P; ++p) {
+        std::copy(x + p * L, x + (p + 1) * L, in.get());
+        fft.forward(in.get(), out.get());
+        for (Index k = 0; k < K; ++k) periods[static_cast<size_t>(p)](k, c) = out[bins[static_cast<size_t>(k)]];
+        for (Index t = 0; t < L; ++t) mean(t) += x[p * L + t];
+      }
+      mean /= static_cast<double>(P);
+      double ss = 0;
+      for (Index p = 0; p < P; ++p)
+        for (Index t = 0; t < L; ++t) {
+          const double d = x[p * L + t] - mean(t);
+          ss += d * d;
+        }
+      noise_ss(c) += ss;
+    }
+    Eigen::MatrixXcd& zb = zbar[static_cast<size_t>(b)];
+    zb.setZero();
+    for (const auto& Z : periods) zb += Z;
+    zb /= static_cast<double>(P);
+    for (Index k = 0; k < K; ++k) {
+      Eigen::MatrixXcd C = Eigen::MatrixXcd::Zero(nz, nz);
+      for (const auto& Z : periods) {
+        const Eigen::VectorXcd d = (Z.row(k) - zb.row(k)).transpose();
+        C.noalias() += d * d.adjoint();
+      }
+      // Covariance of the mean over P periods: Ĉ / P with Ĉ = Σ d dᴴ / (P − 1).
+      zcov[static_cast<size_t>(b)][static_cast<size_t>(k)] = C / static_cast<double>((P - 1) * P);
+    }
+  }
+  result.channel_noise_rms = (noise_ss / static_cast<double>(blocks * L * (P - 1))).cwiseSqrt();
+
+  // 4. Per realisation and line: Ĝ_z = Z̄ V⁺, the plant ratio, the linearised noise.
+  std::vector<std::vector<Eigen::MatrixXcd>> G(static_cast<size_t>(R), std::vector<Eigen::MatrixXcd>(static_cast<size_t>(K)));
+  std::vector<std::vector<Eigen::MatrixXd>> varn(static_cast<size_t>(R), std::vector<Eigen::MatrixXd>(static_cast<size_t>(K)));
+  std::vector<bool> flagged(static_cast<size_t>(K), false);
+  auto hz = [&](Index k) { return static_cast<double>(bins[static_cast<size_t>(k)]) / (static_cast<double>(L) * options.sample_period_s); };
+  for (Index r = 0; r < R; ++r)
+    for (Index k = 0; k < K; ++k) {
+      const Index bin = bins[static_cast<size_t>(k)];
+      Eigen::MatrixXcd V(m, E), Z(nz, E);
+      for (Index e = 0; e < E; ++e) {
+        V.col(e) = vspec[static_cast<size_t>(r * E + e)].row(bin).transpose();
+        Z.col(e) = zbar[static_cast<size_t>(r * E + e)].row(k).transpose();
+      }
+      const Eigen::MatrixXcd gram = V * V.adjoint();
+      const double cond = normalised_condition(gram);
+      if (!(cond <= options.max_condition))
+        throw InputError(fmt::format("the excitation matrix V ({}×{}) at {:.6g} Hz (bin {}) of realisation {} is singular "
+                                     "(condition {:.3g}): the experiments do not excite the inputs independently at "
+                                     "that line; use a design whose experiment matrix is invertible at every excited "
+                                     "line, or restrict the excited bins",
+                                     m, E, hz(k), bin, r + 1, cond));
+      const Eigen::MatrixXcd Vp = V.adjoint() * gram.inverse();  // E × m
+      const Eigen::MatrixXcd Gz = Z * Vp;                        // nz × m
+      Eigen::MatrixXcd Gk, W, M;
+      if (plant_inputs == 0) {
+        Gk = Gz;
+        W = Eigen::MatrixXcd::Identity(nz, nz);
+        M = Vp;
+      } else {
+        const Eigen::MatrixXcd S = Gz.bottomRows(m);
+        Eigen::PartialPivLU<Eigen::MatrixXcd> lu(S);
+        const double rc = lu.rcond();
+        if (!(rc > 0) || 1.0 / rc > options.max_condition) {
+          flagged[static_cast<size_t>(k)] = true;
+          G[static_cast<size_t>(r)][static_cast<size_t>(k)] = Eigen::MatrixXcd::Zero(ny, m);
+          varn[static_cast<size_t>(r)][static_cast<size_t>(k)] = Eigen::MatrixXd::Zero(ny, m);
+          continue;
+        }
+        const Eigen::MatrixXcd Sinv = lu.inverse();
+        Gk = Gz.topRows(ny) * Sinv;
+        W.resize(ny, nz);
+        W << Eigen::MatrixXcd::Identity(ny, ny), -Gk;
+        M = Vp * Sinv;
+      }
+      Eigen::MatrixXd var = Eigen::MatrixXd::Zero(ny, m);
+      for (Index e = 0; e < E; ++e) {
+        const Eigen::VectorXd wcw =
+            (W * zcov[static_cast<size_t>(r * E + e)][static_cast<size_t>(k)] * W.adjoint()).diagonal().real();
+        for (Index j = 0; j < m; ++j) var.col(j) += std::norm(M(e, j)) * wcw;
+      }
+      G[static_cast<size_t>(r)][static_cast<size_t>(k)] = Gk;
+      varn[static_cast<size_t>(r)][static_cast<size_t>(k)] = var;
+    }
+
+  // 5. Over the realisations: the BLA, its noise and its distortion variance.
+  FrequencyResponse& frd = result.frd;
+  frd.omega_rad_s.resize(K);
+  frd.response.resize(static_cast<size_t>(K));
+  frd.variance.resize(static_cast<size_t>(K));
+  result.noise_variance.resize(static_cast<size_t>(K));
+  if (R >= 2) {
+    frd.distortion_variance.resize(static_cast<size_t>(K));
+    result.scatter_variance.resize(static_cast<size_t>(K));
+  }
+  for (Index k = 0; k < K; ++k) {
+    const size_t kk = static_cast<size_t>(k);
+    frd.omega_rad_s(k) = 2.0 * std::numbers::pi * hz(k);
+    Eigen::MatrixXcd mean_g = Eigen::MatrixXcd::Zero(ny, m);
+    Eigen::MatrixXd noise = Eigen::MatrixXd::Zero(ny, m);
+    for (Index r = 0; r < R; ++r) {
+      mean_g += G[static_cast<size_t>(r)][kk];
+      noise += varn[static_cast<size_t>(r)][kk];
+    }
+    mean_g /= static_cast<double>(R);
+    noise /= static_cast<double>(R * R);
+    frd.response[kk] = mean_g;
+    result.noise_variance[kk] = noise;
+    if (R >= 2) {
+      Eigen::MatrixXd scatter = Eigen::MatrixXd::Zero(ny, m);
+      for (Index r = 0; r < R; ++r) scatter += (G[static_cast<size_t>(r)][kk] - mean_g).cwiseAbs2();
+      scatter /= static_cast<double>(R * (R - 1));
+      result.scatter_variance[kk] = scatter;
+      frd.distortion_variance[kk] = (scatter - noise).cwiseMax(0.0);
+      frd.variance[kk] = noise + frd.distortion_variance[kk];
+    } else {
+      frd.variance[kk] = noise;
+    }
+    if (flagged[kk]) {  // Ŝ singular in some realisation: no value, never an unreliable one
+      frd.response[kk].setZero();
+      frd.variance[kk].setZero();
+      result.noise_variance[kk].setZero();
+      if (R >= 2) {
+        frd.distortion_variance[kk].setZero();
+        result.scatter_variance[kk].setZero();
+      }
+    }
+  }
+  if (plant_inputs != 0) frd.flagged = flagged;
+  result.bins = std::move(bins);
+  result.noise_dof = R * E * (P - 1);
+  result.realisation_dof = R - 1;
+  const Index nflag = static_cast<Index>(std::count(flagged.begin(), flagged.end(), true));
+  if (nflag > 0)
+    result.report.warnings.push_back(
+        fmt::format("{} line(s) flagged: the estimated S is singular there (condition above {:.3g})", nflag,
+                    options.max_condition));
+  result.report.termination =
+      fmt::format("{} excited lines, {} realisation(s) × {} experiment(s) × {} periods (noise dof {})", K, R, E, P,
+                  result.noise_dof);
+  return result;
+}
+
+std::vector<Eigen::MatrixXd> distortion_to_noise_ratio(const PeriodicFrfResult& result) {
+  std::vector<Eigen::MatrixXd> ratio;
+  for (size_t k = 0; k < result.scatter_variance.size(); ++k) {
+    const Eigen::MatrixXd& s = result.scatter_variance[k];
+    const Eigen::MatrixXd& n = result.noise_variance[k];
+    Eigen::MatrixXd q(s.rows(), s.cols());
+    for (Index i = 0; i < s.size(); ++i) q(i) = n(i) > 0 ? s(i) / n(i) : (s(i) > 0 ? INFINITY : 1.0);
+    ratio.push_back(q);
+  }
+  return ratio;
+}
+
+std::vector<std::pair<Index, Index>> distortion_bands(const PeriodicFrfResult& result) {
+  std::vector<std::pair<Index, Index>> bands;
+  const auto ratio = distortion_to_noise_ratio(result);
+  const double d1 = 2.0 * static_cast<double>(result.realisation_dof), d2 = 2.0 * static_cast<double>(result.noise_dof);
+  const Index F = static_cast<Index>(ratio.size());
+  if (F == 0 || d1 < 2 || d2 <= 4) return bands;
+  const double mu0 = d2 / (d2 - 2);
+  const double sd0 = std::sqrt(2 * d2 * d2 * (d1 + d2 - 2) / (d1 * (d2 - 2) * (d2 - 2) * (d2 - 4)));
+  const Index W = std::min(kDistortionWindow, F);
+  const double threshold = mu0 + kDistortionSigmas * sd0 / std::sqrt(static_cast<double>(W));
+  std::vector<bool> hit(static_cast<size_t>(F), false);
+  for (Index s = 0; s + W <= F; ++s) {
+    double mean = 0;
+    for (Index k = s; k < s + W; ++k) mean += ratio[static_cast<size_t>(k)].mean();
+    if (mean / static_cast<double>(W) > threshold)
+      for (Index k = s; k < s + W; ++k) hit[static_cast<size_t>(k)] = true;
+  }
+  for (Index k = 0; k < F; ++k) {
+    if (!hit[static_cast<size_t>(k)]) continue;
+    if (!bands.empty() && bands.back().second == k - 1)
+      bands.back().second = k;
+    else
+      bands.emplace_back(k, k);
+  }
+  return bands;
+}
+
+}  // namespace lpvid
