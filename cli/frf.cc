@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <charconv>
 #include <numbers>
+#include <optional>
 
 #include "cli/common.h"
 #include "cli/logs.h"
@@ -19,6 +20,8 @@
 #include "idlib/signal/frf.h"
 #include "idlib/signal/lpm.h"
 #include "idlib/signal/periodic_frf.h"
+#include "formats/io/excitation_design.h"
+#include "formats/io/excitation_file.h"
 
 namespace lpvid::cli {
 namespace {
@@ -199,7 +202,31 @@ void run(const FrfCliOptions& o) {
   for (const char* flag : {"--segment", "--overlap", "--window"})
     if (o.method != "welch" && given(o, flag))
       throw InputError(fmt::format("{} is a Welch option: --method {} does not cut segments", flag, o.method));
-  if (o.method == "periodic" && (!given(o, "--period-samples") || !given(o, "--periods")))
+  // The layout: the flags, or the design line `lpvid excite` writes (and the
+  // simulators copy into their logs) in the first log's comments.
+  std::optional<ExcitationDesign> design;
+  if (o.method == "periodic" && !given(o, "--period-samples")) {
+    for (const char* flag : {"--periods", "--transient-periods", "--realisations", "--experiments", "--excited-bins"})
+      if (given(o, flag))
+        throw InputError(fmt::format("{} without --period-samples: give the whole layout by flags, or none of it "
+                                     "to take it from the log's excitation design line",
+                                     flag));
+    if (o.logs.front() != "-" && !is_mat_path(o.logs.front())) design = read_excitation_design(o.logs.front());
+    if (!design)
+      throw InputError(fmt::format(
+          "--method periodic needs the layout: {} has no excitation design line ('# lpvid-excitation:', written by "
+          "lpvid excite and copied by simulate --excitation); give --period-samples L and --periods P (and "
+          "--transient-periods, --realisations, --experiments when not 0, 1, 1)",
+          o.logs.front()));
+    if (!design->periodic())
+      throw InputError(fmt::format("{}: the excitation design is {} (not periodic); use --method welch or lpm for it",
+                                   o.logs.front(), design->kind));
+    if (design->mimo == "zipper")
+      throw InputError(fmt::format("{}: a zipper design excites each input at its own lines, and the periodic FRF "
+                                   "needs every input at every line; design with --mimo one-at-a-time or hadamard",
+                                   o.logs.front()));
+  }
+  if (o.method == "periodic" && !design && !given(o, "--periods"))
     throw InputError("--method periodic needs the layout: --period-samples L and --periods P (and "
                      "--transient-periods, --realisations, --experiments when not 0, 1, 1)");
   FrfOptions options;
@@ -236,8 +263,19 @@ void run(const FrfCliOptions& o) {
   outputs.check();
   PeriodicFrfOptions popt;
   if (o.method == "periodic") {
-    popt.layout = {o.period_samples, o.periods, o.transient_periods, o.realisations, o.experiments};
-    popt.excited_bins = parse_bins(o.excited_bins);
+    if (design) {
+      popt.layout = {design->period_samples, design->periods, design->transient_periods, design->realisations,
+                     design->experiments};
+      // Every input's lines (one-at-a-time and hadamard designs excite the same ones).
+      std::vector<Index> bins;
+      for (const auto& b : design->excited_bins) bins.insert(bins.end(), b.begin(), b.end());
+      std::sort(bins.begin(), bins.end());
+      bins.erase(std::unique(bins.begin(), bins.end()), bins.end());
+      popt.excited_bins = bins;
+    } else {
+      popt.layout = {o.period_samples, o.periods, o.transient_periods, o.realisations, o.experiments};
+      popt.excited_bins = parse_bins(o.excited_bins);
+    }
     popt.sample_period_s = 1;  // replaced by the logs' below; checks the layout before any log is read
     popt.validate();
   }
