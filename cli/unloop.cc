@@ -176,7 +176,7 @@ Command make_unloop_command() {
             app->add_option("--min-loop-gain", o->min_loop_gain,
                             "flag frequencies where sigma_min(S^-1 - I) = sigma_min(C P) is below this (0 = off)")
                 ->check(number_in(0, INFINITY, "the smallest loop gain"));
-            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON")->required();
+            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space or transfer-function JSON")->required();
             app->add_option("--out", o->out, "plant to write: model JSON, or FRD CSV for data ('-' = stdout)")
                 ->required();
             app->add_option("--order", o->order, "plant order (default: closed-loop order minus controller order)")
