@@ -14,6 +14,7 @@
 #include <Eigen/Dense>
 
 #include "formats/io/frd_csv.h"
+#include "formats/io/frd_mat.h"
 #include "formats/io/model_json.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/discretize.h"
@@ -88,7 +89,7 @@ double max_rel_diff(const std::vector<Eigen::MatrixXcd>& a, const std::vector<Ei
   return worst;
 }
 
-TEST(TfControllerCli, PidNotchLowPass_GivenThreeWays_GivesTheSamePlantThroughUnloop) {
+TEST(TfControllerCli, PidNotchLowPass_GivenThreeWaysAndMeasured_GivesTheSamePlantThroughUnloop) {
   TempDir dir("tfctl");
   // Controller: PID (integrator, derivative filter), notch at 300 Hz, low-pass at 1.5 kHz.
   const double notch = 2 * kPi * 300 * kTs, lp = 2 * kPi * 1500 * kTs;
@@ -176,6 +177,39 @@ TEST(TfControllerCli, PidNotchLowPass_GivenThreeWays_GivesTheSamePlantThroughUnl
     EXPECT_LE(max_rel_diff(model_route[k], truth), kModelRoute) << k;
     EXPECT_LE(max_rel_diff(data_route[k], truth), kDataRouteTruth) << k;
   }
+
+  // The controller as its measured response (an FRD computed from the hand-made
+  // state space on G's lines, CSV and .mat): the data route gives the plant of the
+  // model controller (C's values are the same doubles unloop evaluates itself).
+  write_frd_csv(dir / "C.csv", frequency_response(c_ss, w), "C");
+  write_frd_mat(dir / "C.mat", frequency_response(c_ss, w), "frd");  // .mat: a response name the FRD reader knows
+  for (const char* c : {"C.csv", "C.mat"}) {
+    SCOPED_TRACE(c);
+    const RunResult r = run_lpvid("unloop --closed-loop " + (dir / "G.csv") + " --controller " + (dir / c) + " --out " +
+                                  (dir / (std::string("P_") + c + ".csv")));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::vector<Eigen::MatrixXcd> measured = read_frd_csv(dir / (std::string("P_") + c + ".csv")).response;
+    // Measured 5.8e-15 relative (round-off, not bit-identical: the file's C(ω) is
+    // evaluated by the test, unloop evaluates the model through its own path).
+    constexpr double kMeasuredController = 1e-13;
+    EXPECT_LE(max_rel_diff(measured, data_route[0]), kMeasuredController);
+    std::fprintf(stderr, "[measured] %s controller vs model controller: %.3g\n", c, max_rel_diff(measured, data_route[0]));
+  }
+  // On other frequencies, or as a model route's controller: one line, exit 2, nothing written.
+  Eigen::VectorXd shifted = w;
+  shifted[17] *= 1.001;
+  write_frd_csv(dir / "C_off.csv", frequency_response(c_ss, shifted), "C");
+  RunResult r = run_lpvid("unloop --closed-loop " + (dir / "G.csv") + " --controller " + (dir / "C_off.csv") + " --out " +
+                          (dir / "P_off.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("frequency 18 of the measured controller is"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "P_off.csv"));
+  r = run_lpvid("unloop --closed-loop " + (dir / "G.json") + " --controller " + (dir / "C.csv") + " --out " +
+                (dir / "P_model.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("a measured controller (FRD) serves the per-frequency routes only"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "P_model.json"));
 }
 
 TEST(TfControllerCli, BadTransferFunction_IsOneLineExit2AndNothingWritten) {
