@@ -464,6 +464,10 @@ Command make_compare_command() {
             app->callback([o, t] {
               o->controller = t->controller;  // one --controller for both forms
               if (!t->active()) return run(*o);
+              // `compare --model M.json --log RUN.csv`: the model file is the time route's model.
+              if (t->params.empty() && o->models.size() == 1) t->params = o->models.front();
+              else if (!o->models.empty())
+                throw InputError("compare --log: give the model once (--model M.json or --params M.json)");
               t->out_png = o->out_png;  // one --out-png for both forms
               run_time_compare(*t, o->out, o->json);
             });

@@ -14,6 +14,7 @@
 #include "cli/common.h"
 #include "cli/output_set.h"
 #include "cli/responses.h"
+#include "cli/stage6_time.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/model_json.h"
@@ -64,18 +65,10 @@ std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::Ma
   cv::Mat image = render_time_plot(series, po);
   const TimePlotLayout layout = layout_time_plot(series, po);
   // Failing windows: shaded in the residual panel of their channel.
-  cv::Mat shade = image.clone();
-  for (const auto& w : r.failures) {
-    const cv::Rect& panel = layout.panels_px[static_cast<std::size_t>(3 + w.channel)];
-    const int x0 = static_cast<int>(std::floor(layout.time.to_px(w.t_start_s)));
-    const int x1 = static_cast<int>(std::ceil(layout.time.to_px(w.t_end_s)));
-    cv::rectangle(shade, cv::Rect(cv::Point(std::max(x0, panel.x), panel.y),
-                                  cv::Point(std::min(x1, panel.x + panel.width), panel.y + panel.height)),
-                  cv::Scalar(80, 80, 255), cv::FILLED);
-  }
-  // 25 % red over the window, so the curves stay readable.
-  constexpr double kShadeAlpha = 0.25;
-  cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
+  std::vector<TimeWindowMark> marks;
+  for (const auto& w : r.failures)
+    marks.push_back({static_cast<std::size_t>(3 + w.channel), w.t_start_s, w.t_end_s});
+  shade_time_windows(image, layout, marks);
   return plot::encode_png(image);
 }
 
@@ -113,6 +106,36 @@ void register_time_compare_files(OutputSet& outputs, const TimeCompareCliOptions
 }
 
 void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
+  if (!o.params.empty() && is_physical_model_file(o.params)) {
+    // A stage6 model: the stage's time-domain route (cli/stage6_time.h).
+    {
+      OutputSet guard;
+      guard.input(o.params);
+      guard.input(o.log);
+      guard.file("--out-png", o.out_png);
+      guard.file("--out", out_json);
+      guard.check();
+    }
+    PhysicalModel model = read_physical_model(o.params);
+    if (model.base == "stage6") {
+      if (!o.controller.empty())
+        throw InputError("compare --log with a stage6 model: the model is simulated on the logged wrench (u1..u6), "
+                         "so no controller is needed; leave --controller out");
+      if (!o.overrides.empty() || o.substeps != 1 || o.max_lag != 25)
+        throw InputError("compare --log with a stage6 model: --set, --substeps and --max-lag are for the platform's "
+                         "time-domain compare; edit the model file instead");
+      StageTimeCompareRequest req;
+      req.model = std::move(model);
+      req.model_label = o.params;
+      req.log = o.log;
+      req.out_png = o.out_png;
+      req.out_json = out_json;
+      req.window_s = o.window_s;
+      req.threshold_percent = o.threshold_percent;
+      req.json = json;
+      return run_stage_time_compare(req);
+    }
+  }
   {
     OutputSet outputs;  // checked before the parameter file is read
     register_time_compare_files(outputs, o, out_json);

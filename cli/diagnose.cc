@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "cli/common.h"
+#include "cli/stage6_time.h"
 #include "cli/fit_inputs.h"
 #include "cli/output_set.h"
 #include "cli/registry.h"
@@ -46,6 +47,7 @@ model fails (data and model, the error over the noise band, failing bands red).)
 struct DiagnoseCliOptions {
   FitInputOptions in;
   std::string candidates, out, png, out_effect;
+  std::string log;  // the stage's time-domain route (cli/stage6_time.h)
   double delta_bic = 10.0;
   bool json = false;
 };
@@ -94,6 +96,29 @@ nlohmann::json phenomena_json(const std::vector<Phenomenon>& phenomena, const st
 }
 
 void run(const DiagnoseCliOptions& o) {
+  if (!o.log.empty()) {
+    if (!o.in.data.empty() || !o.in.datasets.empty())
+      throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+    if (!o.png.empty() || !o.out_effect.empty())
+      throw InputError("diagnose --log: --png and --out-effect are for the frequency route; see where the model "
+                       "fails in time with lpvid compare --log RUN.csv --model MODEL.json --out-png F.png");
+    {
+      OutputSet guard;
+      guard.input(o.in.model);
+      guard.file("--out", o.out);
+      guard.check();
+    }
+    StageTimeDiagnoseRequest req;
+    req.current = read_physical_model(o.in.model);
+    req.model_label = o.in.model;
+    req.log = o.log;
+    req.out = o.out;
+    req.command = "diagnose";
+    if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
+    req.delta_bic = o.delta_bic;
+    req.json = o.json;
+    return run_stage_time_diagnose(req);
+  }
   DiagnoseOptions options;
   options.significance_delta_bic = o.delta_bic;
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
@@ -234,6 +259,9 @@ Command make_diagnose_command() {
             auto* app = parent.add_subcommand(
                 "diagnose", "Which physical effect is the model missing?" + std::string(kExample));
             add_fit_input_options(*app, o->in);
+            app->add_option("--log", o->log,
+                            "time domain (base stage6): diagnose on a closed-loop log (t, v1..v6, u1..u6, q1..q6) "
+                            "by the equation error's BIC");
             app->add_option("--candidates", o->candidates, "effects to try, comma separated (default: all it lacks)");
             app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs besides (default 10)")
                 ->check(positive_up_to(1e9, "the BIC decrease"));

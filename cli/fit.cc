@@ -14,6 +14,7 @@
 #include "cli/output_set.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
+#include "cli/stage6_time.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/history.h"
 #include "formats/io/model_json.h"
@@ -50,12 +51,38 @@ their delta-method standard deviations at the data frequencies; the plot shows +
 struct FitCliOptions {
   FitInputOptions in;
   std::string out, plot, bands;
+  std::string log, method;  // the stage's time-domain route (cli/stage6_time.h)
   bool json = false;
 };
 
 std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
 
 void run(const FitCliOptions& o) {
+  if (!o.log.empty() || !o.method.empty()) {
+    if (o.log.empty())
+      throw InputError("fit --method: the method is for the time-domain fit; give --log RUN.csv (a stage6 model)");
+    if (!o.in.data.empty() || !o.in.datasets.empty())
+      throw InputError("fit: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+    if (!o.plot.empty() || !o.bands.empty())
+      throw InputError("fit --log: --plot and --bands are for the frequency route; see where the fitted model fails "
+                       "in time with lpvid compare --log RUN.csv --model FITTED.json --out-png F.png");
+    StageTimeFitRequest req;
+    {
+      OutputSet guard;  // the model is an input: never overwritten by --out
+      guard.input(o.in.model);
+      guard.file("--out", o.out);
+      guard.check();
+    }
+    req.start = read_physical_model(o.in.model);
+    req.model_label = o.in.model;
+    req.log = o.log;
+    req.out = o.out;
+    req.method = o.method.empty() ? "output" : o.method;
+    req.command = "fit";
+    req.history_from = history_path_for(o.in.model);
+    req.json = o.json;
+    return run_stage_time_fit(req);
+  }
   if (o.out == "-")
     throw InputError("fit --out '-': the fit history is written beside --out, so --out must be a file; give a file "
                      "path (or --json to print the fit)");
@@ -263,6 +290,12 @@ Command make_fit_command() {
                                                      "beam positions" + std::string(kExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--out", o->out, "fitted model file to write (JSON, with a \"fit\" section)")->required();
+            app->add_option("--log", o->log,
+                            "time domain (base stage6): fit to a closed-loop log (t, v1..v6, u1..u6, q1..q6) instead "
+                            "of responses");
+            app->add_option("--method", o->method,
+                            "with --log: output (default; output error started from the equation error, unbiased "
+                            "with sensor noise, standard errors), equation, or both (prints the two, writes output)");
             app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
             app->add_flag("--json", o->json, "print the summary as JSON");

@@ -27,13 +27,14 @@ Command make_fit_command();
 Command make_diagnose_command();
 Command make_history_command();
 Command make_stage6_command();
+Command make_excite_command();
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> all = {
       make_simulate_command(), make_markov_command(), make_hankel_command(), make_realize_command(),
       make_unloop_command(),   make_bode_command(),   make_identify_command(), make_frf_command(),
       make_compare_command(),  make_model_command(),  make_fit_command(),      make_diagnose_command(),
-      make_history_command(), make_stage6_command(),
+      make_history_command(), make_stage6_command(), make_excite_command(),
   };
   return all;
 }

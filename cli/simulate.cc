@@ -19,6 +19,7 @@
 #include "cli/simulate_analyzer.h"
 #include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
+#include "formats/io/excitation_file.h"
 #include "formats/io/text.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
@@ -64,6 +65,8 @@ struct SimulateOptions {
   std::vector<std::string> overrides;  // NAME=VALUE
   std::string truth_model;             // physical model file (lpvid model): the truth, effects included
   AnalyzerCliOptions analyzer;         // --analyzer* (cli/simulate_analyzer.h)
+  std::string excitation;              // --excitation FILE (lpvid excite): replaces the white noise
+  bool duration_given = false;
 };
 
 // The documented platform with `--set NAME=VALUE` overrides (formats/io/platform_json.h).
@@ -98,12 +101,21 @@ void run(const SimulateOptions& o) {
   for (const auto& p : o.positions) positions_m.push_back(parse_position(p));
   if (!o.truth_model.empty() && !o.overrides.empty())
     throw InputError("--set and --truth-model both given: put the values in the model file (lpvid model) or use --set alone");
+  const bool designed = !o.excitation.empty();
+  if (designed && o.simultaneous)
+    throw InputError("--simultaneous does not apply with --excitation (the file says which inputs are excited when); "
+                     "leave it out");
+  if (designed && o.duration_given)
+    throw InputError("--duration-s does not apply with --excitation (the file sets the length); leave it out");
+  if (designed && o.rates_hz.size() != 1)
+    throw InputError("--excitation is sampled at one rate: give one --rate-hz, the file's");
 
   // Every file of every folder, checked before anything is read or simulated;
   // the folders are created when the files are published, after the last simulation.
   static const char* const kInputs[] = {"T_psi", "T_theta", "F_z"};
   OutputSet outputs;
   outputs.input(o.truth_model);
+  outputs.input(o.excitation);
   outputs.directory("--out", o.out_dir);
   std::vector<std::string> dirs;
   for (std::size_t ip = 0; ip < positions_m.size(); ++ip)
@@ -118,7 +130,9 @@ void run(const SimulateOptions& o) {
       const std::string folder = fmt::format("{}_{}hz", position_label(o.positions[ip]), std::llround(o.rates_hz[ir]));
       for (const char* name : {"controller.json", "truth_plant.json", "truth_plant_continuous.json", "truth_closed_loop.json"})
         outputs.file_in(o.out_dir, join_path(folder, name));
-      if (o.simultaneous) {
+      if (designed) {
+        outputs.file_in(o.out_dir, join_path(folder, "exp_excitation.csv"));
+      } else if (o.simultaneous) {
         outputs.file_in(o.out_dir, join_path(folder, "exp_all.csv"));
       } else {
         for (const char* input : kInputs) outputs.file_in(o.out_dir, join_path(folder, fmt::format("exp_{}.csv", input)));
@@ -126,6 +140,23 @@ void run(const SimulateOptions& o) {
       register_analyzer_files(outputs, o.analyzer, o.out_dir, folder);
     }
   outputs.check();
+
+  // A designed excitation (lpvid excite): its v1..v3 replace the white noise sample
+  // for sample, at the file's rate; the log copies its design line for frf.
+  std::optional<ExcitationFile> excitation;
+  if (designed) {
+    excitation = read_excitation_file(o.excitation);
+    const ExcitationDesign& d = excitation->design;
+    if (d.channels != 3)
+      throw InputError(fmt::format("--excitation {}: {} channel{} but the platform has 3 inputs (v1..v3); write it with "
+                                   "lpvid excite --channels 3",
+                                   o.excitation, d.channels, d.channels == 1 ? "" : "s"));
+    // 1e-6 relative: the same rate written with different rounding.
+    if (!(std::abs(d.sample_rate_hz - o.rates_hz[0]) <= 1e-6 * o.rates_hz[0]))
+      throw InputError(fmt::format("--excitation {} is sampled at {} Hz but --rate-hz is {}; give --rate-hz {} or "
+                                   "write the signal at {} Hz (lpvid excite --rate-hz)",
+                                   o.excitation, d.sample_rate_hz, o.rates_hz[0], d.sample_rate_hz, o.rates_hz[0]));
+  }
 
   // The truth: the documented platform with --set overrides, or a physical model
   // file with its effects (a hidden effect for the model-error loop; the PI gains
@@ -166,7 +197,17 @@ void run(const SimulateOptions& o) {
       ex.duration_s = o.duration_s;
       ex.sample_period_s = ts;
       ex.sensor_noise_std *= o.noise_scale;
-      const int runs = o.simultaneous ? 1 : 3;
+      if (excitation) {
+        ex.excitation_samples = excitation->log.data.rightCols(3);
+        ex.seed = o.seed * 1000003ULL + ip * 1009ULL + ir * 101ULL;
+        const SimulatedLog log = simulate_excitation(plant_d, controller, ex);
+        write_log(outputs.stage(join_path(dir, "exp_excitation.csv")), log.names, log.data,
+                  {fmt::format("lpvid simulate platform: beam_position_m={} sample_period_s={} excited=designed "
+                               "excitation={} seed={}",
+                               positions_m[ip], ts, o.excitation, ex.seed),
+                   excitation_design_comment(excitation->design)});
+      }
+      const int runs = excitation ? 0 : o.simultaneous ? 1 : 3;
       for (int input = 0; input < runs; ++input) {
         ex.excited_input = o.simultaneous ? -1 : input;
         // Distinct, reproducible streams per (seed, position, rate, input).
@@ -178,7 +219,9 @@ void run(const SimulateOptions& o) {
                                positions_m[ip], ts, o.simultaneous ? "all" : plant_c.input_names[input], ex.seed)});
       }
       summary.push_back({{"dir", dir}, {"beam_position_m", positions_m[ip]}, {"rate_hz", o.rates_hz[ir]}});
-      text += fmt::format("wrote {} (x_b = {} m, {} Hz, {} s)\n", dir, positions_m[ip], o.rates_hz[ir], o.duration_s);
+      text += fmt::format("wrote {} (x_b = {} m, {} Hz, {} s{})\n", dir, positions_m[ip], o.rates_hz[ir],
+                          excitation ? static_cast<double>(excitation->log.num_samples()) * ts : o.duration_s,
+                          excitation ? ", excitation " + o.excitation : std::string());
       if (o.analyzer.enabled)
         summary.back()["analyzer"] =
             write_analyzer_files(outputs, o.analyzer, dir, plant_d, controller, ex.sensor_noise_std,
@@ -205,8 +248,11 @@ Command make_simulate_command() {
             platform->add_option("--rate-hz", opts->rates_hz, "sampling rates in Hz (e.g. 1000,10000)")
                 ->delimiter(',')
                 ->check(positive_up_to(kMaxRateHz, "each sample rate in Hz"));
-            platform->add_option("--duration-s", opts->duration_s, "length of each experiment in seconds")
+            auto* duration = platform->add_option("--duration-s", opts->duration_s, "length of each experiment in seconds")
                 ->check(positive_up_to(kMaxDurationS, "the length of each experiment in s"));
+            platform->add_option("--excitation", opts->excitation,
+                                 "drive the inputs with this signal (lpvid excite: CSV or .mat, v1..v3 at --rate-hz) "
+                                 "instead of white noise; writes exp_excitation.csv with the design line");
             platform->add_option("--seed", opts->seed, "random seed (same seed, same logs)")->check(seed_value());
             platform->add_option("--noise-scale", opts->noise_scale, "multiplies the default sensor noise (0 = none)")
                 ->check(number_in(0, kMaxScale, "the noise scale"));
@@ -222,13 +268,15 @@ Command make_simulate_command() {
             add_analyzer_options(*platform, opts->analyzer);
             auto beam = std::make_shared<TrajectoryCliOptions>();
             add_trajectory_options(platform, *beam);
-            platform->callback([opts, beam, positions] {
+            platform->callback([opts, beam, positions, duration] {
+              opts->duration_given = duration->count() > 0;
               if (!beam->active()) return run(*opts);
               // Flags of the fixed-position experiments do not apply to a moving beam.
               const char* ignored = positions->count() > 0       ? "--positions"
                                     : opts->analyzer.enabled     ? "--analyzer"
                                     : !opts->truth_model.empty() ? "--truth-model"
                                     : opts->simultaneous         ? "--simultaneous"
+                                    : !opts->excitation.empty()  ? "--excitation"
                                                                  : nullptr;
               if (ignored != nullptr)
                 throw InputError(fmt::format("{} does not apply to a moving beam (--profile/--trajectory); leave it "

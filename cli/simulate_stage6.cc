@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "cli/output_set.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/csv_log.h"
+#include "formats/io/excitation_file.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/plot/time_plot.h"
@@ -94,6 +96,8 @@ struct Stage6Options {
   bool hover = false;
   std::uint64_t seed = 1;
   bool json = false;
+  std::string excitation;  // --excitation FILE (lpvid excite, v1..v6): replaces the white excitation
+  bool duration_given = false, excitation_scale_given = false;
 };
 
 std::vector<std::string> names(const std::string& prefix, int count) {
@@ -113,11 +117,21 @@ std::vector<unsigned char> plot(const Eigen::VectorXd& t, const Eigen::MatrixXd&
 
 void run(const Stage6Options& o) {
   using namespace lpvid::stage6;
-  const double duration_s = o.duration_s > 0 ? o.duration_s : (o.experiment ? 2.0 : 8.0);
+  if (!o.excitation.empty()) {
+    if (!o.experiment)
+      throw InputError("--excitation drives the identification experiment: add --experiment");
+    if (o.duration_given)
+      throw InputError("--duration-s does not apply with --excitation (the file sets the length); leave it out");
+    if (o.excitation_scale_given)
+      throw InputError("--excitation-scale does not apply with --excitation (the file sets the amplitude: lpvid "
+                       "excite --rms/--peak); leave it out");
+  }
+  double duration_s = o.duration_s > 0 ? o.duration_s : (o.experiment ? 2.0 : 8.0);
   check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
   // Every output, checked before anything is simulated; the folder is created
   // when the files are published.
   OutputSet out;
+  out.input(o.excitation);
   out.directory("--out", o.out_dir);
   for (const char* name : o.experiment ? std::vector<const char*>{"exp_stage6.csv", "truth_plant_continuous.json",
                                                                  "truth_plant.json", "truth_model.json"}
@@ -125,6 +139,25 @@ void run(const Stage6Options& o) {
                                                                   "fig6c_forces.png", "fig6d_torques.png"})
     out.file_in(o.out_dir, name);
   out.check();
+  // A designed excitation (lpvid excite): its v1..v6 replace the white excitation
+  // sample for sample at the control rate; the log copies its design line for frf.
+  std::optional<ExcitationFile> excitation;
+  if (!o.excitation.empty()) {
+    excitation = read_excitation_file(o.excitation);
+    const ExcitationDesign& d = excitation->design;
+    if (d.channels != 6)
+      throw InputError(fmt::format("--excitation {}: {} channel{} but the stage has 6 inputs (v1..v6: F_x..tau_z); "
+                                   "write it with lpvid excite --channels 6",
+                                   o.excitation, d.channels, d.channels == 1 ? "" : "s"));
+    // 1e-6 relative: the same rate written with different rounding.
+    if (!(std::abs(d.sample_rate_hz - o.rate_hz) <= 1e-6 * o.rate_hz))
+      throw InputError(fmt::format("--excitation {} is sampled at {} Hz but the control rate --rate-hz is {}; give "
+                                   "--rate-hz {} or write the signal at {} Hz (lpvid excite --rate-hz)",
+                                   o.excitation, d.sample_rate_hz, o.rate_hz, d.sample_rate_hz, o.rate_hz));
+    // The run has duration x rate + 1 rows: one per sample of the file.
+    duration_s = static_cast<double>(excitation->log.num_samples() - 1) / o.rate_hz;
+    check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
+  }
   StageEffects effects;
   for (const auto& e : o.effects) {
     if (e == "gap") effects.gap_dependence = true;
@@ -164,6 +197,7 @@ void run(const Stage6Options& o) {
     sim.sensor_noise_std *= o.noise_scale;
     sim.excitation_std << 2, 2, 2, 0.1, 0.1, 0.1;
     sim.excitation_std *= o.excitation_scale;
+    if (excitation) sim.excitation_samples = excitation->log.data.rightCols(6);
     q0 = Vector6d::Zero();
     q0(2) = o.hover ? qr(2) : 250e-6;
   }
@@ -184,7 +218,12 @@ void run(const Stage6Options& o) {
     const StateSpace plant_d = discretize_zoh(plant_c, 1.0 / o.rate_hz);
     const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", qr(2)},
                                  {"seed", o.seed}};
-    write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, {provenance});
+    std::vector<std::string> comments = {provenance};
+    if (excitation) {
+      comments.front() += " excitation=" + o.excitation;
+      comments.push_back(excitation_design_comment(excitation->design));
+    }
+    write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, comments);
     out.stage(join_path(o.out_dir, "truth_plant_continuous.json"), state_space_to_json(plant_c, {{"provenance", prov}}));
     out.stage(join_path(o.out_dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", prov}}));
     out.stage(join_path(o.out_dir, "truth_model.json"), physical_model_to_json(truth_physical_model(truth, effects, r)));
@@ -237,7 +276,7 @@ void install_simulate_stage6(CLI::App& simulate) {
   c->add_option("--out", opts->out_dir, "output directory")->required();
   c->add_flag("--experiment", opts->experiment,
               "closed-loop identification experiment instead of the paper's regulation run");
-  c->add_option("--duration-s", opts->duration_s, "simulated time in s (default 8, or 2 with --experiment)")
+  auto* duration = c->add_option("--duration-s", opts->duration_s, "simulated time in s (default 8, or 2 with --experiment)")
       ->check(positive_up_to(kMaxDurationS, "the simulated time in s"));
   c->add_option("--rate-hz", opts->rate_hz, "control (and log) rate in Hz")
       ->check(positive_up_to(kMaxRateHz, "the control rate in Hz"));
@@ -251,7 +290,7 @@ void install_simulate_stage6(CLI::App& simulate) {
       ->check(positive_up_to(1e12, "the sliding-surface slope in 1/s"));
   c->add_option("--inertia-scale", opts->inertia_scale, "controller's inertia estimate M0 = scale * M")
       ->check(positive_up_to(kMaxScale, "the inertia scale"));
-  c->add_option("--excitation-scale", opts->excitation_scale,
+  auto* excitation_scale = c->add_option("--excitation-scale", opts->excitation_scale,
                 "--experiment: multiplies the white excitation (2 N, 0.1 N m per channel)")
       ->check(number_in(0, kMaxScale, "the excitation scale"));
   c->add_option("--noise-scale", opts->noise_scale, "--experiment: multiplies the sensor noise (0 = none)")
@@ -273,7 +312,14 @@ void install_simulate_stage6(CLI::App& simulate) {
   c->add_flag("--hover", opts->hover, "--experiment: start hovering at the reference (no z step)");
   c->add_option("--seed", opts->seed, "random seed (same seed, same log)")->check(seed_value());
   c->add_flag("--json", opts->json, "print the summary as JSON");
-  c->callback([opts] { run(*opts); });
+  c->add_option("--excitation", opts->excitation,
+                "--experiment: drive the wrench with this signal (lpvid excite: CSV or .mat, v1..v6 at --rate-hz) "
+                "instead of white noise; the log copies its design line");
+  c->callback([opts, duration, excitation_scale] {
+    opts->duration_given = duration->count() > 0;
+    opts->excitation_scale_given = excitation_scale->count() > 0;
+    run(*opts);
+  });
 }
 
 }  // namespace lpvid::cli

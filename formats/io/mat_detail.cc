@@ -35,11 +35,6 @@ void append_utf8(std::string& text, unsigned u) {
 
 }  // namespace
 
-void silence_matio() {
-  static std::once_flag once;
-  std::call_once(once, [] { Mat_LogInitFunc("lpvid", [](int, char*) {}); });
-}
-
 std::string dims_text(const std::vector<size_t>& dims) { return fmt::format("{}", fmt::join(dims, "×")); }
 
 size_t Value::count() const {

@@ -18,24 +18,17 @@
 #include <vector>
 
 #include "formats/io/atomic_file.h"
+#include "formats/io/matio_detail.h"
 
 namespace lpvid::mat_detail {
 
 // Bytes a file's variables may take once inflated (and the largest file).
 inline constexpr uint64_t kMaxInflatedBytes = uint64_t{512} << 20;
 
-// matio reports problems through a global log function that prints to stderr;
-// every problem becomes an InputError instead, so the log is silenced.
-void silence_matio();
-
-struct MatCloser {
-  void operator()(mat_t* mat) const { Mat_Close(mat); }
-};
-struct VarFreer {
-  void operator()(matvar_t* var) const { Mat_VarFree(var); }
-};
-using MatPtr = std::unique_ptr<mat_t, MatCloser>;
-using VarPtr = std::unique_ptr<matvar_t, VarFreer>;
+// The matio closers and the silenced matio log (shared with excitation_file.cc).
+using detail::MatPtr;
+using detail::silence_matio;
+using detail::VarPtr;
 
 // "2×3×5".
 std::string dims_text(const std::vector<size_t>& dims);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <opencv2/imgproc.hpp>
 
 #include "idlib/core/error.h"
 
@@ -279,6 +280,21 @@ cv::Mat render_time_plot(const std::vector<TimeSeries>& series, const TimePlotOp
 std::vector<unsigned char> time_plot_png(const std::vector<TimeSeries>& series,
                                          const TimePlotOptions& options) {
   return plot::encode_png(render_time_plot(series, options));
+}
+
+void shade_time_windows(cv::Mat& image, const TimePlotLayout& layout, const std::vector<TimeWindowMark>& marks) {
+  cv::Mat shade = image.clone();
+  for (const auto& w : marks) {
+    if (w.panel >= layout.panels_px.size()) continue;
+    const cv::Rect& panel = layout.panels_px[w.panel];
+    const int x0 = static_cast<int>(std::floor(layout.time.to_px(w.t_start_s)));
+    const int x1 = static_cast<int>(std::ceil(layout.time.to_px(w.t_end_s)));
+    cv::rectangle(shade, cv::Rect(cv::Point(std::max(x0, panel.x), panel.y),
+                                  cv::Point(std::min(x1, panel.x + panel.width), panel.y + panel.height)),
+                  cv::Scalar(80, 80, 255), cv::FILLED);
+  }
+  constexpr double kShadeAlpha = 0.25;
+  cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
 }
 
 }  // namespace lpvid

@@ -59,6 +59,15 @@ cv::Mat render_time_plot(const std::vector<TimeSeries>& series, const TimePlotOp
 std::vector<unsigned char> time_plot_png(const std::vector<TimeSeries>& series,
                                          const TimePlotOptions& options);
 
+// A time window to mark on one panel (e.g. where a model fails).
+struct TimeWindowMark {
+  std::size_t panel = 0;  // index into layout.panels_px
+  double t_start_s = 0.0, t_end_s = 0.0;
+};
+// Shades each window across its panel in translucent red (25 %, so the curves
+// stay readable), clipped to the panel.  A panel index out of range is skipped.
+void shade_time_windows(cv::Mat& image, const TimePlotLayout& layout, const std::vector<TimeWindowMark>& marks);
+
 // The polyline drawn for samples (t, v): with x = time.to_px(t), one point per
 // sample when there are at most 2 per pixel column, otherwise per column the
 // minimum and the maximum (in the order they occur) at the column's centre.

@@ -73,6 +73,7 @@ void run_loop(const StateSpace& plant, const StateSpace& controller, const Excit
   else
     v_mask(options.excited_input) = options.excitation_std(options.excited_input);
   const Eigen::Vector3d n_scale = options.sensor_noise_std;
+  const bool designed = options.excitation_samples.size() != 0;
 
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -83,7 +84,7 @@ void run_loop(const StateSpace& plant, const StateSpace& controller, const Excit
     Eigen::Vector3d v, n;
     for (int i = 0; i < 3; ++i) v(i) = normal(rng);
     for (int i = 0; i < 3; ++i) n(i) = normal(rng);
-    v = v.cwiseProduct(v_mask);
+    v = designed ? Eigen::Vector3d(options.excitation_samples.row(k).transpose()) : Eigen::Vector3d(v.cwiseProduct(v_mask));
     n = n.cwiseProduct(n_scale);
 
     const Eigen::Vector3d q_meas = Cp * xp + n;
@@ -127,6 +128,14 @@ void ExcitationOptions::validate() const {
         excited_input));
   require_std(excitation_std, "excitation_std", "the plant input's units (N·m, N·m, N)");
   require_std(sensor_noise_std, "sensor_noise_std", "the output's units (rad, rad, m)");
+  if (excitation_samples.size() != 0) {
+    if (excitation_samples.cols() != 3 || static_cast<double>(excitation_samples.rows()) > kMaxSamples ||
+        !excitation_samples.allFinite())
+      throw InputError(fmt::format(
+          "excitation options: excitation_samples is {} x {}; it must be N x 3 (v1..v3), N <= {}, every entry finite",
+          excitation_samples.rows(), excitation_samples.cols(), kMaxSamples));
+    return;  // excited_input and excitation_std do not apply
+  }
   for (int i = 0; i < 3; ++i) {
     const bool excited = excited_input == -1 || excited_input == i;
     if (excited && !(excitation_std(i) > 0.0))
@@ -148,7 +157,8 @@ SimulatedLog simulate_excitation(const StateSpace& discrete_plant, const StateSp
         "(D = 0), as a ZOH-discretised mechanical model is",
         discrete_plant.D.cwiseAbs().maxCoeff()));
 
-  const Index N = sample_count(options.duration_s, options.sample_period_s);
+  const Index N = options.excitation_samples.size() != 0 ? options.excitation_samples.rows()
+                                                         : sample_count(options.duration_s, options.sample_period_s);
   SimulatedLog log;
   log.names = {"t", "v1", "v2", "v3", "u1", "u2", "u3", "q1", "q2", "q3"};
   log.data.resize(N, 10);

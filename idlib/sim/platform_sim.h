@@ -37,6 +37,12 @@ struct ExcitationOptions {
   // 0.3 µm / (0.1 m · sqrt 6) ≈ 1.2 µrad.
   Eigen::Vector3d sensor_noise_std{1.2e-6, 1.2e-6, 1.0e-7};
   std::uint64_t seed = 1;
+  // A designed excitation (e.g. from lpvid excite), N x 3 in the plant input's
+  // units, used sample for sample as v instead of the white noise: when not empty
+  // the log has its N rows (duration_s is not used) and excited_input and
+  // excitation_std are not used.  The noise draws are unchanged (see
+  // simulate_excitation), so the sensor noise is the same as with white v.
+  Eigen::MatrixXd excitation_samples;
 
   // 5e7 samples = 4 GB of log; a larger request is almost surely a unit mistake.
   static constexpr double kMaxSamples = 5e7;
@@ -44,7 +50,8 @@ struct ExcitationOptions {
   // @throws InputError naming the field: duration/sample period not finite or
   //   <= 0, or giving N < 1 or N > kMaxSamples; excited_input not in {-1,0,1,2};
   //   a standard deviation negative or not finite; the excited input(s) with a
-  //   zero excitation_std.
+  //   zero excitation_std (without excitation_samples); excitation_samples not
+  //   N x 3, with N > kMaxSamples, or not finite.
   void validate() const;
 };
 
@@ -65,7 +72,8 @@ struct SimulatedLog {
 // v and n are Gaussian, drawn from std::mt19937_64(seed) through
 // std::normal_distribution in the order v1 v2 v3 n1 n2 n3 every sample (all
 // six are drawn even when a std is zero, so the excitation sequence does not
-// depend on the noise settings).  The same seed gives the same log bit for bit.
+// depend on the noise settings); with options.excitation_samples, v = its row k
+// (the drawn v is discarded).  The same seed gives the same log bit for bit.
 //
 // | argument   | requirement |
 // |------------|-------------|

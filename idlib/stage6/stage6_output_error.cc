@@ -138,8 +138,18 @@ struct WindowResidual {
         const S k4 = derivative<T, NX>(th, S(x + h * k3), f, log->r, log->z_ref);
         x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
       }
+      // A window that diverges (a model missing a stiffness, a trial step too
+      // far): tell Ceres the point is not evaluable (it then shortens the step,
+      // without printing a warning over the user's terminal).
+      if (!finite_value(x(0)) || !finite_value(x(2)) || !finite_value(x(4))) return false;
     }
     return true;
+  }
+
+  static bool finite_value(double v) { return std::isfinite(v); }
+  template <typename J>
+  static bool finite_value(const J& v) {
+    return std::isfinite(v.a) && v.v.allFinite();
   }
 
   // Lag states at the window start: the exact ZOH response of τ_e ẏ = f − y − bαv
@@ -217,10 +227,15 @@ using WindowCost = ceres::AutoDiffCostFunction<WindowResidual, ceres::DYNAMIC, 1
 
 }  // namespace
 
-StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, const Eigen::MatrixXd& u,
-                                              const Eigen::MatrixXd& q, double sample_period_s,
-                                              const StageFitModel& model, const StageOutputErrorOptions& options,
-                                              const StageFitResult* start) {
+namespace {
+
+// The fit (given == nullptr: θ from the equation-error start, its free entries
+// estimated) or the output error of given parameters (every θ entry held, only the
+// window states fitted).
+StageOutputErrorResult output_error_impl(const StageParameters& nominal, const Eigen::MatrixXd& u,
+                                         const Eigen::MatrixXd& q, double sample_period_s, const StageFitModel& model,
+                                         const StageOutputErrorOptions& options, const StageFitResult* start,
+                                         const Theta* given) {
   nominal.validate();
   options.validate();
   check_log(u, q, sample_period_s);
@@ -239,7 +254,9 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
 
   StageOutputErrorResult out;
   out.model = model;
-  if (start) {
+  if (given) {
+    out.start.model = model;
+  } else if (start) {
     out.start = *start;
   } else {
     StageFitOptions fo;  // also rejects constant columns
@@ -256,19 +273,25 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
   log.z_ref = nominal.reference_gap_m;
 
   Theta theta;
-  theta << s0.mass_kg, s0.inertia_diag_kgm2, s0.force_constant_scale, s0.com_offset_m, s0.gamma_per_m,
-      model.electrical_lag ? s0.electrical_time_constant_s : nominal.electrical_time_constant_s(),
-      s0.back_emf_damping_Ns_per_m;
+  if (given) {
+    theta = *given;
+  } else {
+    theta << s0.mass_kg, s0.inertia_diag_kgm2, s0.force_constant_scale, s0.com_offset_m, s0.gamma_per_m,
+        model.electrical_lag ? s0.electrical_time_constant_s : nominal.electrical_time_constant_s(),
+        s0.back_emf_damping_Ns_per_m;
+  }
   if (!model.com_offset) theta.segment<3>(5).setZero();
   if (!model.gap_dependence) theta(8) = 0;
   if (!model.electrical_lag) theta(10) = 0;
   out.free.fill(false);
-  out.free[0] = !options.fix_mass;
-  out.free[1] = out.free[2] = out.free[3] = true;
-  out.free[4] = options.fix_mass;
-  out.free[5] = out.free[6] = out.free[7] = model.com_offset;
-  out.free[8] = model.gap_dependence;
-  out.free[9] = out.free[10] = model.electrical_lag;
+  if (!given) {
+    out.free[0] = !options.fix_mass;
+    out.free[1] = out.free[2] = out.free[3] = true;
+    out.free[4] = options.fix_mass;
+    out.free[5] = out.free[6] = out.free[7] = model.com_offset;
+    out.free[8] = model.gap_dependence;
+    out.free[9] = out.free[10] = model.electrical_lag;
+  }
   std::vector<int> held, free_index;
   for (int i = 0; i < kStageThetaSize; ++i) (out.free[static_cast<std::size_t>(i)] ? free_index : held).push_back(i);
   const int p = static_cast<int>(free_index.size());
@@ -319,7 +342,10 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
     for (int i : {0, 1, 2, 3, 4}) problem.SetParameterLowerBound(theta.data(), i, 1e-9);
     // τ_e > 0 (it divides); 1 ns is far below any current loop.
     problem.SetParameterLowerBound(theta.data(), 9, 1e-9);
-    problem.SetManifold(theta.data(), new ceres::SubsetManifold(kStageThetaSize, held));
+    if (p == 0)
+      problem.SetParameterBlockConstant(theta.data());
+    else
+      problem.SetManifold(theta.data(), new ceres::SubsetManifold(kStageThetaSize, held));
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_SCHUR;
     so.linear_solver_ordering = ordering;
@@ -375,7 +401,8 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
   }
   out.sigma2 = rss / std::max(1.0, n - k_total);
   Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-  out.covariance = out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+  if (p == 0) ldlt.compute(Eigen::MatrixXd::Identity(1, 1));  // nothing estimated: no covariance
+  out.covariance = p == 0 ? Eigen::MatrixXd(0, 0) : Eigen::MatrixXd(out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p)));
   for (int i = 0; i < p; ++i)
     out.std_error(free_index[static_cast<std::size_t>(i)]) = std::sqrt(std::max(0.0, out.covariance(i, i)));
 
@@ -398,6 +425,25 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
         "the parameters' information matrix is singular: some parameter is not determined by this log, and its "
         "standard error is not meaningful");
   return out;
+}
+
+}  // namespace
+
+StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, const Eigen::MatrixXd& u,
+                                              const Eigen::MatrixXd& q, double sample_period_s,
+                                              const StageFitModel& model, const StageOutputErrorOptions& options,
+                                              const StageFitResult* start) {
+  return output_error_impl(nominal, u, q, sample_period_s, model, options, start, nullptr);
+}
+
+StageOutputErrorResult stage_output_error_at(const StageParameters& nominal, const Eigen::MatrixXd& u,
+                                             const Eigen::MatrixXd& q, double sample_period_s,
+                                             const StageFitModel& model,
+                                             const Eigen::Matrix<double, kStageThetaSize, 1>& theta,
+                                             const StageOutputErrorOptions& options) {
+  if (!theta.allFinite())
+    throw InputError("stage output error: a parameter value is not finite; check the model file");
+  return output_error_impl(nominal, u, q, sample_period_s, model, options, nullptr, &theta);
 }
 
 }  // namespace lpvid::stage6

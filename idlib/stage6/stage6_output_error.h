@@ -170,4 +170,17 @@ StageOutputErrorResult fit_stage_output_error(const StageParameters& nominal, co
                                               const StageOutputErrorOptions& options = {},
                                               const StageFitResult* start = nullptr);
 
+// The output error of GIVEN parameters θ (kStageThetaNames order; the entries of
+// effects not in `model` are ignored): the same windows, weights (two passes) and
+// residuals as the fit, but only the window states are fitted, every θ entry held
+// (`lpvid compare --log` with a stage6 model: where does this model fail?).
+// num_parameters = 0, covariance empty, std_error 0, `start` unused.
+// @throws InputError  as fit_stage_output_error, or θ not finite.
+// @throws NumericalError  as fit_stage_output_error.
+StageOutputErrorResult stage_output_error_at(const StageParameters& nominal, const Eigen::MatrixXd& u,
+                                             const Eigen::MatrixXd& q, double sample_period_s,
+                                             const StageFitModel& model,
+                                             const Eigen::Matrix<double, kStageThetaSize, 1>& theta,
+                                             const StageOutputErrorOptions& options = {});
+
 }  // namespace lpvid::stage6

@@ -40,6 +40,14 @@ void SimulationOptions::validate(const SlidingModeOptions& smc) const {
     throw InputError("sensor_noise_std: every entry must be finite and >= 0");
   if (!(excitation_std.array() >= 0).all() || !excitation_std.allFinite())
     throw InputError("excitation_std: every entry must be finite and >= 0");
+  if (excitation_samples.size() != 0) {
+    const double needed = std::round(duration_s * smc.control_rate_hz) + 1;
+    if (excitation_samples.cols() != 6 || static_cast<double>(excitation_samples.rows()) < needed ||
+        !excitation_samples.allFinite())
+      throw InputError(fmt::format("excitation_samples is {} x {}; it must be at least {} x 6 (one row per control "
+                                   "period of the run) of finite values",
+                                   excitation_samples.rows(), excitation_samples.cols(), needed));
+  }
 }
 
 Vector6d paper_initial_configuration() {
@@ -142,6 +150,7 @@ StageRun simulate_regulation(const StageParameters& truth, const StageEffects& e
     Vector6d noise, excitation;
     for (int c = 0; c < 6; ++c) noise(c) = sim.sensor_noise_std(c) * normal(rng);
     for (int c = 0; c < 6; ++c) excitation(c) = sim.excitation_std(c) * normal(rng);
+    if (sim.excitation_samples.size() != 0) excitation = sim.excitation_samples.row(k).transpose();
     if (k == 0) noise_prev = noise;
     // What the controller sees: measured q, and the velocity from differenced
     // measurements (exact when noise-free).

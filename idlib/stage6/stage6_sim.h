@@ -56,10 +56,15 @@ struct SimulationOptions {
   // White excitation (std per body-wrench channel, N and N·m) added to the
   // allocated wrench every control period; 0 = none.
   Vector6d excitation_std = Vector6d::Zero();
+  // A designed excitation (e.g. from lpvid excite), at least N x 6 with N the
+  // run's samples (duration_s x control rate + 1), used sample for sample
+  // instead of the white excitation when not empty (excitation_std is then not
+  // used; the noise draws are unchanged).
+  Eigen::MatrixXd excitation_samples;
   std::uint64_t seed = 1;
   // @throws InputError naming the field (non-positive duration or step, a step
   //   that does not divide the control period to 1e-9, negative stds, more
-  //   than 1e7 control periods).
+  //   than 1e7 control periods, excitation_samples not N x 6 finite values).
   void validate(const SlidingModeOptions& smc) const;
 };
 

@@ -16,7 +16,7 @@ TEST(Registry, ListsTheSubcommandsInOrder) {
   std::vector<std::string> names;
   for (const auto& c : commands()) names.push_back(c.name);
   EXPECT_EQ(names, (std::vector<std::string>{"simulate", "markov", "hankel", "realize", "unloop", "bode", "identify",
-                                             "frf", "compare", "model", "fit", "diagnose", "history", "stage6"}));
+                                             "frf", "compare", "model", "fit", "diagnose", "history", "stage6", "excite"}));
 }
 
 TEST(Registry, EverySubcommandHasHelpWithAWorkedExample) {
