@@ -92,6 +92,27 @@ TEST_F(MatLogCli, FrfAndIdentify_GiveByteIdenticalOutputsFromCsvAndMatLogs) {
   }
 }
 
+// `lpvid excite` writes .mat as data + names + excitation_design: every log command
+// reads it, and frf gives the bytes it gives from the same design written as CSV.
+TEST_F(MatLogCli, ExcitesMatFile_ReadsAsALogGivingTheCsvsOutputs) {
+  TempDir d("matlogexcite");
+  const std::string design =
+      "excite --kind multisine --rate-hz 1000 --period-samples 500 --periods 4 --transient-periods 1 --band-hz 1,200 "
+      "--channels 2 --mimo hadamard --rms 0.05,1 --out ";
+  for (const char* f : {"ex.csv", "ex.mat"}) {
+    const RunResult r = run_lpvid(design + f, "", d.path().string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  for (const char* f : {"ex.csv", "ex.mat"}) {
+    const RunResult r = run_lpvid(std::string("frf --excitation v1 --output v2 --quantity H --out H_") + f + ".csv " + f,
+                                  "", d.path().string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  // The provenance comment names the log ("from 1 log(s)" only, no path): whole files compare.
+  EXPECT_EQ(slurp(d / "H_ex.mat.csv"), slurp(d / "H_ex.csv.csv"));
+  EXPECT_GT(slurp(d / "H_ex.csv.csv").size(), 1000u);
+}
+
 TEST_F(MatLogCli, BadMatLog_IsOneLineExit2AndNothingWritten) {
   TempDir out("matlogbad");
   const Log log = read_log(in("csv") + "/exp_T_psi");
