@@ -10,6 +10,7 @@
 #include <string>
 
 #include "formats/io/csv_log.h"
+#include "formats/io/mat_log.h"
 
 namespace {
 
@@ -68,5 +69,22 @@ void BM_WriteLog(benchmark::State& state) {
   std::filesystem::remove(out);
 }
 BENCHMARK(BM_WriteLog)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same samples as a .mat log (data + names, uncompressed): arg 0 = v5 (lpvid's
+// parser), 1 = v7.3 (libmatio/HDF5).  Bytes/s of the .mat file.
+void BM_ReadLogMat(benchmark::State& state) {
+  BenchLog& log = bench_log();
+  const bool v73 = state.range(0) == 1;
+  const std::string path = (log.dir / (v73 ? "log73.mat" : "log5.mat")).string();
+  if (!std::filesystem::exists(path)) lpvid::write_log_mat(path, log.names, log.data, v73);
+  const size_t bytes = std::filesystem::file_size(path);
+  for (auto _ : state) {
+    lpvid::Log read = lpvid::read_log(path);
+    benchmark::DoNotOptimize(read.data.data());
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(bytes));
+  state.counters["MB"] = static_cast<double>(bytes) / 1e6;
+}
+BENCHMARK(BM_ReadLogMat)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -28,7 +28,7 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
                  "dataset manifest (JSON): the files and x_b of every data set, and optionally target, "
                  "controller, rate_hz, averages, noise_level, band_rad_s (docs/formats.md)");
   app.add_option("--target", o.target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
-  app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space JSON; for G and S");
+  app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space or transfer-function JSON; for G and S");
   app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the sampled (ZOH) response")
       ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
   app.add_option("--averages", o.averages,

@@ -315,7 +315,7 @@ Command make_frf_command() {
             auto o = std::make_shared<FrfCliOptions>();
             auto* app = parent.add_subcommand("frf", "H1 frequency-response estimate with coherence from logs" +
                                                          std::string(kExample));
-            app->add_option("logs", o->logs, "CSV logs, one experiment each")->required();
+            app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "response columns (u for S, q for G), comma separated")->required();
             app->add_option("--input", o->input,

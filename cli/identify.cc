@@ -320,8 +320,8 @@ Command make_identify_command() {
             auto o = std::make_shared<IdentifyCliOptions>();
             auto* app = parent.add_subcommand(
                 "identify", "Closed-loop identification from logs to plant model and Bode plot" + std::string(kExample));
-            app->add_option("logs", o->logs, "CSV logs, one experiment each")->required();
-            app->add_option("--controller", o->controller, "the controller that ran (state-space JSON)")->required();
+            app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
+            app->add_option("--controller", o->controller, "the controller that ran (state-space or transfer-function JSON)")->required();
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "measured output columns q (comma separated)")->required();
             app->add_option("--out", o->out, "output directory")->required();

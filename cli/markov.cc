@@ -94,7 +94,7 @@ Command make_markov_command() {
             auto o = std::make_shared<MarkovCliOptions>();
             auto* app = parent.add_subcommand("markov", "Markov parameters of excitation -> outputs from closed-loop logs" +
                                                             std::string(kExample));
-            app->add_option("logs", o->logs, "CSV logs, one experiment each ('-' = stdin)")->required();
+            app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each ('-' = stdin, CSV)")->required();
             app->add_option("--excitation", o->excitation, "excitation columns, comma separated (e.g. v1,v2,v3)")
                 ->required();
             app->add_option("--output", o->output, "output columns, comma separated (e.g. q1,q2,q3)")->required();

@@ -36,7 +36,8 @@ Frequency-domain data (per frequency, no model order involved):
   lpvid unloop --closed-loop G.csv --controller controller.json --out P.csv
 P = C^-1 (S^-1 - I) from the input sensitivity S (v -> u; the paper's printed eq 15,
 C^-1 (S - I)^-1, is wrong: see docs/math.md), or P = G (I - C G)^-1 from closed-loop data,
-with C evaluated at z = exp(j w Ts).  Files that each hold one excited input are merged.
+with C evaluated at z = exp(j w Ts), or C measured: --controller C.csv (an FRD of C, p inputs,
+m outputs, on exactly the data's frequencies).  Files that each hold one excited input are merged.
 Frequencies where C or S^-1 - I is ill-conditioned, the loop gain (sigma_min of S^-1 - I) is
 below --min-loop-gain, or the coherence is low, are flagged
 in the output (column flag) and counted in the summary.)";
@@ -49,9 +50,28 @@ struct UnloopCliOptions {
   bool json = false;
 };
 
+// A controller file that holds a measured response (FRD .csv or .mat) rather than a model.
+bool is_measured_controller(const std::string& path) {
+  return path != "-" && !(path.size() >= 5 && path.compare(path.size() - 5, 5, ".json") == 0);
+}
+
 // Per-frequency route: S (or G: closed_loop) data and the controller -> plant FRD.
+// The controller: a model (JSON), or its measured response on the data's lines.
 void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyResponse* closed_loop) {
-  const StateSpace c = read_controller(o.controller);
+  std::optional<StateSpace> model;
+  std::optional<FrequencyResponse> measured;
+  if (is_measured_controller(o.controller)) {
+    measured = load_frd_merged({o.controller});
+    bool zero = true;
+    for (const Eigen::MatrixXcd& m : measured->response) zero = zero && m.isZero(0.0);
+    if (zero)
+      throw InputError(fmt::format("{}: the measured controller is zero at every frequency, as if the loop were open, "
+                                   "so no plant can be recovered through it; give the controller that ran",
+                                   o.controller));
+  } else {
+    model = read_controller(o.controller);
+  }
+  const KnownController c = model ? KnownController(*model) : KnownController(*measured);
   SensitivityUnloopOptions options;
   options.max_condition = o.max_condition;
   options.min_coherence = o.min_coherence;
@@ -135,6 +155,11 @@ void run(const UnloopCliOptions& o) {
   if (!o.closed_loop.empty()) loaded = load_response(o.closed_loop);
   if (!loaded || !loaded->model) return run_frd(o, outputs, loaded ? &*loaded->frd : nullptr);
   const StateSpace& g = *loaded->model;
+  if (is_measured_controller(o.controller))
+    throw InputError(fmt::format("--controller {}: a measured controller (FRD) serves the per-frequency routes only; "
+                                 "give G or S as data (--closed-loop G.csv, --sensitivity S.csv), or the controller "
+                                 "as a model (JSON)",
+                                 o.controller));
   const StateSpace c = read_controller(o.controller);
   UnloopOptions options;
   options.plant_order = o.order;
@@ -176,7 +201,7 @@ Command make_unloop_command() {
             app->add_option("--min-loop-gain", o->min_loop_gain,
                             "flag frequencies where sigma_min(S^-1 - I) = sigma_min(C P) is below this (0 = off)")
                 ->check(number_in(0, INFINITY, "the smallest loop gain"));
-            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c), state-space JSON")->required();
+            app->add_option("--controller", o->controller, "controller C (e = -q -> u_c): state-space or transfer-function JSON, or its measured response (FRD .csv/.mat, data routes only, on the data's frequencies)")->required();
             app->add_option("--out", o->out, "plant to write: model JSON, or FRD CSV for data ('-' = stdout)")
                 ->required();
             app->add_option("--order", o->order, "plant order (default: closed-loop order minus controller order)")

@@ -14,6 +14,7 @@
 #include "formats/io/frd_csv.h"
 #include "formats/io/frd_mat.h"
 #include "formats/io/history.h"
+#include "formats/io/mat_log.h"
 #include "formats/io/markov_csv.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
@@ -84,6 +85,11 @@ void run(Reader reader, const std::string& path, std::size_t size, const std::ui
       read_log(path);
       break;
     }
+    case Reader::kLogMat:
+      // v7.3 files (version 0x0200 at byte 124) go to libhdf5, which is not lpvid's code.
+      if (size >= 128 && data[124] == 0x00 && data[125] == 0x02) return;
+      read_log_mat(path);
+      break;
     case Reader::kFrdCsv:
       read_frd_part(path);
       read_frd_csv(path);
@@ -120,7 +126,7 @@ void run(Reader reader, const std::string& path, std::size_t size, const std::ui
 }  // namespace
 
 const std::vector<Reader>& all_readers() {
-  static const std::vector<Reader> all = {Reader::kLogCsv,          Reader::kFrdCsv,
+  static const std::vector<Reader> all = {Reader::kLogCsv,          Reader::kLogMat,          Reader::kFrdCsv,
                                           Reader::kFrdMat,          Reader::kStateSpaceJson,
                                           Reader::kPhysicalModelJson, Reader::kHistory,
                                           Reader::kMarkovCsv,       Reader::kPlatformJson,
@@ -131,6 +137,7 @@ const std::vector<Reader>& all_readers() {
 const char* name(Reader reader) {
   switch (reader) {
     case Reader::kLogCsv: return "log_csv";
+    case Reader::kLogMat: return "log_mat";
     case Reader::kFrdCsv: return "frd_csv";
     case Reader::kFrdMat: return "frd_mat";
     case Reader::kStateSpaceJson: return "state_space_json";

@@ -17,6 +17,7 @@ namespace lpvid::fuzz {
 
 enum class Reader {
   kLogCsv,             // read_log, and the CSV core split into three parts read in parallel
+  kLogMat,             // read_log_mat (MATLAB v5 logs; v7.3 input is skipped: libhdf5's parser, not lpvid's)
   kFrdCsv,             // read_frd_csv and read_frd_part
   kFrdMat,             // read_frd_mat (MATLAB v5; v7.3 input is skipped: libhdf5's parser, not lpvid's)
   kStateSpaceJson,     // read_state_space
@@ -31,7 +32,7 @@ enum class Reader {
 // Every reader, for loops over them.
 const std::vector<Reader>& all_readers();
 
-// The harness name: "log_csv", "frd_csv", "frd_mat", "state_space_json",
+// The harness name: "log_csv", "log_mat", "frd_csv", "frd_mat", "state_space_json",
 // "physical_model_json", "history", "markov_csv", "platform_json", "effect_json",
 // "dataset_manifest".
 const char* name(Reader reader);

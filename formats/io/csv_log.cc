@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/mat_log.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
@@ -32,6 +33,7 @@ Eigen::MatrixXd Log::columns(const std::vector<std::string>& wanted) const {
 
 Log read_log(const std::string& path, const LogReadOptions& options) {
   options.validate();
+  if (is_mat_log(path)) return read_log_mat(path, options);
   detail::NumericCsv csv =
       detail::read_numeric_csv(path, "t", "add a time column 't' in seconds (see docs/formats.md)");
   const Index n = csv.data.rows();

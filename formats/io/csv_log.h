@@ -50,7 +50,9 @@ struct Log {
   Eigen::MatrixXd columns(const std::vector<std::string>& names) const;
 };
 
-// Reads a log; "-" reads stdin.  Reads in 4 MiB chunks; a regular file of 8 MiB
+// Reads a log; "-" reads stdin.  A path ending in ".mat" (any case) or a file
+// starting with a MAT-file header is read by read_log_mat (mat_log.h: MATLAB v5
+// and v7.3 logs, the same rules).  Otherwise CSV:  Reads in 4 MiB chunks; a regular file of 8 MiB
 // or more is counted and parsed on parallel threads (csv_detail.h; stdin on one
 // thread, slower).  Throws InputError "path:line:column: what; what to do" for every
 // broken rule above, and "cannot open 'x.csv': <strerror>; check the path".

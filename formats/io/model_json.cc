@@ -11,6 +11,7 @@
 #include "formats/io/csv_detail.h"
 #include "formats/io/json_detail.h"
 #include "idlib/core/error.h"
+#include "idlib/lti/transfer_function.h"
 
 namespace lpvid {
 namespace {
@@ -123,9 +124,12 @@ class ModelReader {
       fail("", fmt::format("the file holds {} where a JSON object is expected; a model file is an object "
                            "{{\"type\": \"state_space\", \"ts\": ..., \"A\": ..., \"B\": ..., \"C\": ..., \"D\": ...}}: check that this is a model file",
                            root.type_name()));
-    const json& type = require(root, "type", "a model file starts with \"type\": \"state_space\"");
+    const json& type = require(root, "type", "a model file starts with \"type\": \"state_space\" (or \"transfer_function\")");
+    if (type.is_string() && type.get_ref<const std::string&>() == "transfer_function") return read_transfer_function(root);
     if (!type.is_string() || type.get_ref<const std::string&>() != "state_space")
-      fail("type", fmt::format("key 'type' is {}; write \"type\": \"state_space\" (the only type lpvid reads)", detail::json_excerpt(type)));
+      fail("type", fmt::format("key 'type' is {}; write \"type\": \"state_space\" or \"transfer_function\" (the types "
+                               "lpvid reads)",
+                               detail::json_excerpt(type)));
     const json& ts = require(root, "ts", "give the sample period in seconds, \"ts\": 0 for continuous time");
     if (!ts.is_number())
       fail("ts", fmt::format("key 'ts' must be a number of seconds (0 for continuous time), got {}; write a number", ts.type_name()));
@@ -171,6 +175,158 @@ class ModelReader {
   }
 
  private:
+  // ---- "type": "transfer_function" (docs/formats.md, idlib/lti/transfer_function.h)
+  std::vector<double> coefficients(const json& v, const std::string& key, const std::string& where, const char* what) const {
+    if (!v.is_array() || v.empty())
+      fail(key, fmt::format("{}: '{}' must be a non-empty array of numbers, got {}; write e.g. [1, -0.5]", where, what,
+                            detail::json_excerpt(v)));
+    if (static_cast<Index>(v.size()) > kMaxModelStates + 1)
+      fail(key, fmt::format("{}: '{}' has {} coefficients: lpvid reads models of at most {} states; reduce the order",
+                            where, what, v.size(), kMaxModelStates));
+    std::vector<double> out;
+    for (size_t k = 0; k < v.size(); ++k) {
+      if (!v[k].is_number())
+        fail(key, fmt::format("{}: '{}' entry {} is {}; every coefficient must be a finite number", where, what, k + 1,
+                              detail::json_excerpt(v[k])));
+      out.push_back(v[k].get<double>());
+      if (!std::isfinite(out.back()))
+        fail(key, fmt::format("{}: '{}' entry {} is {}; every coefficient must be finite", where, what, k + 1, out.back()));
+    }
+    return out;
+  }
+
+  std::vector<Complex> roots(const json& v, const std::string& key, const std::string& where, const char* what) const {
+    if (!v.is_array())
+      fail(key, fmt::format("{}: '{}' must be an array of values (a number, or [re, im] for a complex one), got {}",
+                            where, what, detail::json_excerpt(v)));
+    if (static_cast<Index>(v.size()) > kMaxModelStates)
+      fail(key, fmt::format("{}: '{}' has {} entries: lpvid reads models of at most {} states; reduce the order", where,
+                            what, v.size(), kMaxModelStates));
+    std::vector<Complex> out;
+    for (size_t k = 0; k < v.size(); ++k) {
+      const json& e = v[k];
+      if (e.is_number()) {
+        out.emplace_back(e.get<double>(), 0.0);
+      } else if (e.is_array() && e.size() == 2 && e[0].is_number() && e[1].is_number()) {
+        out.emplace_back(e[0].get<double>(), e[1].get<double>());
+      } else {
+        fail(key, fmt::format("{}: '{}' entry {} is {}; write a real value as a number and a complex one as [re, im]",
+                              where, what, k + 1, detail::json_excerpt(e)));
+      }
+      if (!std::isfinite(out.back().real()) || !std::isfinite(out.back().imag()))
+        fail(key, fmt::format("{}: '{}' entry {} is not finite; give finite numbers", where, what, k + 1));
+    }
+    return out;
+  }
+
+  // One element: {"num", "den"} or {"zeros", "poles", "gain"}; 0 or null = a zero element.
+  std::optional<SisoTf> element(const json& e, const std::string& key, const std::string& where) const {
+    if (e.is_null() || (e.is_number() && e.get<double>() == 0)) return std::nullopt;
+    if (!e.is_object())
+      fail(key, fmt::format("{} is {}; write {{\"num\": [...], \"den\": [...]}} or {{\"zeros\": [...], \"poles\": "
+                            "[...], \"gain\": k}} (0 or null for a zero element)",
+                            where, detail::json_excerpt(e)));
+    SisoTf tf;
+    const bool nd = e.contains("num") || e.contains("den");
+    const bool zpk = e.contains("zeros") || e.contains("poles") || e.contains("gain");
+    if (nd == zpk)
+      fail(key, fmt::format("{} must hold either num and den, or zeros, poles and gain{}", where,
+                            nd ? " (not both)" : ""));
+    if (nd) {
+      if (!e.contains("num") || !e.contains("den")) fail(key, fmt::format("{} needs both 'num' and 'den'", where));
+      tf.num = coefficients(e["num"], key, where, "num");
+      tf.den = coefficients(e["den"], key, where, "den");
+    } else {
+      if (!e.contains("zeros") || !e.contains("poles") || !e.contains("gain"))
+        fail(key, fmt::format("{} needs 'zeros', 'poles' and 'gain' (an empty list [] for none)", where));
+      tf.is_zpk = true;
+      tf.zeros = roots(e["zeros"], key, where, "zeros");
+      tf.poles = roots(e["poles"], key, where, "poles");
+      if (!e["gain"].is_number() || !std::isfinite(e["gain"].get<double>()))
+        fail(key, fmt::format("{}: 'gain' must be a finite number, got {}", where, detail::json_excerpt(e["gain"])));
+      tf.gain = e["gain"].get<double>();
+    }
+    return tf;
+  }
+
+  StateSpace read_transfer_function(const json& root) const {
+    const json& ts = require(root, "ts", "give the sample period in seconds; a transfer function here is discrete");
+    if (!ts.is_number() || !(ts.get<double>() > 0) || !std::isfinite(ts.get<double>()))
+      fail("ts", fmt::format("key 'ts' is {}; give the positive sample period in seconds (transfer functions are "
+                             "discrete here)",
+                             detail::json_excerpt(ts)));
+    const double sample_period_s = ts.get<double>();
+    const json& var = require(root, "variable",
+                              "say how the coefficients are written: \"variable\": \"z\" (descending powers of z, "
+                              "MATLAB tf) or \"z^-1\" (ascending powers of z^-1, MATLAB filt)");
+    if (!var.is_string() || (var.get_ref<const std::string&>() != "z" && var.get_ref<const std::string&>() != "z^-1"))
+      fail("variable", fmt::format("key 'variable' is {}; write \"z\" (descending powers of z, MATLAB tf) or \"z^-1\" "
+                                   "(ascending powers of z^-1, MATLAB filt)",
+                                   detail::json_excerpt(var)));
+    const TfVariable variable = var.get_ref<const std::string&>() == "z" ? TfVariable::kZ : TfVariable::kZInverse;
+    const bool has_diag = find(root, "diagonal") != nullptr, has_matrix = find(root, "matrix") != nullptr;
+    if (has_diag == has_matrix)
+      fail(has_diag ? "matrix" : "",
+           has_diag ? "give either 'diagonal' or 'matrix', not both"
+                    : "missing key 'diagonal' or 'matrix'; give \"diagonal\": [tf, ...] (one element per channel) or "
+                      "\"matrix\": [[tf, ...], ...] (outputs × inputs)");
+    const std::string key = has_diag ? "diagonal" : "matrix";
+    const json& body = root[key];
+    if (!body.is_array() || body.empty())
+      fail(key, fmt::format("key '{}' must be a non-empty array, got {}", key, detail::json_excerpt(body)));
+    std::vector<std::optional<SisoTf>> entries;
+    Index p = 0, m = 0;
+    if (has_diag) {
+      p = m = static_cast<Index>(body.size());
+      if (p > kMaxModelChannels)
+        fail(key, fmt::format("key 'diagonal' has {} elements: lpvid reads models of at most {} inputs and outputs", p,
+                              kMaxModelChannels));
+      entries.assign(static_cast<size_t>(p * m), std::nullopt);
+      for (Index i = 0; i < p; ++i)
+        entries[static_cast<size_t>(i * m + i)] = element(body[static_cast<size_t>(i)], key, fmt::format("key 'diagonal' element {}", i + 1));
+    } else {
+      p = static_cast<Index>(body.size());
+      for (Index i = 0; i < p; ++i) {
+        const json& row = body[static_cast<size_t>(i)];
+        if (!row.is_array() || row.empty())
+          fail(key, fmt::format("key 'matrix' row {} must be a non-empty array of elements, got {}", i + 1,
+                                detail::json_excerpt(row)));
+        if (i == 0) m = static_cast<Index>(row.size());
+        if (static_cast<Index>(row.size()) != m)
+          fail(key, fmt::format("key 'matrix' row {} has {} elements and row 1 has {}; give every row one element per input",
+                                i + 1, row.size(), m));
+        if (p > kMaxModelChannels || m > kMaxModelChannels)
+          fail(key, fmt::format("key 'matrix' is {}×{}: lpvid reads models of at most {} inputs and outputs", p, m,
+                                kMaxModelChannels));
+        for (Index j = 0; j < m; ++j)
+          entries.push_back(element(row[static_cast<size_t>(j)], key, fmt::format("key 'matrix' element ({}, {})", i + 1, j + 1)));
+      }
+    }
+    StateSpace model;
+    try {
+      model = realize_tf_matrix(entries, p, m, variable, sample_period_s);
+    } catch (const InputError& e) {
+      fail(key, fmt::format("key '{}' {}", key, e.what()));
+    }
+    if (model.order() > kMaxModelStates)
+      fail(key, fmt::format("the elements realise {} states: lpvid reads models of at most {} states; reduce the order",
+                            model.order(), kMaxModelStates));
+    model.input_names = names(root, "inputs");
+    model.output_names = names(root, "outputs");
+    if (!model.input_names.empty() && static_cast<Index>(model.input_names.size()) != m)
+      fail("inputs", fmt::format("key 'inputs' names {} inputs but the elements have {}; give one name per input",
+                                 model.input_names.size(), m));
+    if (!model.output_names.empty() && static_cast<Index>(model.output_names.size()) != p)
+      fail("outputs", fmt::format("key 'outputs' names {} outputs but the elements have {}; give one name per output",
+                                  model.output_names.size(), p));
+    try {
+      model.validate();
+    } catch (const InputError& e) {
+      fail("", fmt::format("{}; fix the model file", e.what()));
+    }
+    return model;
+  }
+
   const std::string& path_;
   const std::string& text_;
 };

@@ -20,6 +20,17 @@
 // of D.  "ts" is the sample period in s, 0 for continuous time.  "inputs" and
 // "outputs" are optional; other keys (e.g. "provenance") are allowed and ignored.
 // JSON has no NaN or Inf: every entry must be a number.
+//
+// A file may instead hold a discrete transfer-function matrix (a controller as a
+// lab writes it), converted to state space on reading (idlib/lti/transfer_function.h;
+// docs/formats.md, "Transfer-function controllers"):
+//   {"type": "transfer_function", "ts": 1e-4, "variable": "z" | "z^-1",
+//    "inputs": [...], "outputs": [...],
+//    "diagonal": [element, ...]  or  "matrix": [[element, ...], ...]}
+// element = {"num": [...], "den": [...]} | {"zeros": [...], "poles": [...], "gain": k}
+// (a zero or pole: a number or [re, im]); a matrix entry 0 or null is a zero element.
+// Errors point at the key and name the element: "ctl.json:5:3: key 'diagonal'
+// element (2, 2): the denominator's leading coefficient (of z^2) is 0; ...".
 #pragma once
 
 #include <nlohmann/json.hpp>

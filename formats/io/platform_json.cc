@@ -180,7 +180,7 @@ void check_beam_stroke(const std::string& path, const Eigen::VectorXd& x_b_m, do
 BeamSamples read_beam_samples(const std::string& path, double stroke_m, const std::string& column) {
   const Log log = read_log(path);
   BeamSamples s;
-  s.t_s = log.data.col(0);
+  s.t_s = log.data.col(log.column("t"));
   s.x_b_m = log.data.col(log.column(column));
   check_beam_stroke(path, s.x_b_m, stroke_m, column);
   return s;

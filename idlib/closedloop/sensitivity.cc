@@ -66,6 +66,32 @@ struct ControllerResponse {
 };
 
 ControllerResponse controller_response(const StateSpace& controller, const Eigen::VectorXd& omega,
+                                       const char* fn);
+
+// The measured controller's response on the data's frequencies (KnownController).
+ControllerResponse controller_response(const KnownController& known, const Eigen::VectorXd& omega, const char* fn) {
+  if (known.model()) return controller_response(*known.model(), omega, fn);
+  known.validate();
+  const FrequencyResponse& c = *known.measured();
+  if (c.num_frequencies() != omega.size())
+    throw InputError(fmt::format("{}: the measured controller has {} frequencies but the data {}; measure the "
+                                 "controller on the data's frequency lines (or give it as a model)",
+                                 fn, c.num_frequencies(), omega.size()));
+  for (Index k = 0; k < omega.size(); ++k)
+    if (!(std::abs(c.omega_rad_s(k) - omega(k)) <= kMeasuredControllerFrequencyRelTolerance * std::abs(omega(k))))
+      throw InputError(fmt::format("{}: frequency {} of the measured controller is {} Hz but the data's is {} Hz "
+                                   "(relative difference {:.3g} > {}); measure the controller on the data's frequency "
+                                   "lines (or give it as a model)",
+                                   fn, k + 1, c.omega_rad_s(k) / (2 * std::numbers::pi), omega(k) / (2 * std::numbers::pi),
+                                   std::abs(c.omega_rad_s(k) - omega(k)) / std::abs(omega(k)),
+                                   kMeasuredControllerFrequencyRelTolerance));
+  ControllerResponse out;
+  out.value = c.response;
+  out.pole_hit.assign(static_cast<size_t>(omega.size()), false);
+  return out;
+}
+
+ControllerResponse controller_response(const StateSpace& controller, const Eigen::VectorXd& omega,
                                        const char* fn) {
   controller.validate();
   if (controller.is_discrete()) {
@@ -113,6 +139,20 @@ void append(std::string& reasons, const std::string& r) {
 
 }  // namespace
 
+void KnownController::validate() const {
+  if (model_) {
+    model_->validate();
+    return;
+  }
+  const FrequencyResponse& c = *measured_;
+  if (c.num_frequencies() == 0 || static_cast<Index>(c.response.size()) != c.num_frequencies())
+    throw InputError("the measured controller holds no frequencies; give its response on the data's frequency lines");
+  for (size_t k = 0; k < c.response.size(); ++k)
+    if (c.response[k].rows() != c.num_outputs() || c.response[k].cols() != c.num_inputs() || !c.response[k].allFinite())
+      throw InputError(fmt::format("the measured controller's response at frequency {} is not a finite {}x{} matrix",
+                                   k + 1, c.num_outputs(), c.num_inputs()));
+}
+
 void SensitivityUnloopOptions::validate() const {
   if (!(max_condition > 1.0))
     throw InputError(fmt::format(
@@ -127,7 +167,7 @@ void SensitivityUnloopOptions::validate() const {
         min_loop_gain));
 }
 
-SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const StateSpace& controller,
+SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const KnownController& controller,
                                                const SensitivityUnloopOptions& options) {
   constexpr const char* fn = "plant_from_sensitivity";
   options.validate();
@@ -148,7 +188,7 @@ SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const
   out.plant.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(p, m));
   out.plant.flagged.assign(static_cast<size_t>(F), false);
   out.plant.input_names = S.output_names;
-  out.plant.output_names = controller.input_names;
+  out.plant.output_names = controller.input_names();
   out.flag_reasons.assign(static_cast<size_t>(F), std::string());
   std::map<std::string, Index> counts;
   const auto flag = [&](Index k, const std::string& kind, const std::string& detail) {
@@ -209,7 +249,7 @@ SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const
 
 std::vector<Eigen::MatrixXd> plant_variance_from_sensitivity(const FrequencyResponse& S,
                                                              const std::vector<Eigen::MatrixXd>& s_variance,
-                                                             const StateSpace& controller) {
+                                                             const KnownController& controller) {
   constexpr const char* fn = "plant_variance_from_sensitivity";
   controller.validate();
   const Index m = controller.num_outputs();
@@ -281,7 +321,7 @@ FrequencyResponse plant_from_sensitivity_printed_eq15(const FrequencyResponse& S
   return out;
 }
 
-FrequencyResponse plant_from_closed_loop_frd(const FrequencyResponse& G, const StateSpace& controller) {
+FrequencyResponse plant_from_closed_loop_frd(const FrequencyResponse& G, const KnownController& controller) {
   constexpr const char* fn = "plant_from_closed_loop_frd";
   const double max_condition = SensitivityUnloopOptions{}.max_condition;
   controller.validate();

@@ -87,10 +87,37 @@ struct SensitivityUnloopResult {
   Report report;
 };
 
+// Relative tolerance |ω_C − ω_data| / ω_data for a measured controller's
+// frequencies to be the data's (files written by lpvid and read back agree to ~1e-15).
+inline constexpr double kMeasuredControllerFrequencyRelTolerance = 1e-9;
+
+// The controller of the per-frequency routes below: a model (C(ω) evaluated at
+// every data frequency, as before), or its MEASURED response (FRD: p inputs, m
+// outputs, C(ω_k) = response[k]) on exactly the data's frequencies (relative
+// kMeasuredControllerFrequencyRelTolerance), else InputError naming the first
+// frequency that differs.  Implicit from either; holds a reference (the caller
+// keeps the controller alive).
+class KnownController {
+ public:
+  KnownController(const StateSpace& model) : model_(&model) {}                // NOLINT: implicit by design
+  KnownController(const FrequencyResponse& measured) : measured_(&measured) {}  // NOLINT: implicit by design
+  const StateSpace* model() const { return model_; }
+  const FrequencyResponse* measured() const { return measured_; }
+  Index num_inputs() const { return model_ ? model_->num_inputs() : measured_->num_inputs(); }
+  Index num_outputs() const { return model_ ? model_->num_outputs() : measured_->num_outputs(); }
+  const std::vector<std::string>& input_names() const { return model_ ? model_->input_names : measured_->input_names; }
+  // StateSpace::validate, or a measured response with frequencies and finite values.
+  void validate() const;
+
+ private:
+  const StateSpace* model_ = nullptr;
+  const FrequencyResponse* measured_ = nullptr;
+};
+
 // P(ω) = C(ω)⁻¹ (S(ω)⁻¹ − I) at every frequency of S, with flags (see above).
 // Cost per frequency: three m x m complex SVDs (S, S⁻¹ − I, C) plus one controller
 // evaluation, O(n_C² m) after a one-off Hessenberg reduction.
-SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const StateSpace& controller,
+SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const KnownController& controller,
                                                const SensitivityUnloopOptions& options);
 
 // E|P̂ − P|² per entry of P = C⁻¹ (S⁻¹ − I) from the per-entry variance of the measured S
@@ -103,7 +130,7 @@ SensitivityUnloopResult plant_from_sensitivity(const FrequencyResponse& S, const
 //                     not one m × m matrix per frequency, or holding a negative value.
 std::vector<Eigen::MatrixXd> plant_variance_from_sensitivity(const FrequencyResponse& S,
                                                              const std::vector<Eigen::MatrixXd>& s_variance,
-                                                             const StateSpace& controller);
+                                                             const KnownController& controller);
 
 // The seed's printed eq (15): C(ω)⁻¹ (S(ω) − I)⁻¹.  WRONG (it is −C⁻¹ − C⁻¹P⁻¹C⁻¹);
 // kept to demonstrate the failure.  No conditioning checks: frequencies where
@@ -116,6 +143,6 @@ FrequencyResponse plant_from_sensitivity_printed_eq15(const FrequencyResponse& S
 // SensitivityUnloopOptions{}.max_condition, are flagged (the value is computed
 // when I − C G is numerically invertible, zero otherwise).  input_names /
 // output_names are copied from G; coherence is left empty.
-FrequencyResponse plant_from_closed_loop_frd(const FrequencyResponse& G, const StateSpace& controller);
+FrequencyResponse plant_from_closed_loop_frd(const FrequencyResponse& G, const KnownController& controller);
 
 }  // namespace lpvid

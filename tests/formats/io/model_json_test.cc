@@ -170,9 +170,10 @@ TEST_F(ModelJson, NegativeTsAndWrongType_AreRejected) {
   const std::string p = write("t.json", replace(kGood, "\"ts\": 0", "\"ts\": -0.001"));
   EXPECT_EQ(input_error([&] { read_state_space(p); }),
             p + ":3:3: key 'ts' is -0.001; write 0 (continuous time) or the positive sample period in seconds");
-  const std::string q = write("y.json", replace(kGood, "\"state_space\"", "\"transfer_function\""));
+  const std::string q = write("y.json", replace(kGood, "\"state_space\"", "\"zpk\""));
   EXPECT_EQ(input_error([&] { read_state_space(q); }),
-            q + ":2:3: key 'type' is \"transfer_function\"; write \"type\": \"state_space\" (the only type lpvid reads)");
+            q + ":2:3: key 'type' is \"zpk\"; write \"type\": \"state_space\" or \"transfer_function\" (the types lpvid "
+                "reads)");
 }
 
 TEST_F(ModelJson, NameCountDisagreeingWithMatrices_IsAShapeError) {

@@ -1,0 +1,255 @@
+// Logs in MATLAB .mat files (formats/io/mat_log.h): every layout, written here
+// with libmatio directly (not with lpvid's writer), read back to the doubles the
+// CSV reader gives for the same samples; every broken rule one InputError with
+// "file:variable".
+#include "formats/io/mat_log.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <matio.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "formats/io/csv_log.h"
+#include "tests/formats/io/test_util.h"
+
+namespace lpvid {
+namespace {
+
+using test::input_error;
+
+class MatLog : public test::TempDirTest {};
+
+constexpr unsigned kSeed = 20261124;  // named seed for the random samples
+
+// N samples at 1 kHz with t = k * 1e-3 (rounded as a lab's logger writes it) and
+// random channels of full double precision.
+Eigen::MatrixXd samples(Index n, Index channels) {
+  std::mt19937_64 rng(kSeed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd d(n, channels + 1);
+  for (Index k = 0; k < n; ++k) {
+    d(k, 0) = static_cast<double>(k) * 1e-3;
+    for (Index j = 1; j <= channels; ++j) d(k, j) = normal(rng) * std::pow(10.0, static_cast<double>(j) - 3.0);
+  }
+  return d;
+}
+
+// ---- hand-made files through libmatio ---------------------------------------
+matvar_t* num(const char* name, std::vector<size_t> dims, const double* data) {
+  return Mat_VarCreate(name, MAT_C_DOUBLE, MAT_T_DOUBLE, static_cast<int>(dims.size()), dims.data(),
+                       const_cast<double*>(data), 0);
+}
+matvar_t* text(const char* name, const std::string& s) {
+  size_t dims[2] = {1, s.size()};
+  return Mat_VarCreate(name, MAT_C_CHAR, MAT_T_UTF8, 2, dims, const_cast<char*>(s.data()), 0);
+}
+matvar_t* cells(const char* name, const std::vector<std::string>& names) {
+  std::vector<matvar_t*> c;
+  for (const std::string& s : names) c.push_back(text(nullptr, s));
+  size_t dims[2] = {1, names.size()};
+  return Mat_VarCreate(name, MAT_C_CELL, MAT_T_CELL, 2, dims, c.data(), 0);
+}
+
+class File {
+ public:
+  File(const std::string& path, mat_ft version = MAT_FT_MAT5, matio_compression z = MAT_COMPRESSION_NONE)
+      : z_(z) {
+    mat_ = Mat_CreateVer(path.c_str(), nullptr, version);
+    EXPECT_NE(mat_, nullptr);
+  }
+  ~File() { Mat_Close(mat_); }
+  void add(matvar_t* var) {
+    ASSERT_NE(var, nullptr);
+    ASSERT_EQ(Mat_VarWrite(mat_, var, z_), 0);
+    Mat_VarFree(var);
+  }
+
+ private:
+  mat_t* mat_;
+  matio_compression z_;
+};
+
+// Layout (d): data + names (+ excitation_design, as `lpvid excite` writes).
+void write_matrix(const std::string& path, const std::vector<std::string>& names, const Eigen::MatrixXd& d,
+                  mat_ft version, matio_compression z) {
+  File f(path, version, z);
+  f.add(num("data", {static_cast<size_t>(d.rows()), static_cast<size_t>(d.cols())}, d.data()));
+  f.add(cells("names", names));
+  f.add(text("excitation_design", "{\"kind\": \"multisine\"}"));
+}
+
+void expect_identical(const Log& a, const Log& b) {
+  EXPECT_EQ(a.names, b.names);
+  ASSERT_EQ(a.data.rows(), b.data.rows());
+  ASSERT_EQ(a.data.cols(), b.data.cols());
+  EXPECT_TRUE((a.data.array() == b.data.array()).all());
+  EXPECT_EQ(a.sample_period_s, b.sample_period_s);  // bit for bit: the same formula on the same doubles
+}
+
+TEST_F(MatLog, MatrixAndNames_ReadsTheDoublesOfTheCsvLogInV5CompressedV5AndV73) {
+  const Eigen::MatrixXd d = samples(500, 3);
+  const std::vector<std::string> names = {"t", "v1", "u1", "q1"};
+  write_log(path("run.csv"), names, d);  // shortest round-trip text: reads back the identical doubles
+  const Log csv = read_log(path("run.csv"));
+  struct Case {
+    const char* file;
+    mat_ft version;
+    matio_compression z;
+  };
+  for (const Case c : {Case{"v5.mat", MAT_FT_MAT5, MAT_COMPRESSION_NONE}, Case{"v5z.mat", MAT_FT_MAT5, MAT_COMPRESSION_ZLIB},
+                       Case{"v73.mat", MAT_FT_MAT73, MAT_COMPRESSION_NONE}}) {
+    SCOPED_TRACE(c.file);
+    write_matrix(path(c.file), names, d, c.version, c.z);
+    expect_identical(read_log(path(c.file)), csv);
+  }
+}
+
+TEST_F(MatLog, LpvidsOwnWriter_AndAFileWithoutTheExtension_ReadAsMat) {
+  const Eigen::MatrixXd d = samples(50, 2);
+  const std::vector<std::string> names = {"t", "v1", "q1"};
+  write_log_mat(path("a.mat"), names, d, false, {{"excitation_design", "x"}});
+  write_log_mat(path("b.mat"), names, d, true);
+  write_log(path("c.csv"), names, d);
+  const Log csv = read_log(path("c.csv"));
+  expect_identical(read_log(path("a.mat")), csv);
+  expect_identical(read_log(path("b.mat")), csv);
+  std::filesystem::rename(path("a.mat"), path("renamed.log"));  // found by its MAT-file header
+  expect_identical(read_log(path("renamed.log")), csv);
+}
+
+TEST_F(MatLog, OneVariablePerSignal_TakesEveryNumericVectorAndIgnoresScalarsAndText) {
+  const Eigen::MatrixXd d = samples(40, 2);
+  {
+    File f(path("a.mat"));
+    f.add(num("t", {40, 1}, d.col(0).data()));
+    f.add(num("v1", {1, 40}, d.col(1).data()));  // a row vector is a signal too
+    const double ts = 1e-3;
+    f.add(num("Ts", {1, 1}, &ts));  // a scalar: not a signal
+    f.add(text("note", "rig 2"));
+    f.add(num("q1", {40, 1}, d.col(2).data()));
+  }
+  const Log log = read_log(path("a.mat"));
+  EXPECT_EQ(log.names, (std::vector<std::string>{"t", "v1", "q1"}));
+  EXPECT_TRUE((log.data.array() == d.array()).all());
+}
+
+TEST_F(MatLog, OneStruct_ItsFieldsAreTheSignals) {
+  const Eigen::MatrixXd d = samples(30, 2);
+  {
+    File f(path("s.mat"), MAT_FT_MAT5, MAT_COMPRESSION_ZLIB);
+    const char* fields[] = {"t", "u1", "y1"};
+    size_t dims[2] = {1, 1};
+    matvar_t* s = Mat_VarCreateStruct("run", 2, dims, fields, 3);
+    Mat_VarSetStructFieldByName(s, "t", 0, num(nullptr, {30, 1}, d.col(0).data()));
+    Mat_VarSetStructFieldByName(s, "u1", 0, num(nullptr, {30, 1}, d.col(1).data()));
+    Mat_VarSetStructFieldByName(s, "y1", 0, num(nullptr, {30, 1}, d.col(2).data()));
+    f.add(s);
+  }
+  const Log log = read_log(path("s.mat"));
+  EXPECT_EQ(log.names, (std::vector<std::string>{"t", "u1", "y1"}));
+  EXPECT_TRUE((log.data.array() == d.array()).all());
+}
+
+// Simulink "Structure With Time": x.time, x.signals(i).values (N x width), .label.
+matvar_t* simulink(const char* name, const Eigen::VectorXd& t, const std::vector<std::pair<std::string, Eigen::MatrixXd>>& sig) {
+  const char* top[] = {"time", "signals", "blockName"};
+  size_t one[2] = {1, 1};
+  matvar_t* x = Mat_VarCreateStruct(name, 2, one, top, 3);
+  Mat_VarSetStructFieldByName(x, "time", 0, num(nullptr, {static_cast<size_t>(t.size()), 1}, t.data()));
+  const char* fields[] = {"values", "dimensions", "label"};
+  size_t dims[2] = {1, sig.size()};
+  matvar_t* s = Mat_VarCreateStruct(nullptr, 2, dims, fields, 3);
+  for (size_t i = 0; i < sig.size(); ++i) {
+    const Eigen::MatrixXd& v = sig[i].second;
+    Mat_VarSetStructFieldByName(s, "values", i, num(nullptr, {static_cast<size_t>(v.rows()), static_cast<size_t>(v.cols())}, v.data()));
+    const double width = static_cast<double>(v.cols());
+    Mat_VarSetStructFieldByName(s, "dimensions", i, num(nullptr, {1, 1}, &width));
+    Mat_VarSetStructFieldByName(s, "label", i, text(nullptr, sig[i].first));
+  }
+  Mat_VarSetStructFieldByName(x, "signals", 0, s);
+  Mat_VarSetStructFieldByName(x, "blockName", 0, text(nullptr, "model/To Workspace"));
+  return x;
+}
+
+TEST_F(MatLog, SimulinkStructureWithTime_NamesChannelsByLabelWidthAndVariable) {
+  const Eigen::MatrixXd d = samples(25, 4);  // t and 4 channels
+  for (const mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    const std::string p = path(version == MAT_FT_MAT5 ? "sim5.mat" : "sim73.mat");
+    {
+      File f(p, version);
+      f.add(simulink("u", d.col(0), {{"v", d.middleCols(1, 2)}}));                       // width 2: v1, v2
+      f.add(simulink("y", d.col(0), {{"q1", d.col(3)}, {"", d.col(4)}}));                 // labelled, unlabelled
+    }
+    const Log log = read_log(p);
+    EXPECT_EQ(log.names, (std::vector<std::string>{"t", "v1", "v2", "q1", "y_2"}));
+    EXPECT_TRUE((log.data.array() == d.array()).all());
+  }
+}
+
+// ---- every broken rule: one InputError naming file and variable -------------
+TEST_F(MatLog, BadInput_IsAnInputErrorNamingFileAndVariable) {
+  Eigen::MatrixXd d = samples(2000, 3);
+  const std::vector<std::string> names = {"t", "v1", "u1", "q1"};
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  {
+    Eigen::MatrixXd bad = d;
+    bad(1206, 2) = nan;
+    write_matrix(path("run.mat"), names, bad, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
+    EXPECT_EQ(input_error([&] { read_log(path("run.mat")); }),
+              path("run.mat") + ":data: column 3 ('u1') holds a NaN at row 1207; a log holds finite numbers only: "
+                                "remove or interpolate the bad samples");
+  }
+  {
+    Eigen::MatrixXd bad = d;
+    bad(700, 0) = bad(699, 0);
+    write_matrix(path("t.mat"), names, bad, MAT_FT_MAT73, MAT_COMPRESSION_NONE);
+    EXPECT_EQ(input_error([&] { read_log(path("t.mat")); }),
+              path("t.mat") + fmt::format(":data: column 1 ('t') time t = {} s at row 701 is not after the previous row's t "
+                                          "= {} s; t must increase strictly from row to row (one file = one experiment)",
+                                          bad(699, 0), bad(699, 0)));
+  }
+  {
+    // A dropped sample: row 1001 (t = 1.000 s) missing.
+    Eigen::MatrixXd bad(d.rows() - 1, d.cols());
+    bad << d.topRows(1000), d.bottomRows(d.rows() - 1001);
+    write_matrix(path("gap.mat"), names, bad, MAT_FT_MAT5, MAT_COMPRESSION_ZLIB);
+    const std::string e = input_error([&] { read_log(path("gap.mat")); });
+    EXPECT_EQ(e.rfind(path("gap.mat") + fmt::format(":data: column 1 ('t') time step {} s (from t = {} s, row 1000) differs",
+                                                    bad(1000, 0) - bad(999, 0), bad(999, 0)),
+                      0),
+              0u)
+        << e;
+  }
+  write_matrix(path("names.mat"), {"t", "v1", "v1", "q1"}, d, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
+  EXPECT_EQ(input_error([&] { read_log(path("names.mat")); }),
+            path("names.mat") + ":names{3}: channel name 'v1' appears twice (also at names{2}); give every channel its own name");
+  write_matrix(path("not.mat"), {"time", "v1", "u1", "q1"}, d, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
+  EXPECT_EQ(input_error([&] { read_log(path("not.mat")); }),
+            path("not.mat") + ":data: no channel named 't'; add a time channel 't' in seconds (docs/formats.md)");
+  write_matrix(path("three.mat"), {"t", "v1", "q1"}, d, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
+  EXPECT_EQ(input_error([&] { read_log(path("three.mat")); }).rfind(path("three.mat") + ":names: must be a cell array of 4 names", 0), 0u);
+  {
+    File f(path("short.mat"));
+    f.add(num("t", {2000, 1}, d.col(0).data()));
+    f.add(num("q1", {1999, 1}, d.col(1).data()));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("short.mat")); }),
+            path("short.mat") + ":q1: has 1999 samples but t has 2000; every signal needs one sample per time");
+  {
+    File f(path("none.mat"));
+    f.add(num("x", {2000, 1}, d.col(1).data()));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("none.mat")); }).rfind(path("none.mat") + ": no log in the file; ", 0), 0u);
+  write("text.mat", "t,v1\n0,1\n0.001,2\n");
+  EXPECT_EQ(input_error([&] { read_log(path("text.mat")); }),
+            "'" + path("text.mat") + "' is not a MATLAB .mat file (v5 or v7.3); check the file, or save it in MATLAB "
+                                     "with save(name, '-v7')");
+  EXPECT_EQ(input_error([&] { read_log(path("missing.mat")); }),
+            "cannot open '" + path("missing.mat") + "': No such file or directory; check the path");
+}
+
+}  // namespace
+}  // namespace lpvid
