@@ -5,6 +5,9 @@
 //
 //   indep_stage_sim --out DIR [--seed N] [--hidden none|gap|lag|com|delay]
 //                   [--duration-s 60] [--noise-scale X (default: drawn 0.5-2)]
+//                   [--lpvid-conventions]  (back-EMF from the centre of mass's velocity, q logged
+//                                           at p_cm - c, the law's velocity exact: lpvid's own
+//                                           simulator's choices, tests/cli/indep_stage_crosscheck_test.cc)
 //
 // Writes DIR/exp_stage6.csv (t, v1..v6, u1..u6, q1..q6: excitation, body wrench sent
 // to the allocation F_x F_y F_z tau_x tau_y tau_z, measured x y z psi theta phi) and
@@ -25,6 +28,7 @@ int main(int argc, char** argv) {
   std::string out, hidden = "none";
   std::uint64_t seed = 1;
   double duration = 60, noise_scale = -1;
+  bool lpvid_conventions = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -39,6 +43,7 @@ int main(int argc, char** argv) {
     else if (a == "--hidden") hidden = next();
     else if (a == "--duration-s") duration = std::stod(next());
     else if (a == "--noise-scale") noise_scale = std::stod(next());
+    else if (a == "--lpvid-conventions") lpvid_conventions = true;
     else {
       std::fprintf(stderr, "indep_stage_sim: unknown option %s\n", a.c_str());
       return 2;
@@ -52,6 +57,12 @@ int main(int argc, char** argv) {
   for (int redraw = 0; redraw <= 10; ++redraw) {
     indep_stage::Draw d = indep_stage::draw(seed + 7777ULL * redraw, h, noise_scale);
     d.experiment.duration_s = duration;
+    if (lpvid_conventions) {
+      d.stage.back_emf_at_array = false;
+      d.stage.measure_at_reference = false;
+      d.controller.true_velocity = true;
+      d.description += "conventions = lpvid  # back-EMF from the centre of mass, q at p_cm - c, exact velocity in the law\n";
+    }
     indep_stage::Log log;
     try {
       log = indep_stage::run(d.stage, d.controller, d.experiment);
