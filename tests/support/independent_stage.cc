@@ -285,7 +285,9 @@ Draw draw(std::uint64_t seed, Hidden hidden, double noise_scale) {
   c.gain_K = within(1.6, 2.6);
   c.delta = within(0.008, 0.014);
   c.inertia_ratio = within(0.35, 0.5);
-  const double ns = noise_scale >= 0 ? noise_scale : std::exp(within(std::log(0.5), std::log(2.0)));
+  // Drawn always, so that --noise-scale changes the noise only, not the rest of the draw.
+  const double ns_drawn = std::exp(within(std::log(0.5), std::log(2.0)));
+  const double ns = noise_scale >= 0 ? noise_scale : ns_drawn;
   e.noise_std *= ns;
   e.excitation_std *= within(0.8, 1.25);
   e.seed = seed;
