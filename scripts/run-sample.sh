@@ -15,3 +15,7 @@ echo "model-error loop: $root/samples/loop/ (where-it-fails.png, history.png)"
 # The same loop on the 6-DOF maglev stage (base stage6; the walkthrough's last part).
 bash "$root/samples/stage6-loop.sh"
 echo "stage6 loop: $root/samples/stage6/ (where-it-fails.png, history.png)"
+# The lab workflow: a designed multisine -> the simulated experiment -> periodic FRFs
+# with their noise and distortion -> fit -> diagnose (samples/lab-periodic.sh).
+bash "$root/samples/lab-periodic.sh"
+echo "lab workflow: $root/samples/lab/ (where-it-fails.png, history.png)"
