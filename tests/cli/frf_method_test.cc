@@ -118,7 +118,10 @@ TEST(FrfMethod, RefusesLayoutFlagsWithoutPeriodicALongLayoutAndAWrongPeriod) {
     EXPECT_FALSE(std::filesystem::exists(out));
   };
   rejected("--periods 4 --excitation v1 --output y1", "--periods describes periodic data: use it with --method periodic");
-  rejected("--method periodic --periods 4 --excitation v1 --output y1", "--method periodic needs the layout");
+  // (the layout comes either whole from flags or whole from the log's design line)
+  rejected("--method periodic --periods 4 --excitation v1 --output y1",
+           "--periods without --period-samples: give the whole layout by flags, or none of it");
+  rejected("--method periodic --excitation v1 --output y1", "--method periodic needs the layout");
   rejected("--method fourier --excitation v1 --output y1", "--method 'fourier': use welch, lpm or periodic");
   rejected("--method lpm --segment 256 --excitation v1 --output y1", "--segment is a Welch option");
   rejected("--method periodic --period-samples 256 --periods 8 --transient-periods 2 --realisations 2 --excitation v1 "
@@ -126,6 +129,29 @@ TEST(FrfMethod, RefusesLayoutFlagsWithoutPeriodicALongLayoutAndAWrongPeriod) {
            "but the layout needs");
   rejected("--method periodic --period-samples 200 --periods 4 --transient-periods 2 --excitation v1 --output y1",
            "is not periodic with 200 samples in block 1");
+}
+
+// The layout from the design line: excite records it, simulate --excitation copies
+// it into the log, and frf --method periodic without layout flags reads it; the
+// FRD is byte-identical to the one from the same layout given by flags.
+TEST(FrfMethod, PeriodicTakesTheLayoutFromTheLogsDesignLine) {
+  TempDir dir("frfdesign");
+  auto r = run_lpvid("excite --kind multisine --rate-hz 1000 --period-samples 500 --periods 2 --transient-periods 1 "
+                     "--band-hz 2,100 --channels 3 --mimo one-at-a-time --rms 0.05,0.05,1 --out " + (dir / "ms.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("simulate platform --excitation " + (dir / "ms.csv") + " --positions middle --out " + (dir / "rig"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string log = dir / "rig/middle_1000hz/exp_excitation.csv";
+  const std::string common = "frf --method periodic --excitation v1,v2,v3 --input u1,u2,u3 --output q1,q2,q3 ";
+  r = run_lpvid(common + "--out " + (dir / "a.csv") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid(common + "--period-samples 500 --periods 2 --transient-periods 1 --experiments 3 --out " +
+                (dir / "b.csv") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream a(dir / "a.csv"), b(dir / "b.csv");
+  const std::string ta((std::istreambuf_iterator<char>(a)), {}), tb((std::istreambuf_iterator<char>(b)), {});
+  EXPECT_FALSE(ta.empty());
+  EXPECT_EQ(ta, tb);
 }
 
 }  // namespace

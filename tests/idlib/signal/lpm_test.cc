@@ -117,7 +117,9 @@ TEST(Lpm, BeatsWelchOnALightlyDampedModeInAShortRecord) {
                 zeta, static_cast<int>(e.half_width), static_cast<int>(e.dof), e.lpm_rms, e.welch_rms,
                 e.welch_rms / e.lpm_rms, e.lpm_median, e.welch_median, e.welch_median / e.lpm_median);
     EXPECT_GE(e.welch_median / e.lpm_median, 5.0) << zeta;
-    if (zeta >= 0.05) EXPECT_GE(e.welch_rms / e.lpm_rms, 2.0);
+    if (zeta >= 0.05) {
+      EXPECT_GE(e.welch_rms / e.lpm_rms, 2.0);
+    }
   }
 }
 
