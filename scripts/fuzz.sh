@@ -15,7 +15,7 @@ bash "$root/scripts/install-deps.sh" fuzz
 build="${LPVID_FUZZ_BUILD_DIR:-$root/build-fuzz}"
 seconds="${FUZZ_SECONDS:-60}"
 jobs="${FUZZ_JOBS:-2}"
-all=(log_csv frd_csv frd_mat state_space_json physical_model_json history markov_csv platform_json effect_json
+all=(log_csv log_mat frd_csv frd_mat state_space_json physical_model_json history markov_csv platform_json effect_json
      dataset_manifest)
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
