@@ -181,19 +181,7 @@ class MatReader {
   bool has(const std::string& name) const {
     return std::find(variables_.begin(), variables_.end(), name) != variables_.end();
   }
-  // The variables' names for a message: each cut to 40 bytes with control bytes as
-  // \xNN (detail::quote_cell, without its quotes), at most 20 of them.
-  std::string holds() const {
-    constexpr size_t kMaxListed = 20;
-    if (variables_.empty()) return "no variables";
-    std::string out;
-    for (size_t i = 0; i < variables_.size() && i < kMaxListed; ++i) {
-      const std::string quoted = detail::quote_cell(variables_[i]);
-      out += (i ? ", " : "") + quoted.substr(1, quoted.size() - 2);
-    }
-    if (variables_.size() > kMaxListed) out += fmt::format(", ... ({} in all)", variables_.size());
-    return out;
-  }
+  std::string holds() const { return mat_detail::variables_text(variables_); }
 
   std::string pick_frequency() const {
     std::vector<std::string> found;

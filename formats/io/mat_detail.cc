@@ -738,4 +738,16 @@ matvar_t* name_cells(const char* name, const std::vector<std::string>& names) {
   return Mat_VarCreate(name, MAT_C_CELL, MAT_T_CELL, 2, dims, cells.data(), 0);
 }
 
+std::string variables_text(const std::vector<std::string>& variables) {
+  constexpr size_t kMaxListed = 20;
+  if (variables.empty()) return "no variables";
+  std::string out;
+  for (size_t i = 0; i < variables.size() && i < kMaxListed; ++i) {
+    const std::string quoted = detail::quote_cell(variables[i]);
+    out += (i ? ", " : "") + quoted.substr(1, quoted.size() - 2);
+  }
+  if (variables.size() > kMaxListed) out += fmt::format(", ... ({} in all)", variables.size());
+  return out;
+}
+
 }  // namespace lpvid::mat_detail

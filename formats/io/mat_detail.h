@@ -32,6 +32,9 @@ using detail::VarPtr;
 
 // "2×3×5".
 std::string dims_text(const std::vector<size_t>& dims);
+// The variables' names for a message: each cut to 40 bytes with control bytes as
+// \xNN (detail::quote_cell, without its quotes), at most 20 of them; "no variables".
+std::string variables_text(const std::vector<std::string>& variables);
 
 // A numeric variable as the FRD reader needs it.
 struct Array {

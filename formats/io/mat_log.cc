@@ -61,17 +61,7 @@ class MatLogReader {
   bool has(const std::string& name) const {
     return std::find(variables_.begin(), variables_.end(), name) != variables_.end();
   }
-  std::string holds() const {
-    constexpr size_t kMaxListed = 20;
-    if (variables_.empty()) return "no variables";
-    std::string out;
-    for (size_t i = 0; i < variables_.size() && i < kMaxListed; ++i) {
-      const std::string quoted = detail::quote_cell(variables_[i]);
-      out += (i ? ", " : "") + quoted.substr(1, quoted.size() - 2);
-    }
-    if (variables_.size() > kMaxListed) out += fmt::format(", ... ({} in all)", variables_.size());
-    return out;
-  }
+  std::string holds() const { return mat_detail::variables_text(variables_); }
   const Value& keep(Value v) {
     held_.push_back(std::move(v));
     return held_.back();
