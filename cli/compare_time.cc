@@ -76,8 +76,9 @@ std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::Ma
 
 void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--log", o.log,
-                  "time domain: a measured run (columns t, v1..v3, u1..u3, q1..q3, x_b) to predict with the platform "
-                  "model");
+                  "time domain: a measured run to predict: the platform's (t, v1..v3, u1..u3, q1..q3, x_b) with its "
+                  "controller, or the stage's (t, v1..v6, u1..u6, q1..q6) with a stage6 model file (--model or "
+                  "--params; no controller)");
   app->add_option("--params", o.params, "with --log: the model: a fitted physical model file (lpvid fit) or a platform parameter file (default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller,

@@ -42,7 +42,9 @@ floor.  Significant candidates rank by BIC; others that also leave only noise ar
 as indistinguishable on these data.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
-model fails (data and model, the error over the noise band, failing bands red).)";
+model fails (data and model, the error over the noise band, failing bands red).
+Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
+  lpvid diagnose --model stage.json --log exp/exp_stage6.csv)";
 
 struct DiagnoseCliOptions {
   FitInputOptions in;

@@ -46,7 +46,9 @@ recovered plant:
   lpvid fit --model start.json --target S --controller controller.json --data S_mid.csv@0 ... --out fitted.json
 The fitted model file gets a "fit" section (estimates, standard errors, correlation, flags,
 per-channel figures, cost, AIC/BIC).  --bands writes the model's magnitude and phase with
-their delta-method standard deviations at the data frequencies; the plot shows +-2 sigma.)";
+their delta-method standard deviations at the data frequencies; the plot shows +-2 sigma.
+Time domain (base stage6): fit to a closed-loop log by output error (--method equation|both):
+  lpvid fit --model stage.json --log exp/exp_stage6.csv --out fitted.json)";
 
 struct FitCliOptions {
   FitInputOptions in;
