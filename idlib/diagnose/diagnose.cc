@@ -259,12 +259,31 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model
     for (const PhysicalParameter& q : start.effect_info(c.effect)->parameters) fo.global_parameters.push_back(q.name);
     fo.global_starts = std::min(fo.global_starts, ctx.options.candidate_global_starts);
   }
+  const bool physics = start.effect_info(c.effect)->blocks.empty();
   std::string failure;
   try {
     c.fit = fit_physical_model(start, ctx.data, fo);
     c.fitted = true;
   } catch (const NumericalError& e) {
     failure = e.what();
+  }
+  if (!ctx.baseline_distorted && physics) {
+    // A physics effect of the base (no blocks: its terms enter M, K, B_w) moves the
+    // base's own parameters with it (the stage's gap stiffness ∝ m g gamma trades
+    // against kappa and the inertias): also search over everything, as `fit` does,
+    // and keep the better.  Measured on the independent stage simulator: the search
+    // over gamma alone settled at 50 1/m for a true 199 (error 26 %), the whole
+    // search reached 6.6 %; on lpvid's own simulator the search over gamma alone is
+    // the better one (seed 501: 4.0 % against 6.7 %).
+    FitOptions all = fo;
+    all.global_parameters.clear();
+    try {
+      FitResult again = fit_physical_model(start, ctx.data, all);
+      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
+      c.fitted = true;
+    } catch (const NumericalError& e) {
+      if (!c.fitted) failure = e.what();
+    }
   }
   if (ctx.baseline_distorted) {
     PhysicalModel fresh = start;

@@ -75,9 +75,9 @@ effect, seed, want, t0, t1, refit = sys.argv[1], sys.argv[2], sys.argv[3], float
 try:
     s6 = json.load(open("stage6_diagnose.json"))
     s6_named = s6["missing"] or "nothing"
-    s6_text = f"stage6 diagnose: {s6_named} ({s6['base']['rms_residual']:.3g}"
+    s6_text = f"stage6 diagnose: {s6_named} ({s6['baseline']['rms_residual']:.3g}"
     if s6["missing"]:
-        c = [c for c in s6["candidates"] if c.get("model", "").endswith(s6["missing"]) or s6["missing"] in c.get("effects", [])]
+        c = [c for c in s6["candidates"] if c.get("effect") == s6["missing"]]
         if c: s6_text += f" -> {c[0]['rms_residual']:.3g}"
     s6_text += ")"
 except Exception:
