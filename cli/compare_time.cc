@@ -82,7 +82,8 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--params", o.params, "with --log: the model: a fitted physical model file (lpvid fit) or a platform parameter file (default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller,
-                  "the discrete controller (JSON model): of the run with --log; for G and S data of a physical model");
+                  "the discrete controller (JSON model): of the run with --log; for G and S data of a physical "
+                  "model also its measured response (FRD .csv/.mat on the data's lines)");
   app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)")
       ->check(positive_up_to(kMaxDurationS, "the window length in s"));
   app->add_option("--threshold-percent", o.threshold_percent,

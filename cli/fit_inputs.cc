@@ -28,7 +28,8 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
                  "dataset manifest (JSON): the files and x_b of every data set, and optionally target, "
                  "controller, rate_hz, averages, noise_level, band_rad_s (docs/formats.md)");
   app.add_option("--target", o.target, "what the data are: plant (default), G (v -> q) or S (v -> u)");
-  app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space or transfer-function JSON; for G and S");
+  app.add_option("--controller", o.controller, "controller C (e = -q -> u_c), state-space or transfer-function JSON, or its measured response "
+                 "(FRD .csv/.mat on exactly the data's frequency lines); for G and S");
   app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the sampled (ZOH) response")
       ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
   app.add_option("--averages", o.averages,
@@ -133,7 +134,8 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                                  lo, hi));
   in.controller_path = !o.controller.empty() ? o.controller : m.controller;
   if (options.target != FitTarget::kPlant && in.controller_path.empty())
-    throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c)",
+    throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c; or its "
+                                 "measured response C.csv)",
                                  target));
   in.inputs = {o.model};
   if (!o.datasets.empty()) in.inputs.push_back(o.datasets);
@@ -144,7 +146,12 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   outputs.check();
 
   in.start = read_physical_model(o.model);
-  if (!in.controller_path.empty()) options.controller = read_controller(in.controller_path);
+  if (!in.controller_path.empty()) {
+    if (is_measured_controller(in.controller_path))
+      options.measured_controller = read_measured_controller(in.controller_path);
+    else
+      options.controller = read_controller(in.controller_path);
+  }
   std::vector<LoadedResponse> loaded;
   for (const auto& s : in.specs) {
     if (s.files.size() > 1) {
@@ -184,6 +191,12 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     } else {
       d.response = *loaded[i].frd;
     }
+    // A measured controller is known only at its lines: they must be every data set's.
+    if (options.measured_controller && options.target != FitTarget::kPlant)
+      check_controller_lines(*options.measured_controller, d.response.omega_rad_s, in.controller_path,
+                             loaded[i].model ? d.label + fmt::format(" (a model, evaluated on the --grid-lo/-hi/-count "
+                                                                     "grid)")
+                                             : d.label);
     in.data.push_back(std::move(d));
   }
   return in;

@@ -35,6 +35,19 @@ StateSpace read_controller(const std::string& path) {
   return c;
 }
 
+bool is_measured_controller(const std::string& path) { return path != "-" && !ends_with(path, ".json"); }
+
+FrequencyResponse read_measured_controller(const std::string& path) {
+  FrequencyResponse c = load_frd_merged({path});
+  bool zero = true;
+  for (const Eigen::MatrixXcd& m : c.response) zero = zero && m.isZero(0.0);
+  if (zero)
+    throw InputError(fmt::format("{}: the measured controller is zero at every frequency, as if the loop were open, "
+                                 "so no plant can be recovered through it; give the controller that ran",
+                                 path));
+  return c;
+}
+
 FrequencyResponse load_frd_merged(const std::vector<std::string>& paths) {
   if (paths.empty()) throw InputError("no frequency-response file given; give one or more FRD files (.csv, .mat)");
   for (const auto& p : paths)

@@ -29,6 +29,14 @@ FrequencyResponse load_frd_merged(const std::vector<std::string>& paths);
 // ("ctl.json: the controller is zero at every frequency (...); give the controller that ran").
 StateSpace read_controller(const std::string& path);
 
+// A controller file that holds its measured response (FRD .csv or .mat) rather than
+// a model (.json, or "-": stdin holds a model).
+bool is_measured_controller(const std::string& path);
+
+// The controller's measured response (FRD .csv/.mat; several files, one per excited
+// input, are not taken: one file).  Refused when zero at every frequency, as read_controller.
+FrequencyResponse read_measured_controller(const std::string& path);
+
 // The response on omega: a model is evaluated there; FRD data must already be on
 // that grid (relative 1e-9), else InputError naming the file.
 FrequencyResponse response_on(const LoadedResponse& r, const Eigen::VectorXd& omega_rad_s);

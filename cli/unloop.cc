@@ -50,24 +50,13 @@ struct UnloopCliOptions {
   bool json = false;
 };
 
-// A controller file that holds a measured response (FRD .csv or .mat) rather than a model.
-bool is_measured_controller(const std::string& path) {
-  return path != "-" && !(path.size() >= 5 && path.compare(path.size() - 5, 5, ".json") == 0);
-}
-
 // Per-frequency route: S (or G: closed_loop) data and the controller -> plant FRD.
 // The controller: a model (JSON), or its measured response on the data's lines.
 void run_frd(const UnloopCliOptions& o, OutputSet& outputs, const FrequencyResponse* closed_loop) {
   std::optional<StateSpace> model;
   std::optional<FrequencyResponse> measured;
   if (is_measured_controller(o.controller)) {
-    measured = load_frd_merged({o.controller});
-    bool zero = true;
-    for (const Eigen::MatrixXcd& m : measured->response) zero = zero && m.isZero(0.0);
-    if (zero)
-      throw InputError(fmt::format("{}: the measured controller is zero at every frequency, as if the loop were open, "
-                                   "so no plant can be recovered through it; give the controller that ran",
-                                   o.controller));
+    measured = read_measured_controller(o.controller);
   } else {
     model = read_controller(o.controller);
   }

@@ -13,7 +13,7 @@
 // | format          | "lpvid-datasets" | required |
 // | datasets        | non-empty array of {beam_position_m: number (m), files: non-empty array of paths, label: string} | required; label optional |
 // | target          | string: plant, G or S | optional (checked by the caller) |
-// | controller      | string: a state-space JSON path | optional |
+// | controller      | string: a state-space JSON path, or a measured controller's FRD (.csv/.mat) | optional |
 // | rate_hz, averages, noise_level | numbers (Hz, count, fraction) | optional (ranges checked by the caller) |
 // | band_rad_s      | [low, high], rad/s | optional |
 // Relative paths are relative to the manifest's folder.  Unknown keys are errors.

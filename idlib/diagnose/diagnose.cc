@@ -120,7 +120,7 @@ Eigen::MatrixXcd plant_residual(const PhysicalModel& model, const FitDataset& ds
   Eigen::MatrixXcd H = ds.response.response[static_cast<std::size_t>(k)];
   Eigen::MatrixXcd Pd = H;
   if (fit.target != FitTarget::kPlant) {
-    const Eigen::MatrixXcd C = evaluate_response(*fit.controller, Eigen::VectorXd::Constant(1, w)).front();
+    const Eigen::MatrixXcd C = controller_response_at(fit, Eigen::VectorXd::Constant(1, w)).front();
     if (fit.target == FitTarget::kClosedLoopOutput) {
       Pd = H * (Eigen::MatrixXcd::Identity(H.cols(), H.cols()) - C * H).inverse();
     } else {

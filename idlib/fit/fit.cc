@@ -7,10 +7,12 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <nlopt.hpp>
+#include <numbers>
 #include <random>
 
 #include "idlib/lti/frequency_response.h"
@@ -432,18 +434,42 @@ std::vector<CMat> controller_at(const StateSpace& c, const std::vector<double>& 
   return out;
 }
 
+bool same_line(double a, double b) { return std::abs(a - b) <= kControllerLineRelTolerance * std::abs(b); }
+
 void check_controller(const FitOptions& o, const BaseInfo* base) {
   if (o.target == FitTarget::kPlant) return;
-  if (!o.controller)
-    throw InputError(fmt::format("target {} needs the controller C (e = -q -> u_c); give it (--controller C.json)",
+  if (!o.controller && !o.measured_controller)
+    throw InputError(fmt::format("target {} needs the controller C (e = -q -> u_c); give it (--controller C.json, or "
+                                 "its measured response C.csv)",
                                  target_name(o.target)));
-  o.controller->validate();
+  if (o.controller && o.measured_controller)
+    throw InputError("both a controller model and a measured controller are given; give one");
+  Index c_in = 0, c_out = 0;
+  if (o.controller) {
+    o.controller->validate();
+    c_in = o.controller->num_inputs();
+    c_out = o.controller->num_outputs();
+  } else {
+    const FrequencyResponse& c = *o.measured_controller;
+    if (c.num_frequencies() == 0 || c.response.size() != static_cast<std::size_t>(c.num_frequencies()))
+      throw InputError("the measured controller holds no frequencies; give its response on the data's frequency lines");
+    c_in = c.num_inputs();
+    c_out = c.num_outputs();
+    for (std::size_t k = 0; k < c.response.size(); ++k) {
+      const double w = c.omega_rad_s(static_cast<Index>(k));
+      if (!std::isfinite(w) || !(w > 0.0) || c.response[k].rows() != c_out || c.response[k].cols() != c_in ||
+          !c.response[k].allFinite())
+        throw InputError(fmt::format("the measured controller's line {} ({} rad/s) is not a finite {}x{} response at a "
+                                     "frequency > 0; give its response on the data's frequency lines",
+                                     k + 1, w, c_out, c_in));
+    }
+  }
   if (base == nullptr) return;
   const Index ni = static_cast<Index>(base->input_names.size()), no = static_cast<Index>(base->output_names.size());
-  if (o.controller->num_inputs() != no || o.controller->num_outputs() != ni)
+  if (c_in != no || c_out != ni)
     throw InputError(fmt::format("the controller has {} inputs and {} outputs; base '{}' needs {} (e = -q) and {} "
                                  "(u_c)",
-                                 o.controller->num_inputs(), o.controller->num_outputs(), base->name, no, ni));
+                                 c_in, c_out, base->name, no, ni));
 }
 
 // s_ij for one frequency: sqrt(|H_ii||H_jj|) when square, else the row's largest |H|.
@@ -569,7 +595,18 @@ Prepared prepare(const FitDataset& ds, const PhysicalModel& model, const FitOpti
     throw InputError(fmt::format("{}: no frequency in the band [{:g}, {:g}] rad/s (after flagged ones); widen the "
                                  "band or check the data's frequencies",
                                  ds.label, o.band_min_rad_s, o.band_max_rad_s));
-  if (o.target != FitTarget::kPlant) d.ctrl = controller_at(*o.controller, d.omega);
+  if (o.target != FitTarget::kPlant) {
+    if (o.controller) {
+      d.ctrl = controller_at(*o.controller, d.omega);
+    } else {
+      check_controller_lines(*o.measured_controller, f.omega_rad_s, "the measured controller", ds.label);
+      for (Index k = 0; k < F; ++k) {
+        const auto kk = static_cast<std::size_t>(k);
+        if ((f.flagged.empty() || !f.flagged[kk]) && in_band(f.omega_rad_s(k), o))
+          d.ctrl.emplace_back(o.measured_controller->response[kk]);
+      }
+    }
+  }
   return d;
 }
 
@@ -1120,6 +1157,53 @@ FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDa
   return result;
 }
 
+void check_controller_lines(const FrequencyResponse& controller, const Eigen::VectorXd& omega,
+                            const std::string& controller_name, const std::string& data_name) {
+  const Index nc = controller.num_frequencies(), nd = omega.size();
+  Index k = 0;
+  while (k < std::min(nc, nd) && same_line(controller.omega_rad_s(k), omega(k))) ++k;
+  if (k == nc && k == nd) return;
+  constexpr double kHz = 1.0 / (2.0 * std::numbers::pi);
+  const std::string what = "; measure the controller at the data's frequency lines (or give it as a model)";
+  if (k < std::min(nc, nd))
+    throw InputError(fmt::format("{}: line {} is {:.10g} Hz but line {} of {} is {:.10g} Hz (relative difference "
+                                 "{:.3g} > {:g}){}",
+                                 controller_name, k + 1, controller.omega_rad_s(k) * kHz, k + 1, data_name,
+                                 omega(k) * kHz, std::abs(controller.omega_rad_s(k) - omega(k)) / std::abs(omega(k)),
+                                 kControllerLineRelTolerance, what));
+  throw InputError(fmt::format("{}: {} lines but {} has {}; line {} ({:.10g} Hz) is in {} only{}", controller_name,
+                               nc, data_name, nd, k + 1,
+                               (nc > nd ? controller.omega_rad_s(k) : omega(k)) * kHz,
+                               nc > nd ? controller_name : data_name, what));
+}
+
+std::vector<Eigen::MatrixXcd> controller_response_at(const FitOptions& options, const Eigen::VectorXd& omega_rad_s) {
+  if (options.controller) return evaluate_response(*options.controller, omega_rad_s);
+  if (!options.measured_controller)
+    throw InputError("no controller given; give the controller (--controller C.json, or its measured response C.csv)");
+  const FrequencyResponse& c = *options.measured_controller;
+  // The lines in increasing order, to look each frequency up (FRD files need not be sorted).
+  std::vector<Index> order(static_cast<std::size_t>(c.num_frequencies()));
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = static_cast<Index>(k);
+  std::sort(order.begin(), order.end(), [&](Index a, Index b) { return c.omega_rad_s(a) < c.omega_rad_s(b); });
+  std::vector<Eigen::MatrixXcd> out;
+  for (Index k = 0; k < omega_rad_s.size(); ++k) {
+    const double w = omega_rad_s(k);
+    const auto it = std::lower_bound(order.begin(), order.end(), w,
+                                     [&](Index a, double x) { return c.omega_rad_s(a) < x; });
+    Index hit = -1;
+    for (auto j = it == order.begin() ? it : it - 1; j != order.end() && j <= it; ++j)
+      if (same_line(c.omega_rad_s(*j), w)) hit = *j;
+    if (hit < 0)
+      throw InputError(fmt::format("the measured controller has no line at {:.10g} Hz (relative {:g}); the response "
+                                   "through a measured controller is known only at its lines: measure the controller "
+                                   "at the data's frequency lines (or give it as a model)",
+                                   w / (2.0 * std::numbers::pi), kControllerLineRelTolerance));
+    out.push_back(c.response[static_cast<std::size_t>(hit)]);
+  }
+  return out;
+}
+
 FrequencyResponse target_response(const PhysicalModel& model, double beam_position_m,
                                   const Eigen::VectorXd& omega_rad_s, const FitOptions& options) {
   return response_band(model, Eigen::MatrixXd(), beam_position_m, omega_rad_s, options).response;
@@ -1145,7 +1229,8 @@ ResponseBand response_band(const PhysicalModel& model, const Eigen::MatrixXd& co
     if (!std::isfinite(omega_rad_s(k))) throw InputError("a frequency is not finite");
     d.omega.push_back(omega_rad_s(k));
   }
-  if (options.target != FitTarget::kPlant) d.ctrl = controller_at(*options.controller, d.omega);
+  if (options.target != FitTarget::kPlant)
+    for (const Eigen::MatrixXcd& c : controller_response_at(options, omega_rad_s)) d.ctrl.emplace_back(c);
   std::vector<CMat> T;
   std::vector<std::vector<CMat>> dT;
   if (!engine.evaluate(d, T, bands && p > 0 ? &dT : nullptr))

@@ -21,7 +21,8 @@
 //   r = (T_ij(θ; s_d, ω_k) − Ĥ_ij(ω_k)) / σ_ij(ω_k),
 // complex, split into real and imaginary residuals, where T = P (target plant),
 // G = P (I + C P)⁻¹ (closed loop v → q) or S = (I + C P)⁻¹ (input sensitivity
-// v → u), C the known controller at the same λ (jω, or e^{jωTs}); P the model's
+// v → u), C the known controller at the same λ (jω, or e^{jωTs}), or its measured
+// value at the data's line ω_k (FitOptions::measured_controller); P the model's
 // exactly sampled response when sample_period_s > 0 (fractional delays included,
 // idlib/physical/evaluate.h), else P(jω).  Cost = Σ r² (a χ² when the noise is known).
 // Frequencies flagged in the data or outside [band_min, band_max] are left out.
@@ -93,8 +94,12 @@ struct NoiseOptions {
 
 struct FitOptions {
   FitTarget target = FitTarget::kPlant;
-  // The known controller (e = −q → u_c), needed for G and S.
+  // The known controller (e = −q → u_c), needed for G and S: a model ...
   std::optional<StateSpace> controller;
+  // ... or its MEASURED response (FRD, C(ω_k) = response[k]: as many inputs as the
+  // base has outputs, as many outputs as it has inputs) on exactly every data set's
+  // frequency lines (check_controller_lines).  At most one of the two.
+  std::optional<FrequencyResponse> measured_controller;
   // > 0: the model's sampled response at this period (data identified from
   // sampled data); 0: the continuous response.
   double sample_period_s = 0.0;
@@ -207,8 +212,26 @@ struct ResponseBand {
 ResponseBand response_band(const PhysicalModel& model, const Eigen::MatrixXd& covariance, double beam_position_m,
                            const Eigen::VectorXd& omega_rad_s, const FitOptions& options);
 
-// The target response of model (no bands).
+// The target response of model (no bands).  With a measured controller every
+// frequency of omega_rad_s must be one of its lines (response_band too).
 FrequencyResponse target_response(const PhysicalModel& model, double beam_position_m,
                                   const Eigen::VectorXd& omega_rad_s, const FitOptions& options);
+
+// Relative tolerance |ω_C − ω_data| / ω_data for a measured controller's lines to be
+// the data's (the value of idlib/closedloop's kMeasuredControllerFrequencyRelTolerance:
+// files written by lpvid and read back agree to ~1e-15).
+inline constexpr double kControllerLineRelTolerance = 1e-9;
+
+// A measured controller on the data's lines: as many frequencies as `omega`, each
+// equal to relative kControllerLineRelTolerance.
+// @throws InputError  naming controller_name, data_name and the first line that
+//   differs (or is in one only), and what to do (measure the controller at the data's lines).
+void check_controller_lines(const FrequencyResponse& controller, const Eigen::VectorXd& omega,
+                            const std::string& controller_name, const std::string& data_name);
+
+// C at each frequency of omega: options.controller evaluated there, or the measured
+// controller's value at the line equal to it (relative kControllerLineRelTolerance).
+// @throws InputError  no controller; a frequency that is not a line of the measured controller.
+std::vector<Eigen::MatrixXcd> controller_response_at(const FitOptions& options, const Eigen::VectorXd& omega_rad_s);
 
 }  // namespace lpvid

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "formats/io/frd_csv.h"
 #include "formats/io/model_json.h"
@@ -110,6 +111,102 @@ TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
     if (p.free) {
       EXPECT_NEAR(p.value, truth.parameter(p.name).value, kRecovery * std::max(std::abs(p.value), 1e-3)) << p.name;
     }
+}
+
+// The controller's measured response (FRD) on exactly the data's lines stands in for the
+// model: C.csv holds the state-space controller's own response on those lines, written
+// with round-trip precision, so fit and compare must agree with the model route (the
+// existing, independently tested one: S data through C(e^{jωTs}) of the model).
+TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
+  TempDir dir("fit_cfrd");
+  const PhysicalModel truth = truth_model();
+  FitOptions o;
+  o.target = FitTarget::kInputSensitivity;
+  o.sample_period_s = 1e-3;
+  const StateSpace c = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3);
+  o.controller = c;
+  write_state_space(dir / "C.json", c);
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 40);
+  write_frd_csv(dir / "C.csv", frequency_response(c, w), "C");
+  Eigen::VectorXd shifted = w;
+  shifted(17) *= 1.0 + 1e-6;  // one line off by 1e-6 relative (> the 1e-9 allowed)
+  write_frd_csv(dir / "C_off.csv", frequency_response(c, shifted), "C");
+  std::string data;
+  for (double xb : kPaperBeamPositions_m) {
+    const auto path = dir / fmt::format("S_{}.csv", xb);
+    write_frd_csv(path, target_response(truth, xb, w, o), "S");
+    data += fmt::format(" --data {}@{}", path, xb);
+  }
+  PhysicalModel start = truth;
+  for (auto& p : start.parameters)
+    if (p.free) p.value = std::clamp(1.2 * p.value, p.lower, p.upper);
+  write_physical_model(dir / "start.json", start);
+  // A measured controller carries no sample period: --rate-hz gives it (to both runs).
+  auto fit = [&](const char* controller, const char* out) {
+    return run_lpvid(fmt::format("fit --model {} {} --target S --controller {} --rate-hz 1000 --no-global --out {}",
+                                 dir / "start.json", data, dir / controller, dir / out));
+  };
+  const auto model_run = fit("C.json", "by_model.json");
+  ASSERT_EQ(model_run.exit_code, 0) << model_run.err;
+  const auto frd_run = fit("C.csv", "by_frd.json");
+  ASSERT_EQ(frd_run.exit_code, 0) << frd_run.err;
+  const PhysicalModel by_model = read_physical_model(dir / "by_model.json");
+  const PhysicalModel by_frd = read_physical_model(dir / "by_frd.json");
+  Index free = 0;
+  for (const auto& p : by_model.parameters)
+    if (p.free) {
+      ++free;
+      // The two controllers differ only by the CSV round trip (~1e-16 relative), so the
+      // fits agree to round-off; 1e-9 leaves room for LM's path through that round-off.
+      // Parameters whose truth is 0 (stiffness centre, damping couplings) end at ~1e-12 in
+      // both runs: relative to their bounds' span there (all finite on this base).
+      const double span = p.upper - p.lower;
+      EXPECT_NEAR(by_frd.parameter(p.name).value, p.value,
+                  1e-9 * std::max(std::abs(p.value), std::isfinite(span) ? span : 0.0))
+          << p.name;
+      // And both recover the truth (noise-free data; the 1 % of the issue).
+      EXPECT_NEAR(p.value, truth.parameter(p.name).value, kRecovery * std::max(std::abs(p.value), 1e-3)) << p.name;
+    }
+  EXPECT_GT(free, 0);
+
+  // compare --model ... --target S --controller C.csv: the same error figure as with C.json.
+  auto compare = [&](const char* controller) {
+    const auto r = run_lpvid(fmt::format("compare --model {} {} --target S --controller {} --rate-hz 1000 "
+                                         "--noise-level 0.01 --json",
+                                         dir / "start.json", data, dir / controller));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.out).at("error").get<double>() : -1.0;
+  };
+  const double e_model = compare("C.json"), e_frd = compare("C.csv");
+  EXPECT_GT(e_model, 0.0);  // the start is 20 % off: a visible error
+  EXPECT_NEAR(e_frd, e_model, 1e-9 * e_model);
+
+  // diagnose through either controller: the same report (the fitted model is within the
+  // noise; one candidate keeps this cheap).
+  auto diagnose = [&](const char* controller) {
+    const auto r = run_lpvid(fmt::format("diagnose --model {} {} --target S --controller {} --rate-hz 1000 "
+                                         "--noise-level 0.01 --candidates input_delay",
+                                         dir / "by_model.json", data, dir / controller));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out;
+  };
+  const std::string d_model = diagnose("C.json");
+  EXPECT_THAT(d_model, HasSubstr("input_delay"));
+  EXPECT_EQ(diagnose("C.csv"), d_model);
+
+  // A controller measured on other lines is refused before anything is written.
+  const auto off = fit("C_off.csv", "off.json");
+  EXPECT_EQ(off.exit_code, 2);
+  EXPECT_THAT(off.err, HasSubstr("C_off.csv: line 18 is"));
+  EXPECT_THAT(off.err, HasSubstr("measure the controller at the data's frequency lines"));
+  EXPECT_EQ(std::count(off.err.begin(), off.err.end(), '\n'), 1) << off.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "off.json"));
+  const auto off_compare = run_lpvid(fmt::format("compare --model {} {} --target S --controller {} --rate-hz 1000 "
+                                                 "--noise-level 0.01 --out {}",
+                                                 dir / "start.json", data, dir / "C_off.csv", dir / "cmp.json"));
+  EXPECT_EQ(off_compare.exit_code, 2);
+  EXPECT_THAT(off_compare.err, HasSubstr("line 18"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "cmp.json"));
 }
 
 TEST(FitCli, MissingXbTagIsExit2WithOneLineAndNoOutput) {
