@@ -210,9 +210,12 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   MatrixT<T> M(nd, nd), Dm(nd, nd), K(nd, nd);
   // Bw: the base's input map (w -> generalised force; identity for the platform);
   // F: velocity feedback into the input chain (w -> w − F q'), empty when none.
-  MatrixT<T> Bw = MatrixT<T>::Identity(nd, L.n_in), F;
+  // Cq: the base's output map (body coordinates -> what the sensors see), empty
+  // when the identity.
+  MatrixT<T> Bw = MatrixT<T>::Identity(nd, L.n_in), F, Cq;
   if (L.stage6) {
-    if (!stage6_matrices<T>(*L.stage6, p, schedule, &ScalarValue<T>::of, M, Dm, K, Bw, F)) return false;
+    if (!stage6_matrices<T>(*L.stage6, p, schedule, &ScalarValue<T>::of, M, Dm, K, Bw, F, Cq)) return false;
+    if (L.stage6->com[0] < 0) Cq.resize(0, 0);
     if (L.stage6->back_emf < 0) F.resize(0, 0);
   } else if (L.platform) {
     T m3[3][3], d3[3][3], k3[3][3];
@@ -255,6 +258,7 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
       body.C(d, i) = phi;
     }
   }
+  if (Cq.size() > 0) body.C = Cq * body.C;
   const Lti<T> in = physical_detail::block_chain<T>(L.input_blocks, L.n_in, p);
   const Lti<T> out = physical_detail::block_chain<T>(L.output_blocks, L.n_out, p);
   Lti<T> driven = physical_detail::series(in, body);

@@ -179,6 +179,30 @@ Eigen::Matrix<double, 8, 6> allocation_pseudo_inverse(const Eigen::Matrix<double
   return A.transpose() * lu.inverse();
 }
 
+Vector6d sensed_configuration(const Vector6d& q_cm, const Eigen::Vector3d& c) {
+  Vector6d q = q_cm;
+  q.head<3>() -= rotation(q_cm) * c;
+  return q;
+}
+
+Vector6d sensed_velocity(const Vector6d& q_cm, const Vector6d& qd_cm, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d omega = angular_velocity_map(q_cm(4), q_cm(5)) * qd_cm.tail<3>();
+  Vector6d qd = qd_cm;
+  qd.head<3>() -= rotation(q_cm) * omega.cross(c);
+  return qd;
+}
+
+Vector6d centre_of_mass_configuration(const Vector6d& q_sensed, const Eigen::Vector3d& c) {
+  Vector6d q = q_sensed;
+  q.head<3>() += rotation(q_sensed) * c;
+  return q;
+}
+
+Eigen::Vector3d array_velocity(const Vector6d& q, const Vector6d& qd, const Eigen::Vector3d& arm_m) {
+  const Eigen::Vector3d omega = angular_velocity_map(q(4), q(5)) * qd.tail<3>();
+  return rotation(q).transpose() * qd.head<3>() + omega.cross(arm_m);
+}
+
 double gap_factor(const StageParameters& p, double gap_m) {
   return std::exp(-p.gamma_per_m() * (gap_m - p.reference_gap_m));
 }

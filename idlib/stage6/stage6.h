@@ -88,12 +88,31 @@ Matrix68d printed_eq30_matrix(const Eigen::Matrix<double, 3, 4>& lever_arms_m);
 // @throws InputError when A has rank < 6 (a degenerate geometry).
 Eigen::Matrix<double, 8, 6> allocation_pseudo_inverse(const Eigen::Matrix<double, 3, 4>& lever_arms_m);
 
+// ---- where the sensors look (the centre-of-mass offset) ----
+// The stage's dynamics are those of its centre of mass; the sensors
+// (interferometers, probes) look at the platen's reference point, the point the
+// designed lever arms r_i are measured from.  With the centre of mass at c from
+// the reference point (body axes), the reference point is at p_cm − R c.
+// The configuration the sensors see for a centre-of-mass configuration q_cm:
+// [p_cm − R c; the same angles].
+Vector6d sensed_configuration(const Vector6d& q_cm, const Eigen::Vector3d& com_offset_m);
+// Its rate: [ṗ_cm − R (ω × c); the same angle rates].
+Vector6d sensed_velocity(const Vector6d& q_cm, const Vector6d& qd_cm, const Eigen::Vector3d& com_offset_m);
+// The inverse of sensed_configuration: [p_ref + R c; angles].
+Vector6d centre_of_mass_configuration(const Vector6d& q_sensed, const Eigen::Vector3d& com_offset_m);
+
 // ---- motors (eqs 20–26) ----
 // α(z_gap) = exp(-γ (z_gap - z_ref)).
 double gap_factor(const StageParameters& p, double gap_m);
-// Gap of the magnet array of motor i (0..3) when the platen is at q:
+// Gap of the magnet array of motor i (0..3) when the platen's REFERENCE POINT is at
+// q (the sensed configuration; the designed arms r_i are from that point):
 // z + ((R − I) r_i)_z.
 double motor_gap_m(const StageParameters& p, const Vector6d& q, int motor);
+// Velocity of a magnet array (body axes, m/s) whose centre is at `arm_m` from the
+// centre of mass (r_i − c), for a centre-of-mass configuration q and rate q̇:
+// Rᵀ ṗ + ω × arm, ω = W q̇_a.  Its component along each of the array's forces is
+// the velocity in that motor's back-EMF (eq 25 in the motor's own coordinates).
+Eigen::Vector3d array_velocity(const Vector6d& q, const Vector6d& qd, const Eigen::Vector3d& arm_m);
 // Forces of motor i from its d-q currents at gap z (eq 24 in d-q form with a
 // sinusoidal magnet array; eq 26 prints f_x and f_z swapped):
 //   horizontal = k_f α(z) i_q,   vertical = k_f α(z) i_d.
@@ -101,8 +120,9 @@ Eigen::Vector2d motor_forces(const StageParameters& p, double i_d_A, double i_q_
 // The currents [i_d, i_q] that give [horizontal, vertical] forces at gap z.
 Eigen::Vector2d motor_currents(const StageParameters& p, double horizontal_N, double vertical_N, double gap_m);
 // d-q current derivatives (eq 25 with dL/dz = 0 and the current amplifier
-// v = R i_cmd + k_c (i_cmd − i)), back-EMF from the drive velocity (along x for
-// motors 1, 3; y for 2, 4) and the vertical velocity:
+// v = R i_cmd + k_c (i_cmd − i)), back-EMF from the array's own velocity
+// (array_velocity) along its drive axis (body x for motors 1, 3; y for 2, 4) and
+// along body z:
 //   L di_q/dt = (R + k_c)(i_q,cmd − i_q) − k_e α ẋ_h
 //   L di_d/dt = (R + k_c)(i_d,cmd − i_d) − k_e α ż,   k_e = k_f (V·s/m).
 Eigen::Vector2d current_derivative(const StageParameters& p, const Eigen::Vector2d& i_dq,

@@ -26,7 +26,10 @@ struct Sample {
   Eigen::Vector3d qdd_t, qdd_a, wdot_qd, omega;  // omega = W q̇_a, wdot_qd = Ẇ q̇_a
   Vector8d f_bar;                                // triangular-average motor forces
   Eigen::Vector4d gap_minus_ref_m;               // gap_i − z_ref
-  Eigen::Vector3d velocity;                      // q̇_t (back-EMF of the lag effect)
+  // Velocity of each array along body axes, Rᵀ q̇_t + ω × r_i (back-EMF of the lag
+  // effect): the reference point's q̇_t with the designed arm r_i equals the centre
+  // of mass's velocity with the true arm r_i − c, so c does not enter.
+  Eigen::Matrix<double, 3, 4> array_velocity;
 };
 
 struct Residual {
@@ -47,19 +50,22 @@ struct Residual {
       const T alpha = exp(-gap[0] * T(s->gap_minus_ref_m(i)));
       V3 fi = V3::Zero();
       const int h = i % 2 == 0 ? 0 : 1;  // drive axis of motor i
-      fi(h) = alpha * (T(s->f_bar(2 * i)) - emf[0] * T(s->velocity(h)));
-      fi(2) = alpha * (T(s->f_bar(2 * i + 1)) - emf[0] * T(s->velocity(2)));
+      fi(h) = alpha * (T(s->f_bar(2 * i)) - emf[0] * T(s->array_velocity(h, i)));
+      fi(2) = alpha * (T(s->f_bar(2 * i + 1)) - emf[0] * T(s->array_velocity(2, i)));
       const V3 ri(T((*r)(0, i)) - com[0], T((*r)(1, i)) - com[1], T((*r)(2, i)) - com[2]);
       F += fi;
       tau += ri.cross(fi);
     }
     F *= kappa;
     tau *= kappa;
-    // Translational rows: m q̈ + m g e_z − R F.
-    const V3 trans = m * s->qdd_t.cast<T>() + V3(T(0), T(0), m * T(kGravity_m_per_s2)) - s->R.cast<T>() * F;
-    // Rotational rows: Wᵀ(H(W q̈_a + Ẇ q̇_a) + ω × Hω − τ).
     const V3 wdot = (s->W * s->qdd_a + s->wdot_qd).cast<T>();
     const V3 omega = s->omega.cast<T>();
+    // Translational rows: m p̈_cm + m g e_z − R F, the centre of mass being at the
+    // sensed reference point plus R c: p̈_cm = q̈_t + R (ω̇ × c + ω × (ω × c)).
+    const V3 c(com[0], com[1], com[2]);
+    const V3 acc_cm = s->qdd_t.cast<T>() + s->R.cast<T>() * V3(wdot.cross(c) + omega.cross(V3(omega.cross(c))));
+    const V3 trans = m * acc_cm + V3(T(0), T(0), m * T(kGravity_m_per_s2)) - s->R.cast<T>() * F;
+    // Rotational rows: Wᵀ(H(W q̈_a + Ẇ q̇_a) + ω × Hω − τ).
     const V3 Hwdot = H.cwiseProduct(wdot), Hw = H.cwiseProduct(omega);
     const V3 rot = s->Wt.cast<T>() * (Hwdot + omega.cross(Hw) - tau);
     for (int c = 0; c < 3; ++c) {
@@ -202,7 +208,8 @@ StageFitResult fit_stage(const StageParameters& nominal, const Eigen::MatrixXd& 
     s.qdd_t = qdd.head<3>();
     s.qdd_a = qdd.tail<3>();
     s.omega = s.W * qd.tail<3>();
-    s.velocity = qd.head<3>();
+    for (int i = 0; i < 4; ++i)
+      s.array_velocity.col(i) = s.R.transpose() * qd.head<3>() + s.omega.cross(Eigen::Vector3d(nominal.lever_arms_m.col(i)));
     // Ẇ q̇_a from the difference of W along the motion (exact to O(Ts²)).
     Vector6d qp = qk + qd * 1e-6, qm = qk - qd * 1e-6;
     s.wdot_qd = (angular_velocity_map(qp(4), qp(5)) - angular_velocity_map(qm(4), qm(5))) / 2e-6 * qd.tail<3>();

@@ -14,7 +14,10 @@
 //   r_k = M(q_k; θ) q̈_k + h₂(q_k, q̇_k; θ) + h₁(θ)
 //         − G(q_k) κ A(r − c) (α_k ⊙ f̄_k),   f_j = A(r)⁺ u_j,
 // scaled by 1/(m₀ g) (force rows) and 1/(m₀ g · 0.075 m) (torque rows), m₀ the
-// nominal mass.  The motor forces f_j are those the controller allocated with
+// nominal mass.  The measured q is the reference point's (where the sensors
+// look), the centre of mass being R c from it: the translational rows use
+// p̈_cm = q̈_t + R(ω̇ × c + ω × (ω × c)), and the lag's back-EMF the velocity of each
+// array in body axes, Rᵀ q̇_t + ω × r_i.  The motor forces f_j are those the controller allocated with
 // the nominal geometry r (so the log's u is the commanded body wrench).
 // Minimised with Ceres (Levenberg–Marquardt, automatic derivatives); the lag
 // time constant, which enters through a recursion over the whole log, by a

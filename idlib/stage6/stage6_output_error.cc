@@ -44,33 +44,65 @@ constexpr int kRigidStates = 12, kLagStates = 20;
 template <typename T, int NX>
 using State = Eigen::Matrix<T, NX, 1>;
 
-// ẋ of the model in the header comment; th = θ (kStageThetaNames order).
+// R(ψ, θ, φ) of a state (eq 1).
 template <typename T, int NX>
-State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
-                        double z_ref) {
-  constexpr bool lag = NX == kLagStates;
+Eigen::Matrix<T, 3, 3> rotation_of(const State<T, NX>& x) {
   using std::cos;
-  using std::exp;
   using std::sin;
-  using V3 = Eigen::Matrix<T, 3, 1>;
   const T cps = cos(x(3)), sps = sin(x(3)), cth = cos(x(4)), sth = sin(x(4)), cph = cos(x(5)), sph = sin(x(5));
   Eigen::Matrix<T, 3, 3> R;
   R << cps * cth, -sps * cph + cps * sth * sph, sps * sph + cps * cph * sth,  //
       sps * cth, cps * cph + sps * sth * sph, -cps * sph + sps * cph * sth,  //
       -sth, cth * sph, cth * cph;
+  return R;
+}
+
+// The centre-of-mass offset c = θ[5..7].
+template <typename T>
+Eigen::Matrix<T, 3, 1> com_of(const T* th) {
+  return Eigen::Matrix<T, 3, 1>(th[5], th[6], th[7]);
+}
+
+// α of motor i's array: its gap follows the reference point p − R c and the
+// designed arm r_i (gap − z_ref = z_ref_point + (R r_i)_z − r_iz − z_ref).
+template <typename T, int NX>
+T gap_alpha(const T* th, const State<T, NX>& x, const Eigen::Matrix<T, 3, 3>& R, const Eigen::Vector3d& ri,
+            double z_ref) {
+  using std::exp;
+  const Eigen::Matrix<T, 3, 1> c = com_of(th);
+  const T z_point = x(2) - (R(2, 0) * c(0) + R(2, 1) * c(1) + R(2, 2) * c(2));
+  const T gap_minus_ref = z_point + R(2, 0) * ri(0) + R(2, 1) * ri(1) + R(2, 2) * ri(2) - ri(2) - z_ref;
+  return exp(-th[8] * gap_minus_ref);
+}
+
+// ẋ of the model in the header comment; th = θ (kStageThetaNames order); x's
+// position is the centre of mass's.
+template <typename T, int NX>
+State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
+                        double z_ref) {
+  constexpr bool lag = NX == kLagStates;
+  using std::cos;
+  using std::sin;
+  using V3 = Eigen::Matrix<T, 3, 1>;
+  const T cth = cos(x(4)), sth = sin(x(4)), cph = cos(x(5)), sph = sin(x(5));
+  const Eigen::Matrix<T, 3, 3> R = rotation_of(x);
   const V3 v = x.template segment<3>(6), w = x.template segment<3>(9);
+  const V3 c = com_of(th);
   State<T, NX> dx;
   V3 F = V3::Zero(), tau = V3::Zero();
+  [[maybe_unused]] const V3 v_body = R.transpose() * v;
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d ri = r.col(i);
-    const T gap_minus_ref = x(2) + R(2, 0) * ri(0) + R(2, 1) * ri(1) + R(2, 2) * ri(2) - ri(2) - z_ref;
-    const T alpha = exp(-th[8] * gap_minus_ref);
+    const T alpha = gap_alpha(th, x, R, ri, z_ref);
     const int h = i % 2 == 0 ? 0 : 1;  // drive axis of motor i (body x for 1, 3; y for 2, 4)
+    const V3 arm = ri.cast<T>() - c;    // from the centre of mass
     T fh, fz;
     if constexpr (lag) {
+      // Back-EMF from the array's own velocity in body axes: Rᵀ ṗ + ω × (r_i − c).
+      const V3 va = v_body + w.cross(arm);
       const T yh = x(12 + 2 * i), yz = x(12 + 2 * i + 1);
-      dx(12 + 2 * i) = (T(f(2 * i)) - yh - th[10] * alpha * v(h)) / th[9];
-      dx(12 + 2 * i + 1) = (T(f(2 * i + 1)) - yz - th[10] * alpha * v(2)) / th[9];
+      dx(12 + 2 * i) = (T(f(2 * i)) - yh - th[10] * alpha * va(h)) / th[9];
+      dx(12 + 2 * i + 1) = (T(f(2 * i + 1)) - yz - th[10] * alpha * va(2)) / th[9];
       fh = alpha * yh;
       fz = alpha * yz;
     } else {
@@ -80,7 +112,6 @@ State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, c
     V3 fi = V3::Zero();
     fi(h) = fh;
     fi(2) = fz;
-    const V3 arm(T(ri(0)) - th[5], T(ri(1)) - th[6], T(ri(2)) - th[7]);
     F += fi;
     tau += arm.cross(fi);
   }
@@ -125,9 +156,13 @@ struct WindowResidual {
     for (int i = 0; i < 12; ++i) x(i) = x0[i];
     if constexpr (NX == kLagStates) init_lag(x, th);
     const double h = log->Ts / substeps;
+    const Eigen::Matrix<T, 3, 1> c_off = com_of(th);
     for (Eigen::Index j = 0; j < len; ++j) {
       const Eigen::Index k = k0 + j;
-      for (int c = 0; c < 6; ++c) res[6 * j + c] = (x(c) - T(log->q(k, c))) * T(inv_scale(c));
+      // The sensors see the reference point p − R c and the angles.
+      const Eigen::Matrix<T, 3, 1> Rc = rotation_of(x) * c_off;
+      for (int c = 0; c < 3; ++c) res[6 * j + c] = (x(c) - Rc(c) - T(log->q(k, c))) * T(inv_scale(c));
+      for (int c = 3; c < 6; ++c) res[6 * j + c] = (x(c) - T(log->q(k, c))) * T(inv_scale(c));
       if (j + 1 == len) break;
       const Vector8d f = log->f.row(k).transpose();
       for (int s = 0; s < substeps; ++s) {
@@ -165,22 +200,23 @@ struct WindowResidual {
     }
     const Eigen::Index n = std::min<Eigen::Index>(warmup, k0);
     const T a = exp(-T(log->Ts) / th[9]);
-    // α_i from the lag rate at y = 0, f = 0, v = e_axis: −bα/τ_e.
+    // bα_i at the window's initial state.
+    const Eigen::Matrix<T, 3, 3> R = rotation_of(x);
     std::array<T, 4> b_alpha;
-    for (int i = 0; i < 4; ++i) {
-      State<T, kLagStates> probe = x;
-      probe.template segment<3>(6).setZero();
-      probe(8) = T(1);
-      probe.template tail<8>().setZero();
-      const State<T, kLagStates> d = derivative<T, kLagStates>(th, probe, Vector8d::Zero(), log->r, log->z_ref);
-      b_alpha[static_cast<std::size_t>(i)] = -d(12 + 2 * i + 1) * th[9];
-    }
+    for (int i = 0; i < 4; ++i)
+      b_alpha[static_cast<std::size_t>(i)] = th[10] * gap_alpha(th, x, R, Eigen::Vector3d(log->r.col(i)), log->z_ref);
     for (int i = 0; i < 8; ++i) {
-      const int axis = i % 2 == 1 ? 2 : ((i / 2) % 2 == 0 ? 0 : 1);  // z for the vertical forces
-      const T& ba = b_alpha[static_cast<std::size_t>(i / 2)];
+      // The array's velocity along force i over sample j from the measured q: the
+      // reference point's Rᵀ ṗ + ω × r_i with the designed arm (equal to the centre
+      // of mass's velocity with the true arm r_i − c).
+      const int motor = i / 2;
+      const int axis = i % 2 == 1 ? 2 : (motor % 2 == 0 ? 0 : 1);  // z for the vertical forces
+      const T& ba = b_alpha[static_cast<std::size_t>(motor)];
       auto target = [&](Eigen::Index j) {
-        const double v = (log->q(j + 1, axis) - log->q(j, axis)) / log->Ts;
-        return T(log->f(j, i)) - ba * T(v);
+        const Vector6d qj = log->q.row(j).transpose();
+        const Vector6d dq = (log->q.row(j + 1) - log->q.row(j)).transpose() / log->Ts;
+        const Eigen::Vector3d v = array_velocity(qj, dq, log->r.col(motor));
+        return T(log->f(j, i)) - ba * T(v(axis));
       };
       T y = target(k0 - n);
       for (Eigen::Index j = k0 - n; j < k0; ++j) {
@@ -205,9 +241,13 @@ void check_log(const Eigen::MatrixXd& u, const Eigen::MatrixXd& q, double Ts) {
 // Initial state of a window from the measurements: q at its first row, and the
 // velocity from the first difference corrected by half a sample of the start
 // model's acceleration under the held command: (q₁ − q₀)/Ts = q̇₀ + q̈₀ Ts/2.
+// The state's position is the centre of mass's: the reference point's plus R c,
+// its velocity plus R (ω × c).
 Eigen::Matrix<double, 12, 1> initial_state(const Log& log, Eigen::Index k0, const double* th) {
   Eigen::Matrix<double, 12, 1> x0;
-  const Vector6d q0 = log.q.row(k0).transpose(), q1 = log.q.row(k0 + 1).transpose();
+  const Eigen::Vector3d c(th[5], th[6], th[7]);
+  const Vector6d q0 = centre_of_mass_configuration(log.q.row(k0).transpose(), c),
+                 q1 = centre_of_mass_configuration(log.q.row(k0 + 1).transpose(), c);
   State<double, kRigidStates> x = State<double, kRigidStates>::Zero();
   x.head<6>() = q0;
   const State<double, kRigidStates> dx =
@@ -393,6 +433,7 @@ StageOutputErrorResult output_error_impl(const StageParameters& nominal, const E
     if (!cost.Evaluate(params, r.data(), jac) || !Jt.allFinite() || !Jx.allFinite())
       throw NumericalError("stage output-error fit: the model is not finite at the solution");
     rss += r.squaredNorm();
+    if (p == 0) continue;  // nothing estimated (Eigen's solve on a 12 × 0 block reads a null pointer)
     Eigen::MatrixXd Jf(m, p);
     for (int i = 0; i < p; ++i) Jf.col(i) = Jt.col(free_index[static_cast<std::size_t>(i)]);
     const Eigen::Matrix<double, 12, 12> A = Jx.transpose() * Jx;
@@ -400,8 +441,9 @@ StageOutputErrorResult output_error_impl(const StageParameters& nominal, const E
     S += Jf.transpose() * Jf - B.transpose() * A.ldlt().solve(B);
   }
   out.sigma2 = rss / std::max(1.0, n - k_total);
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-  if (p == 0) ldlt.compute(Eigen::MatrixXd::Identity(1, 1));  // nothing estimated: no covariance
+  // Nothing estimated (p = 0): no covariance (the 1 × 1 identity only keeps Eigen
+  // off empty matrices).
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(p == 0 ? Eigen::MatrixXd(Eigen::MatrixXd::Identity(1, 1)) : S);
   out.covariance = p == 0 ? Eigen::MatrixXd(0, 0) : Eigen::MatrixXd(out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p)));
   for (int i = 0; i < p; ++i)
     out.std_error(free_index[static_cast<std::size_t>(i)]) = std::sqrt(std::max(0.0, out.covariance(i, i)));

@@ -13,22 +13,25 @@
 // segments).  The log rows are cut into W windows of about window_s seconds;
 // window w starts at row k_w with its own free initial state
 //   x_w = [q (6); ṗ (3, inertial velocity, m/s); ω (3, body rate, rad/s)]
-// (started from the measured q at k_w and the first difference of q corrected
-// by half a sample of the start model's acceleration), and is simulated
+// of the centre of mass (started from the measured q at k_w moved by R c, and the
+// first difference of those corrected by half a sample of the start model's
+// acceleration), and is simulated
 // open loop from the logged commanded wrench u (exact: the controller's own
 // record, held over each sample, ZOH) with fixed-step RK4:
 //   ṗ' = R(q) κ F / m − g e_z,  q̇_a = W(θ,φ)⁻¹ ω,  H ω̇ = κ τ − ω × Hω,
 //   F = Σ f̃_i,  τ = Σ (r_i − c) × f̃_i,  f̃_i = α_i(q) · (force of motor i),
 // the motor forces being f = A(r)⁺ u (nominal allocation, as the controller),
-// α_i = exp(−γ (gap_i(q) − z_ref)) with the gap effect, and with the lag effect
-// the eight states y of τ_e ẏ = f − y − b α v_i (v_i the inertial velocity along
-// motor i's force; the d-q current loop of eq 25 in force units, b the back-EMF
-// damping), the force being α y.  A window's lag states start from the log's
+// α_i = exp(−γ (gap_i − z_ref)) with the gap effect (gap_i that of array i when
+// the reference point is at p − R c: its z plus ((R − I) r_i)_z), and with the lag
+// effect the eight states y of τ_e ẏ = f − y − b α v_i (v_i the velocity of motor
+// i's array along its force in body axes, Rᵀ ṗ + ω × (r_i − c); the d-q current
+// loop of eq 25 in force units, b the back-EMF damping), the force being α y.  A window's lag states start from the log's
 // commands before it (lag_warmup_samples of the exact ZOH filter, v from the
 // first differences of the measured q, α at the window's initial state; the
 // first window starts settled on f₀, as the simulator does).
-// Residuals, for every log row k of window w:
-//   e_k = (q_sim,k − q_meas,k) / s_c       (per channel c = 1..6)
+// Residuals, for every log row k of window w, with the sensors at the reference
+// point (y = (p − R c, angles) of the simulated state):
+//   e_k = (y_sim,k − q_meas,k) / s_c       (per channel c = 1..6)
 // minimised over θ = [m, H_xx, H_yy, H_zz, κ, c (3), γ, τ_e, b] (the model's
 // subset; m or κ held, see StageFitOptions::fix_mass) and all x_w by Ceres LM
 // with automatic derivatives (Jets over the 12 window states and θ; measured

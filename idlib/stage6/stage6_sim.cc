@@ -64,22 +64,26 @@ Vector6d paper_reference_configuration() {
 
 namespace {
 
-// The plant: state x = [q (6), q̇ (6), i_dq (8, only with electrical lag)].
+// The plant: state x = [q (6), q̇ (6), i_dq (8, only with electrical lag)], q the
+// configuration of the centre of mass (the sensors see sensed_configuration).
 struct Plant {
   const StageParameters& truth;
   const StageEffects& effects;
+  Eigen::Matrix<double, 3, 4> arms_from_cm;  // r_i − c
   Matrix68d A_true;
   int n;
 
   Plant(const StageParameters& p, const StageEffects& e)
       : truth(p), effects(e), n(e.electrical_lag ? 20 : 12) {
-    Eigen::Matrix<double, 3, 4> r = p.lever_arms_m;
-    r.colwise() -= e.com_offset_m;
-    A_true = allocation_matrix(r);
+    arms_from_cm = p.lever_arms_m;
+    arms_from_cm.colwise() -= e.com_offset_m;
+    A_true = allocation_matrix(arms_from_cm);
   }
 
-  double gap(const Vector6d& q, int motor) const {
-    return effects.gap_dependence ? motor_gap_m(truth, q, motor) : truth.reference_gap_m;
+  // The gaps follow the reference point, which the designed arms are measured from.
+  double gap(const Vector6d& q_cm, int motor) const {
+    return effects.gap_dependence ? motor_gap_m(truth, sensed_configuration(q_cm, effects.com_offset_m), motor)
+                                  : truth.reference_gap_m;
   }
 
   // ẋ for motor-current commands i_cmd (8: [i_d, i_q] per motor).
@@ -92,9 +96,11 @@ struct Plant {
       Eigen::Vector2d current = i_cmd.segment<2>(2 * i);
       if (effects.electrical_lag) {
         current = x.segment<2>(12 + 2 * i);
-        const double drive_velocity = (i % 2 == 0) ? qd(0) : qd(1);
+        // Back-EMF from the array's own velocity: the centre of mass's plus ω × (r_i − c).
+        const Eigen::Vector3d v = array_velocity(q, qd, arms_from_cm.col(i));
+        const double drive_velocity = (i % 2 == 0) ? v(0) : v(1);
         dx.segment<2>(12 + 2 * i) = current_derivative(truth, current, i_cmd.segment<2>(2 * i), drive_velocity,
-                                                       qd(2), g);
+                                                       v(2), g);
       }
       const Eigen::Vector2d hv = effects.force_constant_scale * motor_forces(truth, current(0), current(1), g);
       f(2 * i) = hv(0);
@@ -139,21 +145,24 @@ StageRun simulate_regulation(const StageParameters& truth, const StageEffects& e
   std::normal_distribution<double> normal(0.0, 1.0);
 
   Eigen::VectorXd x = Eigen::VectorXd::Zero(plant.n);
-  x.head<6>() = q0;
+  x.head<6>() = centre_of_mass_configuration(q0, effects.com_offset_m);
   Vector6d noise_prev = Vector6d::Zero();
   bool currents_initialised = false;
   // Every command so far (the input delay reaches back into them).
   std::vector<Vector8d> commands;
   const Index delay_steps = static_cast<Index>(std::llround(effects.input_delay_s / h));
   for (Eigen::Index k = 0; k < N; ++k) {
-    const Vector6d q = x.head<6>(), qd = x.segment<6>(6);
+    // What the sensors look at: the reference point (the centre of mass less R c).
+    const Vector6d q = sensed_configuration(x.head<6>(), effects.com_offset_m);
+    const Vector6d qd = sensed_velocity(x.head<6>(), x.segment<6>(6), effects.com_offset_m);
     Vector6d noise, excitation;
     for (int c = 0; c < 6; ++c) noise(c) = sim.sensor_noise_std(c) * normal(rng);
     for (int c = 0; c < 6; ++c) excitation(c) = sim.excitation_std(c) * normal(rng);
     if (sim.excitation_samples.size() != 0) excitation = sim.excitation_samples.row(k).transpose();
     if (k == 0) noise_prev = noise;
-    // What the controller sees: measured q, and the velocity from differenced
-    // measurements (exact when noise-free).
+    // What the controller sees: measured q, and a velocity that is exact but for
+    // the difference of the sensor noise over one period (the noise a backward
+    // difference of q would add, without its half sample of lag).
     const Vector6d q_meas = q + noise;
     const Vector6d qd_meas = qd + (noise - noise_prev) / period;
     noise_prev = noise;

@@ -37,8 +37,10 @@ struct SlidingModeOptions {
 struct StageEffects {
   bool gap_dependence = false;  // forces scale by α(gap of each motor), eq 20
   bool electrical_lag = false;  // d-q current dynamics (eq 25) between command and force
-  // Centre-of-mass offset (body axes, m): every true lever arm is r_i − offset
-  // while the controller allocates with the nominal r_i.
+  // Centre-of-mass offset c (body axes, m) from the reference point that the
+  // designed arms r_i are measured from and the sensors look at: every true lever
+  // arm is r_i − c while the controller allocates with the nominal r_i, and the
+  // sensors see p_cm − R c (sensed_configuration).
   Eigen::Vector3d com_offset_m = Eigen::Vector3d::Zero();
   // Multiplies every true force constant (the controller assumes 1).
   double force_constant_scale = 1.0;
@@ -72,9 +74,9 @@ struct SimulationOptions {
 // the state at t_k and the control held over [t_k, t_k+1).
 struct StageRun {
   Eigen::VectorXd t_s;        // N
-  Eigen::MatrixXd q;          // N × 6, true configuration
+  Eigen::MatrixXd q;          // N × 6, true configuration the sensors look at (the reference point)
   Eigen::MatrixXd q_measured; // N × 6, q plus sensor noise (what the controller saw)
-  Eigen::MatrixXd qd;         // N × 6, true velocities
+  Eigen::MatrixXd qd;         // N × 6, true rate of q
   Eigen::MatrixXd sigma;      // N × 6, σ computed by the controller
   Eigen::MatrixXd u;          // N × 6, generalised force commanded (eq 42)
   Eigen::MatrixXd wrench;     // N × 6, body wrench sent to allocation (incl. excitation)

@@ -58,10 +58,8 @@ int main(int argc, char** argv) {
     indep_stage::Draw d = indep_stage::draw(seed + 7777ULL * redraw, h, noise_scale);
     d.experiment.duration_s = duration;
     if (lpvid_conventions) {
-      d.stage.back_emf_at_array = false;
-      d.stage.measure_at_reference = false;
       d.controller.true_velocity = true;
-      d.description += "conventions = lpvid  # back-EMF from the centre of mass, q at p_cm - c, exact velocity in the law\n";
+      d.description += "conventions = lpvid  # exact velocity in the law\n";
     }
     indep_stage::Log log;
     try {

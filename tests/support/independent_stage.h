@@ -72,12 +72,12 @@ struct Stage {
   double input_delay_s = 0;
   // Back-EMF velocity: the array's own velocity along each force, in the body frame
   // (true, default: eq 25 written in each motor's coordinates), or the centre of
-  // mass's inertial x', y', z' (false: what lpvid's simulator does; only for the
-  // cross-check, tests/cli/indep_stage_test.cc).
+  // mass's inertial x', y', z' (false: what lpvid's simulator did until 2026-11-24;
+  // to measure what that physics missed).
   bool back_emf_at_array = true;
   // Where the sensors look: the reference point p_cm - R c (true, default), or the
   // centre of mass shifted by the constant c, p_cm - c (false: what lpvid's simulator
-  // logs; only for the cross-check).
+  // logged until 2026-11-24; to measure what that physics missed).
   bool measure_at_reference = true;
   double tau_e() const { return inductance_H / (resistance_ohm + amp_gain_V_per_A); }
   double back_emf_damping() const {

@@ -26,8 +26,12 @@
 // | M    | blockdiag(m I₃, W₀ᵀ H W₀), H = diag(I_xx, I_yy, I_zz), omega = W₀ [psi' theta' phi'] (eqs 4–5 at the attitude; at zero angles diag(I_zz, I_yy, I_xx)) |
 // | B_w  | G₀ T₀ with its columns in generalised order, G₀ = blockdiag(R₀, W₀ᵀ) (eq 8's u = G w), T₀ = kappa A(r − c) diag(alpha) A(r)⁺: the true wrench of the allocated commands (eqs 27–30) |
 // | K    | the tilt of the lift, −∂(R F_b0)/∂(psi, theta, phi) with F_b0 = R₀ᵀ (0, 0, m g) (at zero angles K_x,theta = −m g, K_y,phi = +m g); gap_dependence: + G₀ kappa gamma A(r − c) diag(alpha ⊙ f₀) J, f₀ = A(r)⁺ T₀⁻¹ (F_b0; 0) the hover forces, J_k = ∂gap/∂q of the array that exerts force k = [0 0 1, (∂R/∂(psi, theta, phi) r)_z] |
-// | feedback | electrical_lag: the back-EMF of eq 25, −b alpha v_k per force channel (v_k the array's velocity along force k: x' for motors 1, 3 horizontal, y' for 2, 4, z' vertical — the centre of mass's velocity, as the simulator writes eq 25), fed into the current loop: the input chain sees w − F q' with F = T₀⁻¹ kappa A(r − c) diag(alpha²) b P (rows in generalised order) |
+// | feedback | electrical_lag: the back-EMF of eq 25, −b alpha v_k per force channel (v_k the velocity of the array that exerts force k along that force, in the motor's own (body) axes: the centre of mass's R₀ᵀ p' plus omega × (r_i − c), so v = A(r − c)ᵀ G₀ᵀ q' — the rotation terms damp the tilts by ~4 b r²), fed into the current loop: the input chain sees w − F q' with F = T₀⁻¹ kappa A(r − c) diag(alpha²) b A(r − c)ᵀ G₀ᵀ (rows in generalised order) |
+// | output | the sensors look at the reference point, which the designed arms r are measured from: y = (p − R c, angles), linearised C_q = [I, −(dR/d(psi, theta, phi)) c; 0, I] (com_offset; identity without it), applied to every body output (modes included) |
 //
+// q is the configuration of the centre of mass; the hover height z_0 and the gaps
+// are the reference point's (gap_k − z_ref = z_0 + ((R₀ − I) r_i)_z with the
+// designed arm of the array of force k).
 // with c the centre-of-mass offset (com_offset), alpha_k = exp(−gamma (gap_k − z_ref))
 // the gap factor of the array of force k at the operating point (gap_dependence;
 // else 1), kappa the force-constant scale.  The equations are homogeneous in
@@ -116,15 +120,15 @@ void rotation_and_derivatives(const T& psi, const T& theta, const T& phi, Mat<T>
 
 }  // namespace stage6_detail
 
-// M, D (zero), K (6×6), B_w (6×6) and the back-EMF feedback F (6×6; zero without
-// electrical_lag) about hover at the height z0 (m above the reference gap) and the
+// M, D (zero), K (6×6), B_w (6×6), the back-EMF feedback F (6×6; zero without
+// electrical_lag) and the output map C_q (6×6; identity without com_offset) about hover at the height z0 (m above the reference gap) and the
 // attitude (psi0, theta0, phi0) of the base's hover_* parameters.  Returns false
 // when T₀ = kappa A(r − c) diag(alpha) A(r)⁺ cannot be inverted (a centre-of-mass
 // offset as large as the platen).  `value` gives the double value of a scalar.
 template <class T>
 bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*value)(const T&),
                      stage6_detail::Mat<T>& M, stage6_detail::Mat<T>& D, stage6_detail::Mat<T>& K,
-                     stage6_detail::Mat<T>& Bw, stage6_detail::Mat<T>& F) {
+                     stage6_detail::Mat<T>& Bw, stage6_detail::Mat<T>& F, stage6_detail::Mat<T>& Cq) {
   using Mat = stage6_detail::Mat<T>;
   using std::cos;
   using std::exp;
@@ -136,6 +140,7 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
   D = Mat::Constant(6, 6, zero);
   K = Mat::Constant(6, 6, zero);
   F = Mat::Constant(6, 6, zero);
+  Cq = Mat::Identity(6, 6);
   // Kinematics at the hover attitude: R₀ and dR₀/d(psi, theta, phi); W₀ (eq 4,
   // columns in q's order [psi' theta' phi']): omega = W₀ [psi' theta' phi'].
   Mat R0, dR[3];
@@ -181,12 +186,14 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
     At(3, cv) = r[i][1];
     At(4, cv) = -r[i][0];
   }
-  // Each array's gap above the reference at hover, gap_i − z_ref = z0 + ((R₀ − I) r_i)_z,
-  // and ∂gap_i/∂q = [0 0 1, (dR/d(psi, theta, phi) r_i)_z] (J, one row per force).
+  // Each array's gap above the reference at hover, gap_i − z_ref = z0 + ((R₀ − I) r_i)_z
+  // (the reference point's height z0, the designed arm r_i), and, the centre of
+  // mass being at the reference point plus R c, ∂gap_i/∂q = [0 0 1, (dR/d(psi,
+  // theta, phi) (r_i − c))_z] (J, one row per force).
   Mat alpha = Mat::Constant(8, 1, one), J = Mat::Constant(8, 6, zero);
   for (int i = 0; i < 4; ++i) {
-    T height = T(z0) - r[i][2];
-    for (int a = 0; a < 3; ++a) height += R0(2, a) * r[i][a];
+    T height = T(z0) - p[L.arm[i][2]];
+    for (int a = 0; a < 3; ++a) height += R0(2, a) * p[L.arm[i][a]];
     T dgap[3] = {zero, zero, zero};
     for (int k = 0; k < 3; ++k)
       for (int a = 0; a < 3; ++a) dgap[k] += dR[k](2, a) * r[i][a];
@@ -232,14 +239,21 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
     for (Index k = 0; k < 8; ++k) lift.col(k) *= f0(k, 0) * alpha(k, 0);
     K += G0 * lift * J * (kappa * p[L.gamma]);
   }
+  if (L.com[0] >= 0) {
+    // The sensors' point p − R c: ∂/∂(psi, theta, phi) = −dR c.
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) {
+        T v = zero;
+        for (int b = 0; b < 3; ++b) v -= dR[k](a, b) * p[L.com[b]];
+        Cq(a, 3 + k) = v;
+      }
+  }
   if (L.back_emf >= 0) {
-    // P (8×6): the velocity along each force (centre-of-mass translation); the
-    // back-EMF −b alpha_k v_k enters the current loop: w − F q', T₀ F = kappa A diag(alpha²) b P.
-    Mat P = Mat::Constant(8, 6, zero);
-    for (int i = 0; i < 4; ++i) {
-      P(2 * i, (i % 2 == 0) ? 0 : 1) = one;
-      P(2 * i + 1, 2) = one;
-    }
+    // P (8×6): the velocity of each array along its force in body axes, by virtual
+    // work the allocation's transpose of the body twist (R₀ᵀ p', omega = W₀ q'_a):
+    // P = A(r − c)ᵀ G₀ᵀ.  The back-EMF −b alpha_k v_k enters the current loop:
+    // w − F q', T₀ F = kappa A diag(alpha²) b P.
+    const Mat P = At.transpose() * G0.transpose();
     Mat emf = scaled;
     for (Index k = 0; k < 8; ++k) emf.col(k) *= alpha(k, 0);
     F = to_generalised_rows(T0inv * emf * P * (kappa * p[L.back_emf]));

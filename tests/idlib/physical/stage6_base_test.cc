@@ -30,26 +30,39 @@ struct Truth {
   bool gap = false, lag = false;
 };
 
-// ẋ of the nonlinear stage, x = [q; q'; currents (lag only, 8)], for the commanded
-// body wrench w (allocated with the designed arms, currents for alpha = 1).  The
-// gap of array i is z + ((R − I)(r_i − c))_z: the true arm from the true centre of mass.
+// ẋ of the nonlinear stage, x = [q; q'; currents (lag only, 8)] with q the centre
+// of mass's configuration, for the commanded body wrench w (allocated with the
+// designed arms, currents for alpha = 1).  Written out here (not with the
+// simulator's helpers): the reference point the sensors see is p − R c; the gap of
+// array i is that point's z plus ((R − I) r_i)_z with the designed arm r_i; the
+// back-EMF velocity of array i is Rᵀ p' + (W q'_a) × (r_i − c) in body axes.
+Vector6d sensed(const Truth& t, const Vector6d& q) {
+  Vector6d y = q;
+  y.head<3>() -= stage6::rotation(q) * t.com;
+  return y;
+}
+
 Eigen::VectorXd derivative(const Truth& t, const Eigen::VectorXd& x, const Vector6d& w) {
   const Vector6d q = x.head<6>(), qd = x.segment<6>(6);
   Eigen::Matrix<double, 3, 4> r = t.p.lever_arms_m;
   r.colwise() -= t.com;
   const stage6::Matrix68d A_true = stage6::allocation_matrix(r);
   const Vector8d f_cmd = stage6::allocation_pseudo_inverse(t.p.lever_arms_m) * w;
+  const Eigen::Matrix3d R = stage6::rotation(q);
+  const Eigen::Vector3d omega = stage6::angular_velocity_map(q(4), q(5)) * qd.tail<3>();
+  const Vector6d y = sensed(t, q);
   Eigen::VectorXd dx(x.size());
   Vector8d f;
   for (int i = 0; i < 4; ++i) {
-    const Eigen::Vector3d ri = r.col(i);
-    const double gap = t.gap ? q(2) + (stage6::rotation(q) * ri - ri)(2) : t.p.reference_gap_m;
+    const Eigen::Vector3d designed = t.p.lever_arms_m.col(i);
+    const double gap = t.gap ? y(2) + (R * designed - designed)(2) : t.p.reference_gap_m;
     const Eigen::Vector2d i_cmd = stage6::motor_currents(t.p, f_cmd(2 * i), f_cmd(2 * i + 1), t.p.reference_gap_m);
     Eigen::Vector2d current = i_cmd;
     if (t.lag) {
       current = x.segment<2>(12 + 2 * i);
-      const double drive = (i % 2 == 0) ? qd(0) : qd(1);
-      dx.segment<2>(12 + 2 * i) = stage6::current_derivative(t.p, current, i_cmd, drive, qd(2), gap);
+      const Eigen::Vector3d v = R.transpose() * qd.head<3>() + omega.cross(Eigen::Vector3d(r.col(i)));
+      const double drive = (i % 2 == 0) ? v(0) : v(1);
+      dx.segment<2>(12 + 2 * i) = stage6::current_derivative(t.p, current, i_cmd, drive, v(2), gap);
     }
     const Eigen::Vector2d hv = t.kappa * stage6::motor_forces(t.p, current(0), current(1), gap);
     f(2 * i) = hv(0);
@@ -66,8 +79,12 @@ Eigen::VectorXd derivative(const Truth& t, const Eigen::VectorXd& x, const Vecto
 StateSpace linearise(const Truth& t, double z0) {
   const Index n = t.lag ? 20 : 12;
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(n);
-  x0(2) = t.p.reference_gap_m + z0;
-  x0.segment<3>(3) = t.attitude;
+  // The reference point hovers at z_ref + z0 with the attitude; the centre of mass
+  // is R c from it.
+  Vector6d q0;
+  q0 << 0, 0, t.p.reference_gap_m + z0, t.attitude;
+  x0.head<6>() = q0;
+  x0.head<3>() += stage6::rotation(q0) * t.com;
   auto accel = [&](const Vector6d& w) {
     Eigen::VectorXd x = x0;
     if (t.lag) {
@@ -104,7 +121,13 @@ StateSpace linearise(const Truth& t, double z0) {
   // inputs in the base's (generalised) order: tau_z tau_y tau_x last
   s.B.col(3).swap(s.B.col(5));
   s.C = Eigen::MatrixXd::Zero(6, n);
-  s.C.leftCols(6).setIdentity();
+  for (Index k = 0; k < 6; ++k) {  // ∂(p − R c, angles)/∂q
+    const double h = 1e-6;
+    Vector6d qp = x0.head<6>(), qm = x0.head<6>();
+    qp(k) += h;
+    qm(k) -= h;
+    s.C.col(k) = (sensed(t, qp) - sensed(t, qm)) / (2 * h);
+  }
   s.D = Eigen::MatrixXd::Zero(6, 6);
   return s;
 }
