@@ -36,9 +36,12 @@ class IndepStageLoop : public ::testing::TestWithParam<LoopCase> {};
 
 TEST_P(IndepStageLoop, DiagnoseNamesTheHiddenEffect) {
   const LoopCase c = GetParam();
-  indep_stage::Draw d = indep_stage::draw(c.seed, c.hidden);
-  d.experiment.duration_s = 30;
-  const indep_stage::Log log = indep_stage::run(d.stage, d.controller, d.experiment);
+  // The draw as indep_stage_sim makes it (redrawn while it does not hover).
+  indep_stage::HoveringRun hr;
+  ASSERT_TRUE(indep_stage::run_hovering(
+      c.seed, c.hidden, -1, [](indep_stage::Draw& d) { d.experiment.duration_s = 30; }, &hr, nullptr));
+  const indep_stage::Draw& d = hr.draw;
+  const indep_stage::Log& log = hr.log;
   TempDir dir("indep_stage_loop");
   indep_stage::write_log_csv(dir / "exp_stage6.csv", log);
   const std::string cd = dir.path().string();

@@ -5,9 +5,8 @@
 //
 //   indep_stage_sim --out DIR [--seed N] [--hidden none|gap|lag|com|delay]
 //                   [--duration-s 60] [--noise-scale X (default: drawn 0.5-2)]
-//                   [--lpvid-conventions]  (back-EMF from the centre of mass's velocity, q logged
-//                                           at p_cm - c, the law's velocity exact: lpvid's own
-//                                           simulator's choices, tests/cli/indep_stage_crosscheck_test.cc)
+//                   [--lpvid-conventions]  (the law's velocity exact: lpvid's own simulator's
+//                                           choice, tests/cli/indep_stage_crosscheck_test.cc)
 //
 // Writes DIR/exp_stage6.csv (t, v1..v6, u1..u6, q1..q6: excitation, body wrench sent
 // to the allocation F_x F_y F_z tau_x tau_y tau_z, measured x y z psi theta phi) and
@@ -54,40 +53,34 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "indep_stage_sim: --out DIR is required; --hidden is one of none, gap, lag, com, delay\n");
     return 2;
   }
-  for (int redraw = 0; redraw <= 10; ++redraw) {
-    indep_stage::Draw d = indep_stage::draw(seed + 7777ULL * redraw, h, noise_scale);
-    d.experiment.duration_s = duration;
-    if (lpvid_conventions) {
-      d.controller.true_velocity = true;
-      d.description += "conventions = lpvid  # exact velocity in the law\n";
-    }
-    indep_stage::Log log;
-    try {
-      log = indep_stage::run(d.stage, d.controller, d.experiment);
-    } catch (const std::runtime_error& e) {
-      std::fprintf(stderr, "indep_stage_sim: draw %d of seed %llu: %s; redrawn\n", redraw,
-                   static_cast<unsigned long long>(seed), e.what());
-      continue;
-    }
-    const Eigen::Index half = log.q_true.rows() / 2;
-    const Eigen::VectorXd mean = log.q_true.bottomRows(log.q_true.rows() - half).colwise().mean().transpose();
-    if (std::abs(mean(2) - d.experiment.q_ref(2)) > 3e-3 || mean.tail(3).cwiseAbs().maxCoeff() > 2e-2) {
-      std::fprintf(stderr, "indep_stage_sim: draw %d of seed %llu does not hover level; redrawn\n", redraw,
-                   static_cast<unsigned long long>(seed));
-      continue;
-    }
+  indep_stage::HoveringRun hr;
+  std::string notes;
+  const bool hovered = indep_stage::run_hovering(
+      seed, h, noise_scale,
+      [&](indep_stage::Draw& d) {
+        d.experiment.duration_s = duration;
+        if (lpvid_conventions) {
+          d.controller.true_velocity = true;
+          d.description += "conventions = lpvid  # exact velocity in the law\n";
+        }
+      },
+      &hr, &notes);
+  if (!notes.empty()) std::fprintf(stderr, "%s", notes.c_str());
+  if (hovered) {
+    const Eigen::VectorXd mean = hr.mean_q_second_half;
+    const double q_ref_z = hr.draw.experiment.q_ref(2);
     std::filesystem::create_directories(out);
-    indep_stage::write_log_csv(out + "/exp_stage6.csv", log);
+    indep_stage::write_log_csv(out + "/exp_stage6.csv", hr.log);
     FILE* f = std::fopen((out + "/truth.txt").c_str(), "w");
     std::fprintf(f, "seed = %llu\nredraws = %d\n%shover_height_above_ref_m = %.6g\nhover_yaw_rad = %.6g\n"
                  "hover_pitch_rad = %.6g\nhover_roll_rad = %.6g\n",
-                 static_cast<unsigned long long>(seed), redraw, d.description.c_str(), mean(2) - d.experiment.q_ref(2),
+                 static_cast<unsigned long long>(seed), hr.redraws, hr.draw.description.c_str(), mean(2) - q_ref_z,
                  mean(3), mean(4), mean(5));
     std::fclose(f);
     std::printf("indep_stage_sim: wrote %s/exp_stage6.csv (%ld rows; hidden %s, seed %llu; hovering %.3f mm above the "
                 "reference, tilts %.3f %.3f %.3f mrad)\n",
-                out.c_str(), static_cast<long>(log.t.size()), hidden.c_str(), static_cast<unsigned long long>(seed),
-                1e3 * (mean(2) - d.experiment.q_ref(2)), 1e3 * mean(3), 1e3 * mean(4), 1e3 * mean(5));
+                out.c_str(), static_cast<long>(hr.log.t.size()), hidden.c_str(), static_cast<unsigned long long>(seed),
+                1e3 * (mean(2) - q_ref_z), 1e3 * mean(3), 1e3 * mean(4), 1e3 * mean(5));
     return 0;
   }
   std::fprintf(stderr, "indep_stage_sim: no draw of seed %llu hovered; use another seed\n",

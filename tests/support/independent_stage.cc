@@ -343,6 +343,33 @@ Draw draw(std::uint64_t seed, Hidden hidden, double noise_scale) {
   return d;
 }
 
+bool run_hovering(std::uint64_t seed, Hidden hidden, double noise_scale, const std::function<void(Draw&)>& configure,
+                  HoveringRun* out, std::string* notes) {
+  for (int redraw = 0; redraw <= 10; ++redraw) {
+    Draw d = draw(seed + 7777ULL * static_cast<std::uint64_t>(redraw), hidden, noise_scale);
+    if (configure) configure(d);
+    Log log;
+    try {
+      log = run(d.stage, d.controller, d.experiment);
+    } catch (const std::runtime_error& e) {
+      if (notes) *notes += "draw " + std::to_string(redraw) + " of seed " + std::to_string(seed) + ": " + e.what() + "; redrawn\n";
+      continue;
+    }
+    const Eigen::Index half = log.q_true.rows() / 2;
+    const Vec6 mean = log.q_true.bottomRows(log.q_true.rows() - half).colwise().mean().transpose();
+    if (std::abs(mean(2) - d.experiment.q_ref(2)) > 3e-3 || mean.tail(3).cwiseAbs().maxCoeff() > 2e-2) {
+      if (notes) *notes += "draw " + std::to_string(redraw) + " of seed " + std::to_string(seed) + " does not hover level; redrawn\n";
+      continue;
+    }
+    out->draw = std::move(d);
+    out->log = std::move(log);
+    out->redraws = redraw;
+    out->mean_q_second_half = mean;
+    return true;
+  }
+  return false;
+}
+
 void write_log_csv(const std::string& path, const Log& log) {
   FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw std::runtime_error("cannot write " + path);

@@ -42,6 +42,7 @@
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <functional>
 #include <string>
 
 namespace indep_stage {
@@ -157,6 +158,20 @@ struct Draw {
   std::string description;
 };
 Draw draw(std::uint64_t seed, Hidden hidden, double noise_scale = -1);  // noise_scale < 0: drawn 0.5-2
+
+// A draw that hovers: draws `seed`, then seed + 7777 k (k = 1..10) until the run
+// stays in range and, over its second half, hovers within 3 mm of the reference
+// height with tilts below 20 mrad.  `configure` adjusts each draw before it runs
+// (duration, switches).  Returns false when no draw hovered; `notes` gets one line
+// per redraw (why).
+struct HoveringRun {
+  Draw draw;
+  Log log;
+  int redraws = 0;
+  Vec6 mean_q_second_half = Vec6::Zero();  // of the true q
+};
+bool run_hovering(std::uint64_t seed, Hidden hidden, double noise_scale, const std::function<void(Draw&)>& configure,
+                  HoveringRun* out, std::string* notes);
 
 // Writes the log in the layout of `lpvid simulate stage6 --experiment`
 // (t, v1..v6, u1..u6, q1..q6).
