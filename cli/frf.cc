@@ -19,6 +19,7 @@
 #include "idlib/core/error.h"
 #include "idlib/signal/frf.h"
 #include "idlib/signal/lpm.h"
+#include "idlib/signal/lrm.h"
 #include "idlib/signal/periodic_frf.h"
 #include "formats/io/excitation_design.h"
 #include "formats/io/excitation_file.h"
@@ -47,7 +48,10 @@ hold R realisations x E experiments blocks of (T + P) periods of L samples, T di
 gives the plant (PS) S^-1 at the excited lines with its noise variance (var_) and, with
 R >= 2, the nonlinear-distortion variance (dvar_) of the Best Linear Approximation.
 Random data, --method lpm: the Local Polynomial Method (transient removal) on each log's
-whole-record DFT, same flags as welch plus --lpm-order and --lpm-half-width.)";
+whole-record DFT, same flags as welch plus --lpm-order and --lpm-half-width.  --method lrm: the
+Local Rational Method (numerator and denominator degree 2 by default, one common denominator
+per output row): follows lightly damped resonances that the LPM's polynomial cannot.
+  lpvid frf --method lrm --lrm-stride 4 --excitation v1 --output y1 --quantity G --out G.csv short_log.csv)";
 
 struct FrfCliOptions {
   std::vector<std::string> logs;
@@ -62,6 +66,9 @@ struct FrfCliOptions {
   // lpm
   int lpm_order = 2;
   Index lpm_half_width = 0, lpm_stride = 1;
+  // lrm
+  int lrm_numerator_degree = 2, lrm_denominator_degree = 2, lrm_iterations = 1;
+  Index lrm_half_width = 0, lrm_stride = 1;
   std::vector<std::string> given;  // long names of the options given
 };
 
@@ -99,6 +106,9 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
                                                "propagated)",
                                                o.quantity)
                                  : fmt::format("{} from v -> y", o.quantity);
+  const std::string where = set.paths.size() == 1 ? set.paths.front()
+                          : o.method == "periodic" ? fmt::format("the {} logs concatenated", set.paths.size())
+                                                   : fmt::format("the {} logs", set.paths.size());
   if (o.method == "periodic") {
     Index total = 0;
     for (const auto& x : set.excitations) total += x.rows();
@@ -110,8 +120,6 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
       at += set.excitations[e].rows();
     }
     popt.sample_period_s = set.sample_period_s;
-    const std::string where = set.paths.size() == 1 ? set.paths.front()
-                                                    : fmt::format("the {} logs concatenated", set.paths.size());
     PeriodicFrfResult r;
     try {
       r = estimate_periodic_frf(v, z, plant ? m : 0, popt);
@@ -162,24 +170,53 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
     }
     for (const auto& w : r.report.warnings) text += "  warning: " + w + "\n";
   } else {
-    LpmOptions lo;
-    lo.order = o.lpm_order;
-    lo.half_width = o.lpm_half_width;
-    lo.stride = o.lpm_stride;
-    lo.sample_period_s = set.sample_period_s;
-    LpmResult r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
-    frd = std::move(r.frd);
-    comments.push_back(fmt::format("lpvid frf --method lpm: {} from {} log(s), Ts = {:.6g} s, local polynomial order "
-                                   "{}, {} bins per window, {} degrees of freedom; var_ = noise",
-                                   what, set.paths.size(), set.sample_period_s, lo.order, 2 * r.half_width + 1, r.dof));
+    Index half_width = 0, dof = 0;
+    std::string model;
+    std::vector<std::string> warnings;
+    try {
+      if (o.method == "lpm") {
+        LpmOptions lo;
+        lo.order = o.lpm_order;
+        lo.half_width = o.lpm_half_width;
+        lo.stride = o.lpm_stride;
+        lo.sample_period_s = set.sample_period_s;
+        LpmResult r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
+        frd = std::move(r.frd);
+        half_width = r.half_width;
+        dof = r.dof;
+        warnings = r.report.warnings;
+        model = fmt::format("local polynomial order {}", lo.order);
+      } else {
+        LrmOptions lo;
+        lo.numerator_degree = o.lrm_numerator_degree;
+        lo.denominator_degree = o.lrm_denominator_degree;
+        lo.sk_iterations = o.lrm_iterations;
+        lo.half_width = o.lrm_half_width;
+        lo.stride = o.lrm_stride;
+        lo.sample_period_s = set.sample_period_s;
+        LrmResult r = estimate_lrm_frf(set.views(), plant ? m : 0, lo);
+        frd = std::move(r.frd);
+        half_width = r.half_width;
+        dof = r.dof;
+        warnings = r.report.warnings;
+        model = fmt::format("local rational degrees {}/{}, {} reweighting step(s)", lo.numerator_degree,
+                            lo.denominator_degree, lo.sk_iterations);
+      }
+    } catch (const InputError& e) {  // name the file(s)
+      throw InputError(fmt::format("{}: {}", where, e.what()));
+    }
+    comments.push_back(fmt::format("lpvid frf --method {}: {} from {} log(s), Ts = {:.6g} s, {}, {} bins per window, {} "
+                                   "degrees of freedom; var_ = noise",
+                                   o.method, what, set.paths.size(), set.sample_period_s, model, 2 * half_width + 1, dof));
     Index flagged = 0;
     for (bool f : frd.flagged) flagged += f ? 1 : 0;
     summary["frequencies"] = frd.num_frequencies();
     summary["flagged"] = flagged;
-    summary["dof"] = r.dof;
-    text = fmt::format("frf (lpm): {} frequencies ({:.4g} to {:.4g} rad/s), {} flagged, {} bins per window, {} dof\n",
-                       frd.num_frequencies(), frd.omega_rad_s(0), frd.omega_rad_s(frd.num_frequencies() - 1), flagged,
-                       2 * r.half_width + 1, r.dof);
+    summary["dof"] = dof;
+    text = fmt::format("frf ({}): {} frequencies ({:.4g} to {:.4g} rad/s), {} flagged, {} bins per window, {} dof\n",
+                       o.method, frd.num_frequencies(), frd.omega_rad_s(0), frd.omega_rad_s(frd.num_frequencies() - 1),
+                       flagged, 2 * half_width + 1, dof);
+    for (const auto& w : warnings) text += "  warning: " + w + "\n";
   }
   frd.input_names = plant ? input : excitation;
   frd.output_names = output;
@@ -190,8 +227,8 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
 }
 
 void run(const FrfCliOptions& o) {
-  if (o.method != "welch" && o.method != "lpm" && o.method != "periodic")
-    throw InputError(fmt::format("--method '{}': use welch, lpm or periodic", o.method));
+  if (o.method != "welch" && o.method != "lpm" && o.method != "lrm" && o.method != "periodic")
+    throw InputError(fmt::format("--method '{}': use welch, lpm, lrm or periodic", o.method));
   for (const char* flag : {"--period-samples", "--periods", "--transient-periods", "--realisations", "--experiments",
                            "--excited-bins"})
     if (o.method != "periodic" && given(o, flag))
@@ -199,6 +236,10 @@ void run(const FrfCliOptions& o) {
   for (const char* flag : {"--lpm-order", "--lpm-half-width", "--lpm-stride"})
     if (o.method != "lpm" && given(o, flag))
       throw InputError(fmt::format("{} is an option of the Local Polynomial Method: use it with --method lpm", flag));
+  for (const char* flag : {"--lrm-numerator-degree", "--lrm-denominator-degree", "--lrm-iterations", "--lrm-half-width",
+                           "--lrm-stride"})
+    if (o.method != "lrm" && given(o, flag))
+      throw InputError(fmt::format("{} is an option of the Local Rational Method: use it with --method lrm", flag));
   for (const char* flag : {"--segment", "--overlap", "--window"})
     if (o.method != "welch" && given(o, flag))
       throw InputError(fmt::format("{} is a Welch option: --method {} does not cut segments", flag, o.method));
@@ -329,7 +370,9 @@ Command make_frf_command() {
                 ->check(number_in(0, 0.95, "the segment overlap fraction", false, true));
             app->add_option("--window", o->window, "hann (default) or rect");
             app->add_flag("--json", o->json, "print the summary as JSON");
-            app->add_option("--method", o->method, "welch (H1, default), lpm (Local Polynomial Method) or periodic");
+            app->add_option("--method", o->method,
+                            "welch (H1, default), lpm (Local Polynomial Method), lrm (Local Rational Method) or "
+                            "periodic");
             app->add_option("--period-samples", o->period_samples, "periodic: samples per period L")
                 ->check(integer_in(4, kMaxSegment, "the samples per period"));
             app->add_option("--periods", o->periods, "periodic: measured periods P per block (>= 2)")
@@ -350,6 +393,20 @@ Command make_frf_command() {
                 ->check(integer_in(1, 100000, "the LPM half width"));
             app->add_option("--lpm-stride", o->lpm_stride, "lpm: write every k-th bin (default 1)")
                 ->check(integer_in(1, 1000000, "the LPM bin stride"));
+            app->add_option("--lrm-numerator-degree", o->lrm_numerator_degree,
+                            "lrm: degree of the FRF and transient numerators (default 2)")
+                ->check(integer_in(0, 4, "the LRM numerator degree"));
+            app->add_option("--lrm-denominator-degree", o->lrm_denominator_degree,
+                            "lrm: degree of the common denominator (default 2: one mode per window)")
+                ->check(integer_in(1, 4, "the LRM denominator degree"));
+            app->add_option("--lrm-iterations", o->lrm_iterations,
+                            "lrm: Sanathanan-Koerner reweighting steps after the linearised fit (default 1)")
+                ->check(integer_in(0, 20, "the LRM reweighting steps"));
+            app->add_option("--lrm-half-width", o->lrm_half_width,
+                            "lrm: n, the window is 2n+1 bins (default: the smallest with >= 6 degrees of freedom)")
+                ->check(integer_in(1, 100000, "the LRM half width"));
+            app->add_option("--lrm-stride", o->lrm_stride, "lrm: write every k-th bin (default 1)")
+                ->check(integer_in(1, 1000000, "the LRM bin stride"));
             app->callback([o, app] {
               for (const CLI::Option* opt : app->get_options())
                 if (opt->count() > 0 && !opt->get_lnames().empty()) o->given.push_back("--" + opt->get_lnames()[0]);

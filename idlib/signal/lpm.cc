@@ -16,6 +16,113 @@ using signal_detail::alloc_complex;
 using signal_detail::alloc_real;
 using signal_detail::RealFft;
 
+namespace signal_detail {
+
+LocalDfts local_dfts(const std::vector<ExperimentView>& experiments, Index plant_inputs, bool remove_mean,
+                     const char* method) {
+  if (experiments.empty()) throw InputError("no experiments; give at least one log");
+  LocalDfts d;
+  d.E = static_cast<Index>(experiments.size());
+  d.N = experiments[0].excitation.rows();
+  d.m = experiments[0].excitation.cols();
+  d.nz = experiments[0].output.cols();
+  const Index N = d.N;
+  if (d.m < 1) throw InputError("no excitation column; give at least one");
+  for (Index e = 0; e < d.E; ++e) {
+    const auto& x = experiments[static_cast<size_t>(e)];
+    if (x.excitation.rows() != N || x.output.rows() != N)
+      throw InputError(fmt::format("experiment {} has {} / {} samples but experiment 1 has {}; the {} needs records "
+                                   "of one length",
+                                   e + 1, x.excitation.rows(), x.output.rows(), N, method));
+    if (x.excitation.cols() != d.m || x.output.cols() != d.nz)
+      throw InputError(fmt::format("experiment {} has {} excitation and {} measured columns, experiment 1 {} and {}", e + 1,
+                                   x.excitation.cols(), x.output.cols(), d.m, d.nz));
+    if (!x.excitation.allFinite() || !x.output.allFinite())
+      throw InputError(fmt::format("experiment {} holds a NaN or Inf sample; give finite samples", e + 1));
+  }
+  if (plant_inputs != 0 && plant_inputs != d.m)
+    throw InputError(fmt::format("{} plant input columns for {} excitation columns; give one plant input per excitation",
+                                 plant_inputs, d.m));
+  d.ny = d.nz - plant_inputs;
+  if (d.ny < 1) throw InputError("no output column besides the plant inputs; give at least one output");
+  d.kmax = (N - 1) / 2;
+
+  // One DFT of each whole record, every channel.
+  const Index nb = N / 2 + 1;
+  RealFft fft(N);
+  auto in = alloc_real(N);
+  auto out = alloc_complex(nb);
+  d.U.resize(static_cast<size_t>(d.E));
+  d.Z.resize(static_cast<size_t>(d.E));
+  auto transform = [&](const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::MatrixXcd& X) {
+    X.resize(d.kmax + 1, x.cols());
+    for (Index c = 0; c < x.cols(); ++c) {
+      const double mean = remove_mean ? x.col(c).mean() : 0.0;
+      for (Index t = 0; t < N; ++t) in[t] = x(t, c) - mean;
+      fft.forward(in.get(), out.get());
+      for (Index k = 0; k <= d.kmax; ++k) X(k, c) = out[k];
+    }
+  };
+  for (Index e = 0; e < d.E; ++e) {
+    transform(experiments[static_cast<size_t>(e)].excitation, d.U[static_cast<size_t>(e)]);
+    transform(experiments[static_cast<size_t>(e)].output, d.Z[static_cast<size_t>(e)]);
+  }
+  return d;
+}
+
+Index local_half_width(Index given, Index npar, Index nz, const LocalDfts& d, const char* method) {
+  Index n = given;
+  if (n == 0) {
+    n = 1;
+    while (d.E * (2 * n + 1) - npar < std::max(kLpmMinDof, nz)) ++n;
+  }
+  const Index width = 2 * n + 1, q = d.E * width - npar;
+  if (q < 1)
+    throw InputError(fmt::format("{} half width {} leaves {} degrees of freedom for {} parameters per output; give a "
+                                 "larger half width",
+                                 method, n, q, npar));
+  if (d.kmax < width)
+    throw InputError(fmt::format("{} samples give {} frequency bins, fewer than the {} window of {}; record longer",
+                                 d.N, d.kmax, method, width));
+  return n;
+}
+
+void local_output_grid(const LocalDfts& d, Index first_bin, Index stride, double sample_period_s,
+                       std::vector<Index>& bins, FrequencyResponse& frd) {
+  bins.clear();
+  for (Index k = first_bin; k <= d.kmax; k += stride) bins.push_back(k);
+  const Index F = static_cast<Index>(bins.size());
+  frd.omega_rad_s.resize(F);
+  for (Index f = 0; f < F; ++f)
+    frd.omega_rad_s(f) = 2.0 * std::numbers::pi * static_cast<double>(bins[static_cast<size_t>(f)]) /
+                         (static_cast<double>(d.N) * sample_period_s);
+  frd.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(d.ny, d.m));
+  frd.variance.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(d.ny, d.m));
+  frd.flagged.assign(static_cast<size_t>(F), false);
+}
+
+bool plant_from_local_fit(const Eigen::MatrixXcd& Gz, Index plant_inputs, double max_condition, Eigen::MatrixXcd& G,
+                          Eigen::MatrixXcd& W, Eigen::MatrixXcd& Sinv) {
+  const Index nz = Gz.rows(), m = Gz.cols();
+  if (plant_inputs == 0) {
+    G = Gz;
+    W = Eigen::MatrixXcd::Identity(nz, nz);
+    Sinv = Eigen::MatrixXcd::Identity(m, m);
+    return true;
+  }
+  const Index ny = nz - m;
+  Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Gz.bottomRows(m));
+  const double src = lu.rcond();
+  if (!(src > 0) || 1.0 / src > max_condition) return false;
+  Sinv = lu.inverse();
+  G = Gz.topRows(ny) * Sinv;
+  W.resize(ny, nz);
+  W << Eigen::MatrixXcd::Identity(ny, ny), -G;
+  return true;
+}
+
+}  // namespace signal_detail
+
 void LpmOptions::validate() const {
   if (order < 0 || order > 4) throw InputError(fmt::format("LPM order {}: give 0..4 (2 is the usual choice)", order));
   if (half_width < 0) throw InputError(fmt::format("LPM half width {} is negative; give n >= 1 or 0 (automatic)", half_width));
@@ -29,74 +136,20 @@ void LpmOptions::validate() const {
 LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index plant_inputs,
                            const LpmOptions& options) {
   options.validate();
-  if (experiments.empty()) throw InputError("no experiments; give at least one log");
-  const Index E = static_cast<Index>(experiments.size());
-  const Index N = experiments[0].excitation.rows(), m = experiments[0].excitation.cols(),
-              nz = experiments[0].output.cols();
-  if (m < 1) throw InputError("no excitation column; give at least one");
-  for (Index e = 0; e < E; ++e) {
-    const auto& x = experiments[static_cast<size_t>(e)];
-    if (x.excitation.rows() != N || x.output.rows() != N)
-      throw InputError(fmt::format("experiment {} has {} / {} samples but experiment 1 has {}; the LPM needs records "
-                                   "of one length",
-                                   e + 1, x.excitation.rows(), x.output.rows(), N));
-    if (x.excitation.cols() != m || x.output.cols() != nz)
-      throw InputError(fmt::format("experiment {} has {} excitation and {} measured columns, experiment 1 {} and {}", e + 1,
-                                   x.excitation.cols(), x.output.cols(), m, nz));
-    if (!x.excitation.allFinite() || !x.output.allFinite())
-      throw InputError(fmt::format("experiment {} holds a NaN or Inf sample; give finite samples", e + 1));
-  }
-  if (plant_inputs != 0 && plant_inputs != m)
-    throw InputError(fmt::format("{} plant input columns for {} excitation columns; give one plant input per excitation",
-                                 plant_inputs, m));
-  const Index ny = nz - plant_inputs;
-  if (ny < 1) throw InputError("no output column besides the plant inputs; give at least one output");
+  const signal_detail::LocalDfts dft = signal_detail::local_dfts(experiments, plant_inputs, options.remove_mean, "LPM");
+  const Index E = dft.E, m = dft.m, nz = dft.nz, kmax = dft.kmax;
+  const auto& U = dft.U;
+  const auto& Z = dft.Z;
   const Index R1 = options.order + 1, npar = R1 * (m + E);
-  Index n = options.half_width;
-  if (n == 0) {
-    n = 1;
-    while (E * (2 * n + 1) - npar < std::max(kLpmMinDof, nz)) ++n;
-  }
+  const Index n = signal_detail::local_half_width(options.half_width, npar, nz, dft, "LPM");
   const Index width = 2 * n + 1, q = E * width - npar;
-  if (q < 1)
-    throw InputError(fmt::format("LPM half width {} leaves {} degrees of freedom for {} parameters per output; give a "
-                                 "larger half width",
-                                 n, q, npar));
-  const Index kmax = (N - 1) / 2;
-  if (kmax < width)
-    throw InputError(fmt::format("{} samples give {} frequency bins, fewer than the LPM window of {}; record longer",
-                                 N, kmax, width));
-
-  // One DFT of each whole record, every channel.
-  const Index nb = N / 2 + 1;
-  RealFft fft(N);
-  auto in = alloc_real(N);
-  auto out = alloc_complex(nb);
-  std::vector<Eigen::MatrixXcd> U(static_cast<size_t>(E)), Z(static_cast<size_t>(E));
-  auto transform = [&](const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::MatrixXcd& X) {
-    X.resize(kmax + 1, x.cols());
-    for (Index c = 0; c < x.cols(); ++c) {
-      const double mean = options.remove_mean ? x.col(c).mean() : 0.0;
-      for (Index t = 0; t < N; ++t) in[t] = x(t, c) - mean;
-      fft.forward(in.get(), out.get());
-      for (Index k = 0; k <= kmax; ++k) X(k, c) = out[k];
-    }
-  };
-  for (Index e = 0; e < E; ++e) {
-    transform(experiments[static_cast<size_t>(e)].excitation, U[static_cast<size_t>(e)]);
-    transform(experiments[static_cast<size_t>(e)].output, Z[static_cast<size_t>(e)]);
-  }
 
   LpmResult result;
   result.half_width = n;
   result.dof = q;
   FrequencyResponse& frd = result.frd;
-  for (Index k = options.first_bin; k <= kmax; k += options.stride) result.bins.push_back(k);
+  signal_detail::local_output_grid(dft, options.first_bin, options.stride, options.sample_period_s, result.bins, frd);
   const Index F = static_cast<Index>(result.bins.size());
-  frd.omega_rad_s.resize(F);
-  frd.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(ny, m));
-  frd.variance.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(ny, m));
-  frd.flagged.assign(static_cast<size_t>(F), false);
   Eigen::MatrixXcd K(npar, E * width), Zw(nz, E * width);
   Eigen::VectorXd powers(R1);
   // Work space reused for every bin (allocation would dominate the small solves).
@@ -108,7 +161,6 @@ LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index
   Index nflag = 0;
   for (Index f = 0; f < F; ++f) {
     const Index k = result.bins[static_cast<size_t>(f)];
-    frd.omega_rad_s(f) = 2.0 * std::numbers::pi * static_cast<double>(k) / (static_cast<double>(N) * options.sample_period_s);
     const Index start = std::clamp<Index>(k - n, 1, kmax - width + 1);
     K.setZero();
     for (Index e = 0; e < E; ++e)
@@ -147,22 +199,10 @@ LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index
       for (Index b = 0; b < m; ++b) Qgg(a, b) = Q(a * R1, b * R1);
     }
     Eigen::MatrixXcd G, W, Sinv;
-    if (plant_inputs == 0) {
-      G = Gz;
-      W = Eigen::MatrixXcd::Identity(nz, nz);
-      Sinv = Eigen::MatrixXcd::Identity(m, m);
-    } else {
-      Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Gz.bottomRows(m));
-      const double src = lu.rcond();
-      if (!(src > 0) || 1.0 / src > options.max_condition) {
-        frd.flagged[static_cast<size_t>(f)] = true;
-        ++nflag;
-        continue;
-      }
-      Sinv = lu.inverse();
-      G = Gz.topRows(ny) * Sinv;
-      W.resize(ny, nz);
-      W << Eigen::MatrixXcd::Identity(ny, ny), -G;
+    if (!signal_detail::plant_from_local_fit(Gz, plant_inputs, options.max_condition, G, W, Sinv)) {
+      frd.flagged[static_cast<size_t>(f)] = true;
+      ++nflag;
+      continue;
     }
     const Eigen::VectorXd wcw = (W * Cv * W.adjoint()).diagonal().real();
     for (Index j = 0; j < m; ++j) {

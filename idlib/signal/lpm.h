@@ -73,4 +73,27 @@ struct LpmResult {
 LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index plant_inputs,
                            const LpmOptions& options);
 
+// Shared by the local methods (lpm.cc, lrm.cc); not a public interface.
+namespace signal_detail {
+// The records checked (messages name `method`) and their DFTs at bins 0..kmax = ⌊(N−1)/2⌋
+// (U[e]: (kmax+1) × m, Z[e]: (kmax+1) × nz), each channel's mean removed if asked.
+struct LocalDfts {
+  Index N = 0, m = 0, nz = 0, ny = 0, E = 0, kmax = 0;
+  std::vector<Eigen::MatrixXcd> U, Z;
+};
+LocalDfts local_dfts(const std::vector<ExperimentView>& experiments, Index plant_inputs, bool remove_mean,
+                     const char* method);
+// n: `given`, or (0) the smallest with q = E(2n+1) − npar >= max(kLpmMinDof, nz).
+// @throws InputError when q < 1 or the record has fewer bins than the window.
+Index local_half_width(Index given, Index npar, Index nz, const LocalDfts& dft, const char* method);
+// The output bins first_bin, first_bin + stride, ... <= kmax, their ω = 2π k / (N Ts), and
+// frd sized for them (ny × m zeros, nothing flagged).
+void local_output_grid(const LocalDfts& dft, Index first_bin, Index stride, double sample_period_s,
+                       std::vector<Index>& bins, FrequencyResponse& frd);
+// From the fitted z-responses Gz (nz × m): open loop G = Gz, W = I, Ŝ⁻¹ = I; closed loop
+// G = Gz_y Ŝ⁻¹ with Ŝ = Gz_u and W = [I −G].  False when Ŝ's condition > max_condition.
+bool plant_from_local_fit(const Eigen::MatrixXcd& Gz, Index plant_inputs, double max_condition, Eigen::MatrixXcd& G,
+                          Eigen::MatrixXcd& W, Eigen::MatrixXcd& Sinv);
+}  // namespace signal_detail
+
 }  // namespace lpvid

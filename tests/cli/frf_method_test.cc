@@ -1,11 +1,12 @@
-// frf --method periodic / lpm through the program: a first-order discrete system
+// frf --method periodic / lpm / lrm through the program: a first-order discrete system
 // y[t] = a y[t−1] + b v[t] (its response b / (1 − a e^{−iωTs}) written here, not by
-// lpvid) driven by a multisine (periodic) or white noise (lpm), and the bad-input paths
+// lpvid) driven by a multisine (periodic) or white noise (lpm, lrm), and the bad-input paths
 // of the new flags (one line on stderr, exit 2, no output).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -84,18 +85,21 @@ TEST(FrfMethod, PeriodicShowsACubicNonlinearityAsDistortionBands) {
   EXPECT_THAT(r.out, HasSubstr("nonlinear distortion above the noise"));
 }
 
-TEST(FrfMethod, LpmOnWhiteNoiseGivesTheResponse) {
-  TempDir dir("frflpm");
+// frf with `flags` (a local method, every 8th bin) on white noise through the system:
+// each bin against its own written variance.  |Ĝ − G|² <= 6.51 var is the 99 % band of
+// F(2, 14) (both default windows leave q = 7 degrees of freedom for SISO); at least 90 %
+// of the bins must lie inside it (expected 99 %), and none may be off by half of |G|.
+RunResult local_method_on_white_noise(const std::string& flags, const std::string& tag) {
+  TempDir dir(tag);
   write_log(dir / "log.csv", false, 0.0, 3);
-  const RunResult r = run_lpvid("frf --method lpm --lpm-stride 8 --excitation v1 --output y1 --quantity G --out " +
-                                (dir / "G.csv") + " " + (dir / "log.csv"));
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const RunResult r = run_lpvid("frf " + flags + " --excitation v1 --output y1 --quantity G --out " + (dir / "G.csv") +
+                                " " + (dir / "log.csv"));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  if (r.exit_code != 0) return r;
   const FrequencyResponse g = read_frd_csv(dir / "G.csv");
-  ASSERT_GT(g.num_frequencies(), 50);
-  ASSERT_EQ(g.variance.size(), static_cast<size_t>(g.num_frequencies()));
-  // Each bin against its own written variance: |Ĝ − G|² <= 6.51 var is the 99 % band of
-  // F(2, 14) (the default window leaves q = 7 degrees of freedom for SISO); at least 90 %
-  // of the bins must lie inside it (expected 99 %), and none may be off by half of |G|.
+  EXPECT_GT(g.num_frequencies(), 50);
+  EXPECT_EQ(g.variance.size(), static_cast<size_t>(g.num_frequencies()));
+  if (g.variance.size() != static_cast<size_t>(g.num_frequencies())) return r;
   int inside = 0;
   for (Index k = 0; k < g.num_frequencies(); ++k) {
     const double w = g.omega_rad_s(k);
@@ -103,7 +107,20 @@ TEST(FrfMethod, LpmOnWhiteNoiseGivesTheResponse) {
     inside += e * e <= 6.51 * g.variance[static_cast<size_t>(k)](0, 0) ? 1 : 0;
     EXPECT_LT(e, 0.5 * std::abs(truth(w))) << w;
   }
+  std::printf("frf %s: %d of %d bins inside the 99 %% band\n", flags.c_str(), inside,
+              static_cast<int>(g.num_frequencies()));
   EXPECT_GE(inside, 0.9 * static_cast<double>(g.num_frequencies()));
+  return r;
+}
+
+TEST(FrfMethod, LpmOnWhiteNoiseGivesTheResponse) {
+  local_method_on_white_noise("--method lpm --lpm-stride 8", "frflpm");
+}
+
+TEST(FrfMethod, LrmOnWhiteNoiseGivesTheResponse) {
+  const RunResult r = local_method_on_white_noise("--method lrm --lrm-stride 8", "frflrm");
+  EXPECT_THAT(r.out, HasSubstr("frf (lrm): "));
+  EXPECT_THAT(r.out, HasSubstr("15 bins per window, 7 dof"));
 }
 
 TEST(FrfMethod, RefusesLayoutFlagsWithoutPeriodicALongLayoutAndAWrongPeriod) {
@@ -122,7 +139,16 @@ TEST(FrfMethod, RefusesLayoutFlagsWithoutPeriodicALongLayoutAndAWrongPeriod) {
   rejected("--method periodic --periods 4 --excitation v1 --output y1",
            "--periods without --period-samples: give the whole layout by flags, or none of it");
   rejected("--method periodic --excitation v1 --output y1", "--method periodic needs the layout");
-  rejected("--method fourier --excitation v1 --output y1", "--method 'fourier': use welch, lpm or periodic");
+  rejected("--method fourier --excitation v1 --output y1", "--method 'fourier': use welch, lpm, lrm or periodic");
+  rejected("--method lpm --lrm-stride 4 --excitation v1 --output y1",
+           "--lrm-stride is an option of the Local Rational Method: use it with --method lrm");
+  rejected("--method lrm --lpm-order 3 --excitation v1 --output y1",
+           "--lpm-order is an option of the Local Polynomial Method: use it with --method lpm");
+  rejected("--method lrm --window rect --excitation v1 --output y1", "--window is a Welch option: --method lrm");
+  rejected("--method lrm --lrm-denominator-degree 0 --excitation v1 --output y1", "--lrm-denominator-degree");
+  rejected("--method lrm --lrm-half-width 3 --excitation v1 --output y1",
+           "log.csv: LRM half width 3 leaves -1 degrees of freedom for 8 parameters per output; give a larger half "
+           "width");
   rejected("--method lpm --segment 256 --excitation v1 --output y1", "--segment is a Welch option");
   rejected("--method periodic --period-samples 256 --periods 8 --transient-periods 2 --realisations 2 --excitation v1 "
            "--output y1",
