@@ -55,11 +55,13 @@ BaseInfo make_stage6_base() {
   b.schedule_unit = "m";
   b.default_effects = {};
   b.physics_effects = {
-      {"com_offset", "centre-of-mass offset c from where the allocation assumes it (body axes)",
+      {"com_offset", "centre-of-mass offset c from the reference point the allocation's arms are measured from and the sensors "
+       "look at (body axes)",
        "every true lever arm is r_i − c while the controller allocates with r_i: B_w = G₀ kappa A(r − c) A(r)⁺ "
-       "(commanded forces leak into torques and torques into other torques)",
+       "(commanded forces leak into torques and torques into other torques); the sensors see p − R c, so the "
+       "rotations appear in the measured translations",
        "off-diagonal errors between the forces and the tilts (and between the tilts), flat in frequency relative to "
-       "the diagonal: a wrench channel produces a little of another",
+       "the diagonal: a wrench channel produces a little of another, and the tilts show in x, y, z",
        {par("com_x_m", "m", 0.0, -0.05, 0.05, true), par("com_y_m", "m", 0.0, -0.05, 0.05, true),
         par("com_z_m", "m", 0.0, -0.05, 0.05, true)},
        {},
@@ -78,9 +80,11 @@ BaseInfo make_stage6_base() {
       {"electrical_lag",
        "d-q current loop of the motors (eq 25): first-order lag tau_e = L/(R + k_c) and the back-EMF damping b = "
        "k_f k_e/(R + k_c) it feeds back",
-       "inserts 1/(tau_e s + 1) on every input and feeds the arrays' velocities back into the current loop "
-       "(w − F q'): damping of the translations below 1/tau_e, lag above",
-       "translation responses flattened (damped) at low frequency and all channels lagging near and above 1/tau_e",
+       "inserts 1/(tau_e s + 1) on every input and feeds each magnet array's own velocity (translation plus "
+       "omega × arm) back into the current loop (w − F q'): damping of the translations and rotations below "
+       "1/tau_e, lag above",
+       "translation and rotation responses flattened (damped) at low frequency and all channels lagging near and "
+       "above 1/tau_e",
        {par("electrical_time_constant_s", "s", d.electrical_time_constant_s(), 1e-6, 0.1, true),
         par("back_emf_damping_Ns_per_m", "N·s/m",
             d.force_constant_N_per_A * d.force_constant_N_per_A / (d.resistance_ohm + d.current_loop_gain_V_per_A),
