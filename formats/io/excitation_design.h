@@ -61,6 +61,9 @@ struct ExcitationDesign {
 // The tag that starts the comment line (after "#" and blanks).
 inline constexpr const char* kExcitationDesignTag = "lpvid-excitation:";
 
+// The char variable of a .mat file (an excitation file or a log) that holds the JSON.
+inline constexpr const char* kExcitationDesignVariable = "excitation_design";
+
 // The JSON of the design on one line (keys in the order of docs/formats.md).
 std::string excitation_design_json(const ExcitationDesign& design);
 // The comment text "lpvid-excitation: {...}" (write_log adds the "# ").
