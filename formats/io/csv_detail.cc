@@ -780,6 +780,16 @@ NumericCsv read_numeric_csv_text(const std::string& text, const std::string& pat
   return read_from(source, path, key_name, key_hint, CsvReadTuning{});
 }
 
+void check_log_columns(const std::string& path, const std::vector<std::string>& names, Index columns) {
+  if (static_cast<Index>(names.size()) != columns)
+    throw InputError(fmt::format("cannot write '{}': {} column names for {} columns of data; give one name per column",
+                                 display_path(path), names.size(), columns));
+  check_header_names(path, names);
+  if (std::find(names.begin(), names.end(), "t") == names.end())
+    throw InputError(fmt::format("cannot write '{}': no column 't'; a log needs a time column 't' in seconds",
+                                 display_path(path)));
+}
+
 void check_header_names(const std::string& path, const std::vector<std::string>& names) {
   for (size_t j = 0; j < names.size(); ++j) {
     const std::string& name = names[j];

@@ -108,6 +108,12 @@ NumericCsv read_numeric_csv_text(const std::string& text, const std::string& pat
 // or line breaks.  what = "cannot write 'x.csv'" prefix for messages.
 void check_header_names(const std::string& path, const std::vector<std::string>& names);
 
+// The checks of a log about to be written, shared by write_log (CSV) and
+// write_log_mat: one name per column of data, names valid as a CSV header
+// (check_header_names: a .mat log must read back as the same CSV log), a column
+// "t".  Throws InputError "cannot write 'path': ...; what to do".
+void check_log_columns(const std::string& path, const std::vector<std::string>& names, Index columns);
+
 // Writes "# text" lines (a text with line breaks becomes several lines).
 void append_comments(std::string& out, const std::vector<std::string>& comments);
 
