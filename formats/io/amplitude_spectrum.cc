@@ -4,34 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 
 #include "formats/io/csv_detail.h"
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
-
-// Byte column (1-based) of cell `column` on line `line` of the file (error path only:
-// re-reads the file; the cell's first non-blank byte).
-int64_t cell_column(const std::string& path, int64_t line, Index column) {
-  if (path == "-") return 1;  // stdin cannot be read twice
-  std::ifstream in(path, std::ios::binary);
-  std::string text;
-  for (int64_t k = 0; k < line; ++k)
-    if (!std::getline(in, text)) return 1;
-  if (line == 1 && text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
-  size_t p = 0;
-  for (Index c = 0; c < column; ++c) {
-    p = text.find(',', p);
-    if (p == std::string::npos) return 1;
-    ++p;
-  }
-  while (p < text.size() && (text[p] == ' ' || text[p] == '\t')) ++p;
-  return static_cast<int64_t>(p) + 1;
-}
-
-}  // namespace
 
 AmplitudeSpectrum read_amplitude_spectrum(const std::string& path) {
   const std::string hint = "give the columns f_hz (Hz) and amplitude (relative), e.g. 'f_hz,amplitude'";
@@ -58,7 +35,7 @@ AmplitudeSpectrum read_amplitude_spectrum(const std::string& path) {
                                   "from row to row",
                                   f, s.f_hz.back()));
     if (!std::isfinite(a) || !(a > 0))
-      detail::fail_at(path, at.line, cell_column(path, at.line, a_col),
+      detail::fail_at(path, at.line, detail::cell_column(path, nullptr, at.line, a_col),
                       fmt::format("amplitude {} is not positive; give a positive (relative) amplitude at every "
                                   "frequency",
                                   a));

@@ -117,26 +117,36 @@ TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
 // model: C.csv holds the state-space controller's own response on those lines, written
 // with round-trip precision, so fit and compare must agree with the model route (the
 // existing, independently tested one: S data through C(e^{jωTs}) of the model).
-TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
-  TempDir dir("fit_cfrd");
-  const PhysicalModel truth = truth_model();
+// S data of the sampled loop (ZOH at 1 kHz, the discrete PI controllers) at the paper's
+// positions on the lines w, with the controller as C.json and as its FRD C.csv on w;
+// returns the --data arguments.
+std::string write_sampled_loop_s_data(const TempDir& dir, const PhysicalModel& truth, const Eigen::VectorXd& w) {
   FitOptions o;
   o.target = FitTarget::kInputSensitivity;
   o.sample_period_s = 1e-3;
   const StateSpace c = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3);
   o.controller = c;
   write_state_space(dir / "C.json", c);
-  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 40);
   write_frd_csv(dir / "C.csv", frequency_response(c, w), "C");
-  Eigen::VectorXd shifted = w;
-  shifted(17) *= 1.0 + 1e-6;  // one line off by 1e-6 relative (> the 1e-9 allowed)
-  write_frd_csv(dir / "C_off.csv", frequency_response(c, shifted), "C");
   std::string data;
   for (double xb : kPaperBeamPositions_m) {
     const auto path = dir / fmt::format("S_{}.csv", xb);
     write_frd_csv(path, target_response(truth, xb, w, o), "S");
     data += fmt::format(" --data {}@{}", path, xb);
   }
+  return data;
+}
+
+TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
+  TempDir dir("fit_cfrd");
+  const PhysicalModel truth = truth_model();
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 40);
+  const std::string data = write_sampled_loop_s_data(dir, truth, w);
+  Eigen::VectorXd shifted = w;
+  shifted(17) *= 1.0 + 1e-6;  // one line off by 1e-6 relative (> the 1e-9 allowed)
+  write_frd_csv(dir / "C_off.csv",
+                frequency_response(discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3), shifted),
+                "C");
   PhysicalModel start = truth;
   for (auto& p : start.parameters)
     if (p.free) p.value = std::clamp(1.2 * p.value, p.lower, p.upper);
@@ -218,20 +228,7 @@ TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
 TEST(FitCli, MeasuredControllerWithoutRateWarnsOnceOnStderr) {
   TempDir dir("fit_cwarn");
   const PhysicalModel truth = truth_model();
-  FitOptions o;
-  o.target = FitTarget::kInputSensitivity;
-  o.sample_period_s = 1e-3;
-  const StateSpace c = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3);
-  o.controller = c;
-  write_state_space(dir / "C.json", c);
-  const Eigen::VectorXd w = log_frequency_grid(2.0, 2000.0, 30);
-  write_frd_csv(dir / "C.csv", frequency_response(c, w), "C");
-  std::string data;
-  for (double xb : kPaperBeamPositions_m) {
-    const auto path = dir / fmt::format("S_{}.csv", xb);
-    write_frd_csv(path, target_response(truth, xb, w, o), "S");
-    data += fmt::format(" --data {}@{}", path, xb);
-  }
+  const std::string data = write_sampled_loop_s_data(dir, truth, log_frequency_grid(2.0, 2000.0, 30));
   write_physical_model(dir / "truth.json", truth);
   struct Run {
     std::string err;
