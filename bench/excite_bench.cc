@@ -50,6 +50,19 @@ void BM_ExciteMultisineMinimisedCrest_3x1M(benchmark::State& state) {
 }
 BENCHMARK(BM_ExciteMultisineMinimisedCrest_3x1M)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The same with a relative amplitude spectrum (excite --amplitude): 10x at 1 Hz falling
+// log-log to 1 at 20 Hz, flat to 400 Hz; one log/pow per line on top of the flat case.
+void BM_ExciteMultisineShaped_3x1M(benchmark::State& state) {
+  lpvid::ExcitationSpec s = bench_spec();
+  s.shape_f_hz = {1, 20, 400};
+  s.shape_amplitude = {10, 1, 1};
+  for (auto _ : state) {
+    lpvid::ExcitationSignal x = lpvid::generate_excitation(s);
+    benchmark::DoNotOptimize(x.samples.data());
+  }
+}
+BENCHMARK(BM_ExciteMultisineShaped_3x1M)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // What `lpvid excite --out x.csv` does after parsing: generate, add t, write the log.
 void BM_ExciteMultisineToCsv_3x1M(benchmark::State& state) {
   const lpvid::ExcitationSpec s = bench_spec();

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -15,6 +16,7 @@
 #include "cli/common.h"
 #include "cli/output_set.h"
 #include "cli/registry.h"
+#include "formats/io/amplitude_spectrum.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/excitation_design.h"
 #include "formats/io/excitation_file.h"
@@ -34,6 +36,11 @@ scaled to the RMS of each input; the first comment line records the design for f
   lpvid excite --grid log --lines-per-decade 30 --band-hz 0.5,300 --phase schroeder --minimise-crest \
     --period-s 4 --peak 1 --out ms.mat
 one input, a logarithmic grid, Schroeder phases then crest-factor minimisation, peak 1.
+  lpvid excite --period-samples 4000 --band-hz 0.5,300 --grid log --amplitude shape.csv --minimise-crest \
+    --rms 0.1 --out ms.csv
+shape.csv (columns f_hz, amplitude) shapes the lines: relative amplitudes interpolated log-log
+between its rows, constant beyond its first and last; then the RMS scaling (the design
+records every line's amplitude).
   lpvid excite --kind prbs --period-samples 1023 --periods 8 --rms 0.1 --out prbs.csv
   lpvid excite --kind noise --duration-s 60 --channels 3 --rms 0.05,0.05,1 --out noise.csv
 Drive a simulator with the file: lpvid simulate platform --excitation ms.csv --out data
@@ -53,6 +60,7 @@ struct ExciteCliOptions {
   bool minimise_crest = false;
   int64_t crest_iterations = 200;
   std::string rms, peak;
+  std::string amplitude;  // --amplitude FILE: relative amplitude spectrum (multisine)
   int64_t channels = 1;
   std::string mimo;
   std::uint64_t seed = 1;
@@ -65,7 +73,7 @@ struct ExciteCliOptions {
 // Flags given on the command line (to refuse those that do not apply to a kind).
 struct Given {
   CLI::Option *period_samples, *period_s, *periods, *transient, *realisations, *band, *grid, *lpd, *every, *phase,
-      *minimise, *iterations, *mimo, *duration, *divider;
+      *minimise, *iterations, *mimo, *duration, *divider, *amplitude;
 };
 
 std::string one_of(const std::string& value, const std::string& flag, std::initializer_list<const char*> allowed) {
@@ -78,6 +86,7 @@ void refuse_if(CLI::Option* option, const std::string& why) {
   if (option->count() > 0) throw InputError(fmt::format("{} does not apply {}; leave it out", option->get_name(), why));
 }
 
+// The spec without the amplitude spectrum (read after the output checks).
 ExcitationSpec spec_from(const ExciteCliOptions& o, const Given& g) {
   ExcitationSpec s;
   const std::string kind = one_of(o.kind, "--kind", {"multisine", "prbs", "noise"});
@@ -128,7 +137,8 @@ ExcitationSpec spec_from(const ExciteCliOptions& o, const Given& g) {
     s.crest_iterations = o.crest_iterations;
   } else {
     const std::string why = fmt::format("to a {} (multisine only)", kind);
-    for (CLI::Option* opt : {g.band, g.grid, g.lpd, g.every, g.phase, g.minimise, g.iterations}) refuse_if(opt, why);
+    for (CLI::Option* opt : {g.band, g.grid, g.lpd, g.every, g.phase, g.minimise, g.iterations, g.amplitude})
+      refuse_if(opt, why);
     const bool periodic_prbs = s.kind == ExcitationKind::kPrbs && s.period_samples > 0;
     if (periodic_prbs) {
       refuse_if(g.duration, "to a periodic PRBS (its length is E x (T + P) x L samples)");
@@ -176,6 +186,7 @@ ExcitationDesign design_of(const ExcitationSpec& s, const ExcitationSignal& x) {
   d.experiments = x.experiments;
   d.mimo = to_string(s.mimo);
   d.excited_bins = x.excited_bins;
+  if (!s.shape_f_hz.empty()) d.amplitudes = x.line_amplitudes;
   d.coding = x.coding;
   d.phase = s.kind == ExcitationKind::kMultisine ? to_string(s.phase) : s.kind == ExcitationKind::kNoise ? "random" : "";
   d.seed = s.seed;
@@ -194,9 +205,16 @@ ExcitationDesign design_of(const ExcitationSpec& s, const ExcitationSignal& x) {
 void run(const ExciteCliOptions& o, const Given& g) {
   OutputSet outputs;
   outputs.file("--out", o.out);
-  const ExcitationSpec spec = spec_from(o, g);
+  outputs.input(o.amplitude);
+  ExcitationSpec spec = spec_from(o, g);
   const bool mat = is_mat_path(o.out);
   outputs.check();
+  if (!o.amplitude.empty()) {
+    const AmplitudeSpectrum shape = read_amplitude_spectrum(o.amplitude);
+    spec.shape_f_hz = shape.f_hz;
+    spec.shape_amplitude = shape.amplitude;
+    spec.validate();  // the reader's rules are the spec's: cannot fail here
+  }
 
   const ExcitationSignal x = generate_excitation(spec);
   const ExcitationDesign design = design_of(spec, x);
@@ -283,6 +301,17 @@ void run(const ExciteCliOptions& o, const Given& g) {
     inputs.push_back(in);
   }
   summary["inputs"] = inputs;
+  if (!o.amplitude.empty()) {
+    text += fmt::format("  amplitude spectrum {} ({} points; log-log between them, constant beyond):", o.amplitude,
+                        spec.shape_f_hz.size());
+    for (Index j = 0; j < n; ++j) {
+      const auto& a = x.line_amplitudes[static_cast<std::size_t>(j)];
+      text += fmt::format(" v{} lines {:.4g}..{:.4g}", j + 1, *std::min_element(a.begin(), a.end()),
+                          *std::max_element(a.begin(), a.end()));
+    }
+    text += "\n";
+    summary["amplitude_file"] = o.amplitude;
+  }
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
@@ -327,6 +356,9 @@ Command make_excite_command() {
             app->add_option("--rms", o->rms, "RMS per channel (one value or one per channel), input units");
             app->add_option("--peak", o->peak, "peak |v| per channel (one value or one per channel); with --rms the "
                                                "tighter limit wins");
+            g->amplitude = app->add_option("--amplitude", o->amplitude,
+                                           "multisine: CSV of f_hz,amplitude, the relative amplitude of the lines "
+                                           "(log-log interpolated, constant beyond the ends)");
             app->add_option("--channels", o->channels, "number of inputs n (default 1)")
                 ->check(integer_in(1, 256, "the number of inputs"));
             g->mimo = app->add_option("--mimo", o->mimo,

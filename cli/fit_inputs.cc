@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "cli/common.h"
@@ -73,6 +74,14 @@ FitDataSpec parse_data_spec(const std::string& spec) {
                                  spec, xb));
   d.files = path.find(',') != std::string::npos ? split_names(path, "--data") : std::vector<std::string>{path};
   return d;
+}
+
+std::string measured_controller_rate_warning(const std::string& controller_path) {
+  return fmt::format("lpvid: warning: --controller {} is a measured response with no sample rate and no --rate-hz "
+                     "was given, so the model's continuous response is used; if the loop ran on a sampled "
+                     "controller, S and G come out systematically wrong (no ZOH, worst towards Nyquist): give "
+                     "--rate-hz with the controller's sample rate (or rate_hz in the manifest)",
+                     controller_path);
 }
 
 namespace {
@@ -199,6 +208,11 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                                              : d.label);
     in.data.push_back(std::move(d));
   }
+  // A measured controller carries no sample period: without one from elsewhere the
+  // continuous model stands in for a loop that may have run sampled.  Said once, after
+  // every input check (a bad input stays a one-line error).
+  if (options.measured_controller && options.target != FitTarget::kPlant && ts == 0.0)
+    std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
   return in;
 }
 

@@ -68,9 +68,15 @@ struct FitInputs {
 // (whose outputs the caller has registered) and checks them all
 // (cli/output_set.h), then reads the model, controller and data.  The sample
 // period: --rate-hz (or the manifest's), else a discrete data model's, else the
-// controller's.
+// controller's; none with a measured controller for G or S: the warning of
+// measured_controller_rate_warning on stderr, after every input check.
 // @throws InputError  as the readers, OutputSet::check and FitOptions::validate;
 //   --data and --datasets both or neither given.
 FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
+
+// The one stderr line load_fit_inputs prints when a measured controller (FRD) is used
+// for G or S with no sample period from --rate-hz, the manifest or a discrete data
+// model: the continuous response is then fitted, wrong for a sampled loop.
+std::string measured_controller_rate_warning(const std::string& controller_path);
 
 }  // namespace lpvid::cli

@@ -243,8 +243,8 @@ void run(const FrfCliOptions& o) {
   for (const char* flag : {"--segment", "--overlap", "--window"})
     if (o.method != "welch" && given(o, flag))
       throw InputError(fmt::format("{} is a Welch option: --method {} does not cut segments", flag, o.method));
-  // The layout: the flags, or the design line `lpvid excite` writes (and the
-  // simulators copy into their logs) in the first log's comments.
+  // The layout: the flags, or the design `lpvid excite` writes (and the simulators
+  // copy into their logs): the first log's comment line, or a .mat log's variable.
   std::optional<ExcitationDesign> design;
   if (o.method == "periodic" && !given(o, "--period-samples")) {
     for (const char* flag : {"--periods", "--transient-periods", "--realisations", "--experiments", "--excited-bins"})
@@ -252,12 +252,13 @@ void run(const FrfCliOptions& o) {
         throw InputError(fmt::format("{} without --period-samples: give the whole layout by flags, or none of it "
                                      "to take it from the log's excitation design line",
                                      flag));
-    if (o.logs.front() != "-" && !is_mat_path(o.logs.front())) design = read_excitation_design(o.logs.front());
+    if (o.logs.front() != "-") design = read_log_excitation_design(o.logs.front());
     if (!design)
       throw InputError(fmt::format(
-          "--method periodic needs the layout: {} has no excitation design line ('# lpvid-excitation:', written by "
-          "lpvid excite and copied by simulate --excitation); give --period-samples L and --periods P (and "
-          "--transient-periods, --realisations, --experiments when not 0, 1, 1)",
+          "--method periodic needs the layout: {} has no excitation design (the line '# lpvid-excitation:' of a CSV "
+          "log, the variable excitation_design of a .mat log, written by lpvid excite and copied by simulate "
+          "--excitation); give --period-samples L and --periods P (and --transient-periods, --realisations, "
+          "--experiments when not 0, 1, 1)",
           o.logs.front()));
     if (!design->periodic())
       throw InputError(fmt::format("{}: the excitation design is {} (not periodic); use --method welch or lpm for it",

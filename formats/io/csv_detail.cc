@@ -16,11 +16,13 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <fstream>
 #include <limits>
 #include <memory>
 #include <mutex>
 #include <new>
 #include <optional>
+#include <sstream>
 #include <thread>
 #include <unordered_map>
 
@@ -778,6 +780,39 @@ NumericCsv read_numeric_csv_text(const std::string& text, const std::string& pat
                                  const std::string& key_hint) {
   Source source(path, text);
   return read_from(source, path, key_name, key_hint, CsvReadTuning{});
+}
+
+int64_t cell_column(const std::string& path, const std::string* text, int64_t line, Index column) {
+  std::string row;
+  if (text != nullptr) {
+    std::istringstream in(*text);
+    for (int64_t k = 0; k < line; ++k)
+      if (!std::getline(in, row)) return 1;
+  } else {
+    if (path == "-") return 1;  // stdin cannot be read twice
+    std::ifstream in(path, std::ios::binary);
+    for (int64_t k = 0; k < line; ++k)
+      if (!std::getline(in, row)) return 1;
+  }
+  if (line == 1 && row.rfind("\xEF\xBB\xBF", 0) == 0) row.erase(0, 3);
+  size_t p = 0;
+  for (Index c = 0; c < column; ++c) {
+    p = row.find(',', p);
+    if (p == std::string::npos) return 1;
+    ++p;
+  }
+  while (p < row.size() && is_blank(row[p])) ++p;
+  return static_cast<int64_t>(p) + 1;
+}
+
+void check_log_columns(const std::string& path, const std::vector<std::string>& names, Index columns) {
+  if (static_cast<Index>(names.size()) != columns)
+    throw InputError(fmt::format("cannot write '{}': {} column names for {} columns of data; give one name per column",
+                                 display_path(path), names.size(), columns));
+  check_header_names(path, names);
+  if (std::find(names.begin(), names.end(), "t") == names.end())
+    throw InputError(fmt::format("cannot write '{}': no column 't'; a log needs a time column 't' in seconds",
+                                 display_path(path)));
 }
 
 void check_header_names(const std::string& path, const std::vector<std::string>& names) {

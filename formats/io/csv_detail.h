@@ -104,9 +104,21 @@ NumericCsv read_numeric_csv(const std::string& path, const std::string& key_name
 NumericCsv read_numeric_csv_text(const std::string& text, const std::string& path, const std::string& key_name,
                                  const std::string& key_hint);
 
+// Byte column (1-based) of the first non-blank byte of cell `column` (0-based) on
+// line `line` of the CSV, read again from `text` when given, else from the file at
+// `path` (error path only; stdin cannot be read twice: 1).  1 when the line or the
+// cell is not there.
+int64_t cell_column(const std::string& path, const std::string* text, int64_t line, Index column);
+
 // Checks names for a CSV header: non-empty, unique, no ',', '"', '#' at the start,
 // or line breaks.  what = "cannot write 'x.csv'" prefix for messages.
 void check_header_names(const std::string& path, const std::vector<std::string>& names);
+
+// The checks of a log about to be written, shared by write_log (CSV) and
+// write_log_mat: one name per column of data, names valid as a CSV header
+// (check_header_names: a .mat log must read back as the same CSV log), a column
+// "t".  Throws InputError "cannot write 'path': ...; what to do".
+void check_log_columns(const std::string& path, const std::vector<std::string>& names, Index columns);
 
 // Writes "# text" lines (a text with line breaks becomes several lines).
 void append_comments(std::string& out, const std::vector<std::string>& comments);

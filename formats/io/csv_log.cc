@@ -75,13 +75,7 @@ Log read_log(const std::string& path, const LogReadOptions& options) {
 void write_log(AtomicFileWriter& out, const std::vector<std::string>& names, const Eigen::MatrixXd& data,
                const std::vector<std::string>& comments) {
   const std::string& path = out.path();
-  if (static_cast<Index>(names.size()) != data.cols())
-    throw InputError(fmt::format("cannot write '{}': {} column names for {} columns of data; give one name per column",
-                                 detail::display_path(path), names.size(), data.cols()));
-  detail::check_header_names(path, names);
-  if (std::find(names.begin(), names.end(), "t") == names.end())
-    throw InputError(fmt::format("cannot write '{}': no column 't'; a log needs a time column 't' in seconds",
-                                 detail::display_path(path)));
+  detail::check_log_columns(path, names, data.cols());
   std::string head;
   detail::append_comments(head, comments);
   head += fmt::format("{}\n", fmt::join(names, ","));

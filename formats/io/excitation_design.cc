@@ -146,6 +146,18 @@ void ExcitationDesign::validate(const std::string& where) const {
         fail(fmt::format("excited_bins of v{}: bin {} is not in 1..{} or not ascending", j + 1, bins[i],
                          (period_samples - 1) / 2));
   }
+  if (!amplitudes.empty()) {
+    if (static_cast<Index>(amplitudes.size()) != channels)
+      fail(fmt::format("amplitudes has {} lists for {} channels; give one list per channel (or leave the key out)",
+                       amplitudes.size(), channels));
+    for (std::size_t j = 0; j < amplitudes.size(); ++j) {
+      if (amplitudes[j].size() != excited_bins[j].size())
+        fail(fmt::format("amplitudes of v{}: {} values for {} excited bins; give one per bin", j + 1,
+                         amplitudes[j].size(), excited_bins[j].size()));
+      for (double a : amplitudes[j])
+        if (!std::isfinite(a) || !(a > 0)) fail(fmt::format("amplitudes of v{}: {} is not a positive number", j + 1, a));
+    }
+  }
   for (const auto* list : {&crest_factor, &rms, &peak})
     if (static_cast<Index>(list->size()) != channels)
       fail(fmt::format("crest_factor, rms and peak need one value per channel ({}), one has {}", channels,
@@ -180,6 +192,11 @@ std::string excitation_design_json(const ExcitationDesign& d) {
   if (d.kind == "prbs") {
     add("prbs_order", d.prbs_order);
     add("clock_divider", d.clock_divider);
+  }
+  if (!d.amplitudes.empty()) {
+    json amplitudes = json::array();
+    for (const auto& a : d.amplitudes) amplitudes.push_back(a);
+    add("amplitudes", amplitudes);
   }
   return out + "}";
 }
@@ -237,6 +254,20 @@ ExcitationDesign parse_excitation_design(const std::string& text, const std::str
   d.peak = r.numbers("peak");
   if (r.has("prbs_order")) d.prbs_order = static_cast<int>(r.integer("prbs_order"));
   if (r.has("clock_divider")) d.clock_divider = r.integer("clock_divider");
+  if (r.has("amplitudes")) {  // optional: designs before excite --amplitude have none
+    const json& amplitudes = r.get("amplitudes");
+    if (!amplitudes.is_array()) r.fail_key("amplitudes", "must be an array with one array of amplitudes per channel");
+    for (const json& list : amplitudes) {
+      if (!list.is_array())
+        r.fail_key("amplitudes", fmt::format("{} is not an array of numbers", detail::json_excerpt(list)));
+      std::vector<double> a;
+      for (const json& x : list) {
+        if (!x.is_number()) r.fail_key("amplitudes", fmt::format("{} is not a number", detail::json_excerpt(x)));
+        a.push_back(x.get<double>());
+      }
+      d.amplitudes.push_back(std::move(a));
+    }
+  }
   const detail::CellPosition at = detail::text_position(padded, padded.find('{'));
   d.validate(fmt::format("{}:{}:{}", detail::display_path(path), line, at.column));
   return d;

@@ -36,6 +36,11 @@ struct ExcitationDesign {
   std::string mimo;           // "single" | "one-at-a-time" | "hadamard" | "zipper"
   // Per input: ascending DFT bins k of one period (frequency k fs / L), 0 < k < L/2.
   std::vector<std::vector<Index>> excited_bins;
+  // Multisine with a shaped spectrum (excite --amplitude): per input, the amplitude
+  // A_k of each excited bin (same order as excited_bins; input units, before the
+  // coding weight).  Empty (key absent): not recorded, every line of an input has the
+  // same amplitude, rms sqrt(2 / K).
+  std::vector<std::vector<double>> amplitudes;
   Eigen::MatrixXd coding;     // E x n weights, or 0 x 0 (JSON null): every weight 1
   std::string phase;          // "random" | "schroeder" | "" (JSON null: a PRBS)
   std::uint64_t seed = 0;
@@ -54,12 +59,16 @@ struct ExcitationDesign {
   // != 1, unknown kind/mimo/phase, fs not positive, n < 1, negative L, P < 1,
   // T < 0, R < 1, E not 1 / n / the coding's rows, excited_bins not n lists of
   // ascending bins in (0, L/2), coding not E x n of finite numbers, per-input
-  // lists not of length n.
+  // lists not of length n, amplitudes (when given) not one positive finite value
+  // per excited bin.
   void validate(const std::string& where) const;
 };
 
 // The tag that starts the comment line (after "#" and blanks).
 inline constexpr const char* kExcitationDesignTag = "lpvid-excitation:";
+
+// The char variable of a .mat file (an excitation file or a log) that holds the JSON.
+inline constexpr const char* kExcitationDesignVariable = "excitation_design";
 
 // The JSON of the design on one line (keys in the order of docs/formats.md).
 std::string excitation_design_json(const ExcitationDesign& design);

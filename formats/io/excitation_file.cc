@@ -13,6 +13,8 @@
 #include <mutex>
 
 #include "formats/io/csv_detail.h"
+#include "formats/io/mat_detail.h"
+#include "formats/io/mat_log.h"
 #include "formats/io/matio_detail.h"
 #include "idlib/core/error.h"
 
@@ -73,7 +75,7 @@ Log read_mat_log(const std::string& path, std::string& design_json) {
   auto fail = [&](const std::string& what) {
     throw InputError(fmt::format("{}: {}; write the file with lpvid excite --out FILE.mat", shown, what));
   };
-  VarPtr design(Mat_VarRead(mat.get(), "excitation_design"));
+  VarPtr design(Mat_VarRead(mat.get(), kExcitationDesignVariable));
   if (design == nullptr) fail("no variable 'excitation_design'");
   if (!char_text(design.get(), design_json)) fail("'excitation_design' is not ASCII char text");
   VarPtr data(Mat_VarRead(mat.get(), "data"));
@@ -159,7 +161,7 @@ void write_excitation_mat(AtomicFileWriter& out, const std::vector<std::string>&
   }
   const std::string json = excitation_design_json(design);
   size_t jdims[2] = {1, json.size()};
-  add(Mat_VarCreate("excitation_design", MAT_C_CHAR, MAT_T_UTF8, 2, jdims, const_cast<char*>(json.data()), 0));
+  add(Mat_VarCreate(kExcitationDesignVariable, MAT_C_CHAR, MAT_T_UTF8, 2, jdims, const_cast<char*>(json.data()), 0));
   if (Mat_Close(mat.release()) != 0) fail(EIO);
 }
 
@@ -169,7 +171,7 @@ ExcitationFile read_excitation_file(const std::string& path) {
   if (is_mat_path(path)) {
     std::string json;
     file.log = read_mat_log(path, json);
-    file.design = parse_excitation_design(json, path + ":excitation_design");
+    file.design = parse_excitation_design(json, path + ":" + kExcitationDesignVariable);
     check_time(file.log);
     const Index n = file.log.num_samples();
     const auto t = file.log.data.col(0);
@@ -191,6 +193,23 @@ ExcitationFile read_excitation_file(const std::string& path) {
                                  shown, fmt::join(file.log.names, ","), file.design.channels, file.design.channels));
   check_design_matches(file.design, file.log.num_samples(), file.log.sample_period_s, file.design.channels, shown);
   return file;
+}
+
+std::optional<ExcitationDesign> read_log_excitation_design(const std::string& log_path) {
+  if (log_path == "-" || !is_mat_log(log_path)) return read_excitation_design(log_path);
+  const std::unique_ptr<mat_detail::MatSource> mat = mat_detail::open_mat(log_path);
+  const std::vector<std::string>& variables = mat->variables();
+  const std::string name = kExcitationDesignVariable;
+  if (std::find(variables.begin(), variables.end(), name) == variables.end()) return std::nullopt;
+  const mat_detail::Value v = mat->value(name);
+  const std::string where = detail::display_path(log_path) + ":" + name;
+  // One row of text (a char matrix is stored column by column: its text would be scrambled).
+  const bool row = v.dims.size() == 2 && (v.dims[0] == 1 || v.dims[1] == 0);
+  if (v.kind != mat_detail::Value::Kind::kChar || !row)
+    throw InputError(fmt::format("{}: is a {} {}, not one row of text; save the excitation design's JSON as a char "
+                                 "row vector (as lpvid excite --out FILE.mat writes it), or remove the variable",
+                                 where, mat_detail::dims_text(v.dims), v.kind_text()));
+  return parse_excitation_design(v.text, where);
 }
 
 }  // namespace lpvid

@@ -9,6 +9,7 @@
 //   excitation_design  1 x len char: the same JSON as the CSV's design line
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "formats/io/atomic_file.h"
@@ -39,5 +40,17 @@ void write_excitation_mat(AtomicFileWriter& out, const std::vector<std::string>&
 // Throws InputError "path: what; what to do" (or path:line:column), e.g.
 //   "x.csv: no '# lpvid-excitation:' line before the header; write the signal with lpvid excite"
 ExcitationFile read_excitation_file(const std::string& path);
+
+// The design a log carries, whatever its format: a CSV log's '# lpvid-excitation:'
+// comment line (read_excitation_design), or a .mat log's (mat_log.h: a path ending
+// in ".mat" or a file with a MAT-file header) char variable `excitation_design`
+// (kExcitationDesignVariable) holding the same JSON as one row of text — what
+// write_excitation_mat writes and write_log_mat writes given
+// {kExcitationDesignVariable, excitation_design_json(d)} as extra text.  No design:
+// nullopt.  Throws InputError "cannot open ...", the errors of
+// read_excitation_design, and for a .mat log
+//   "x.mat:excitation_design: is a double array, not text; ..." or
+//   "x.mat:excitation_design:1:COLUMN: what; what to do" (a bad JSON or design).
+std::optional<ExcitationDesign> read_log_excitation_design(const std::string& log_path);
 
 }  // namespace lpvid

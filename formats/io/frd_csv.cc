@@ -505,33 +505,9 @@ class FrdCsvReader {
       }
   }
 
-  // Byte column of cell `column` on line `line` (re-reads the file: error path only).
-  int64_t cell_column(int64_t line, Index column) const {
-    std::string text;
-    if (text_ != nullptr) {
-      std::istringstream in(*text_);
-      for (int64_t k = 0; k < line; ++k)
-        if (!std::getline(in, text)) return 1;
-    } else {
-      if (path_ == "-") return 1;  // stdin cannot be read twice
-      std::ifstream in(path_, std::ios::binary);
-      for (int64_t k = 0; k < line; ++k)
-        if (!std::getline(in, text)) return 1;
-    }
-    if (line == 1 && text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
-    size_t p = 0;
-    for (Index c = 0; c < column; ++c) {
-      p = text.find(',', p);
-      if (p == std::string::npos) return 1;
-      ++p;
-    }
-    while (p < text.size() && is_blank(text[p])) ++p;
-    return static_cast<int64_t>(p) + 1;
-  }
-
   [[noreturn]] void fail_cell(Index row, Index column, const std::string& what) const {
     const int64_t line = csv_.key_position(row).line;
-    detail::fail_at(path_, line, cell_column(line, column), what);
+    detail::fail_at(path_, line, detail::cell_column(path_, text_, line, column), what);
   }
 
   FrequencyResponse build(const std::vector<std::pair<Index, Index>>& pairs) const {

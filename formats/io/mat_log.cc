@@ -319,13 +319,7 @@ bool is_mat_log(const std::string& path) {
 
 void write_log_mat(const std::string& path, const std::vector<std::string>& names, const Eigen::MatrixXd& data, bool v73,
                    const std::vector<std::pair<std::string, std::string>>& extra_text) {
-  if (static_cast<Index>(names.size()) != data.cols())
-    throw InputError(fmt::format("cannot write '{}': {} column names for {} columns of data; give one name per column",
-                                 detail::display_path(path), names.size(), data.cols()));
-  detail::check_header_names(path, names);
-  if (std::find(names.begin(), names.end(), "t") == names.end())
-    throw InputError(fmt::format("cannot write '{}': no column 't'; a log needs a time column 't' in seconds",
-                                 detail::display_path(path)));
+  detail::check_log_columns(path, names, data.cols());
   if (!data.allFinite())
     throw InputError(fmt::format("cannot write '{}': the data holds NaN or Inf; a log holds finite numbers only",
                                  detail::display_path(path)));

@@ -51,6 +51,8 @@ bool is_mat_log(const std::string& path);
 // Writes names/data as the (d) layout: `data` (N x m double) and `names` (1 x m
 // cell of char), plus each of extra_text as a char variable (name, text).  Atomic
 // (a temporary renamed over path).  For tests and tools; the checks of write_log.
+// {"excitation_design", excitation_design_json(d)} records the log's excitation
+// design as periodic frf reads it (excitation_file.h, read_log_excitation_design).
 void write_log_mat(const std::string& path, const std::vector<std::string>& names, const Eigen::MatrixXd& data,
                    bool v73 = false, const std::vector<std::pair<std::string, std::string>>& extra_text = {});
 

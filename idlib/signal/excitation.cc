@@ -102,15 +102,17 @@ void check_limits(const std::vector<double>& values, const char* what, Index cha
                                    what, v, what));
 }
 
-// Synthesises one period x[0..L) = sum_k A cos(2 pi k t / L + phi_k) with one
-// inverse real FFT: spectrum[k] = (A / 2) e^{i phi_k} on the excited bins.
+// Synthesises one period x[0..L) = sum_k A_k cos(2 pi k t / L + phi_k) with one
+// inverse real FFT: spectrum[k] = (A_k / 2) e^{i phi_k} on the excited bins.
 class PeriodSynth {
  public:
   explicit PeriodSynth(Index L) : fft_(L), spec_(signal_detail::alloc_complex(L / 2 + 1)) {}
 
-  void synth(const std::vector<Index>& bins, const std::vector<double>& phases, double amplitude, double* x) {
+  // amplitudes[i]: A of bins[i].
+  void synth(const std::vector<Index>& bins, const std::vector<double>& phases, const std::vector<double>& amplitudes,
+             double* x) {
     std::fill(spec_.get(), spec_.get() + fft_.bins(), Complex(0.0, 0.0));
-    for (std::size_t i = 0; i < bins.size(); ++i) spec_[bins[i]] = std::polar(0.5 * amplitude, phases[i]);
+    for (std::size_t i = 0; i < bins.size(); ++i) spec_[bins[i]] = std::polar(0.5 * amplitudes[i], phases[i]);
     fft_.inverse(spec_.get(), x);
   }
   // Phases of the DFT of x on the bins (a bin whose value is exactly 0 keeps its phase).
@@ -145,16 +147,16 @@ double rms_of(const double* x, Index n) {
 // 1.64, 0.95 -> 2.65 / 1.90 (1000 iterations at 0.9: 1.48).
 constexpr double kClipFraction = 0.85;
 
-void minimise_crest(PeriodSynth& synth, const std::vector<Index>& bins, std::vector<double>& phases, Index L,
-                    Index iterations, double* work) {
+void minimise_crest(PeriodSynth& synth, const std::vector<Index>& bins, const std::vector<double>& amplitudes,
+                    std::vector<double>& phases, Index L, Index iterations, double* work) {
   std::vector<double> best = phases;
-  synth.synth(bins, phases, 1.0, work);
+  synth.synth(bins, phases, amplitudes, work);
   double best_cf = peak_of(work, L);  // the rms is fixed by the amplitudes
   for (Index it = 0; it < iterations; ++it) {
     const double level = kClipFraction * peak_of(work, L);
     for (Index t = 0; t < L; ++t) work[t] = std::clamp(work[t], -level, level);
     synth.phases_of(work, bins, phases);
-    synth.synth(bins, phases, 1.0, work);
+    synth.synth(bins, phases, amplitudes, work);
     const double p = peak_of(work, L);
     if (p < best_cf) best_cf = p, best = phases;
   }
@@ -215,8 +217,22 @@ ExcitationSignal generate_multisine(const ExcitationSpec& s) {
   if (s.mimo == MimoDesign::kHadamard) coding = hadamard_coding(n);
   out.coding = coding;
   out.experiments = experiment_count(s);
+  // Relative amplitudes per input's bins (1 on every bin without a shape).
+  const double resolution = s.sample_rate_hz / static_cast<double>(L);
+  std::vector<std::vector<double>> relative;
+  for (const auto& bins : out.excited_bins) {
+    std::vector<double> f;
+    for (Index k : bins) f.push_back(static_cast<double>(k) * resolution);
+    relative.push_back(amplitude_shape_at(s.shape_f_hz, s.shape_amplitude, f));
+  }
+  // rms of sum_k a_k cos over whole periods: sqrt(sum_k a_k^2 / 2) (Parseval).
+  auto rms_of_lines = [](const std::vector<double>& a) {
+    double sum = 0;
+    for (double x : a) sum += 0.5 * x * x;
+    return std::sqrt(sum);
+  };
 
-  // One period per (realisation, input) at unit amplitude; column r n + j.
+  // One period per (realisation, input) at the relative amplitudes; column r n + j.
   Eigen::MatrixXd periods(L, R * n);
   out.crest_factor_initial = Eigen::VectorXd::Zero(n);
   PeriodSynth synth(L);
@@ -234,20 +250,22 @@ ExcitationSignal generate_multisine(const ExcitationSpec& s) {
         phases.resize(static_cast<std::size_t>(K));
         for (double& p : phases) p = 2 * kPi * uniform01(rng);
       }
-      // The rms of A cos over whole periods is A / sqrt 2 per line (Parseval).
-      const double rms = std::sqrt(0.5 * static_cast<double>(K));
-      synth.synth(bins, phases, 1.0, work.get());
+      const auto& amplitudes = relative[static_cast<std::size_t>(j)];
+      const double rms = rms_of_lines(amplitudes);
+      synth.synth(bins, phases, amplitudes, work.get());
       out.crest_factor_initial(j) = std::max(out.crest_factor_initial(j), peak_of(work.get(), L) / rms);
-      if (s.minimise_crest) minimise_crest(synth, bins, phases, L, s.crest_iterations, work.get());
-      synth.synth(bins, phases, 1.0, periods.col(r * n + j).data());
+      if (s.minimise_crest) minimise_crest(synth, bins, amplitudes, phases, L, s.crest_iterations, work.get());
+      synth.synth(bins, phases, amplitudes, periods.col(r * n + j).data());
     }
   // Scale: the smaller of rms_limit / rms and peak_limit / peak over every realisation.
   Eigen::VectorXd scale(n);
   for (Index j = 0; j < n; ++j) {
-    const double rms = std::sqrt(0.5 * static_cast<double>(out.excited_bins[static_cast<std::size_t>(j)].size()));
+    const double rms = rms_of_lines(relative[static_cast<std::size_t>(j)]);
     double peak = 0;
     for (Index r = 0; r < R; ++r) peak = std::max(peak, peak_of(periods.col(r * n + j).data(), L));
     scale(j) = std::min(limit_for(s.rms, j) / rms, limit_for(s.peak, j) / peak);
+    out.line_amplitudes.push_back(relative[static_cast<std::size_t>(j)]);
+    for (double& a : out.line_amplitudes.back()) a *= scale(j);
   }
   assemble(s, periods, coding, scale, out);
   measure(s, coding, out);
@@ -393,6 +411,26 @@ void ExcitationSpec::validate() const {
                                    "{} is not: give {}",
                                    clock_divider, period_samples, prbs_period_hint(period_samples, clock_divider)));
   }
+  if (!shape_f_hz.empty() || !shape_amplitude.empty()) {
+    if (kind != ExcitationKind::kMultisine)
+      throw InputError(fmt::format("an amplitude spectrum shapes the lines of a multisine; a {} has no lines: leave "
+                                   "it out or use a multisine",
+                                   kind_name));
+    if (shape_f_hz.size() != shape_amplitude.size() || shape_f_hz.size() < 2)
+      throw InputError(fmt::format("amplitude spectrum: {} frequencies and {} amplitudes; give at least 2 points "
+                                   "(f_hz, amplitude)",
+                                   shape_f_hz.size(), shape_amplitude.size()));
+    for (std::size_t i = 0; i < shape_f_hz.size(); ++i) {
+      const double f = shape_f_hz[i], a = shape_amplitude[i];
+      if (!std::isfinite(f) || !(f > 0) || (i > 0 && !(f > shape_f_hz[i - 1])))
+        throw InputError(fmt::format("amplitude spectrum point {}: frequency {} Hz; give frequencies > 0 in strictly "
+                                     "increasing order",
+                                     i + 1, f));
+      if (!std::isfinite(a) || !(a > 0))
+        throw InputError(fmt::format("amplitude spectrum point {}: amplitude {}; give positive finite amplitudes",
+                                     i + 1, a));
+    }
+  }
   if (kind == ExcitationKind::kMultisine) {
     if (crest_iterations < 1 || crest_iterations > 100'000)
       throw InputError(fmt::format("{} crest-factor iterations: give 1 to 100000", crest_iterations));
@@ -455,6 +493,30 @@ std::vector<Index> multisine_grid(const ExcitationSpec& s) {
     }
   }
   return bins;
+}
+
+std::vector<double> amplitude_shape_at(const std::vector<double>& shape_f_hz, const std::vector<double>& shape_amplitude,
+                                       const std::vector<double>& f_hz) {
+  std::vector<double> out(f_hz.size(), 1.0);
+  if (shape_f_hz.empty()) return out;
+  const std::size_t m = shape_f_hz.size();
+  LPVID_ASSERT(m >= 2 && shape_amplitude.size() == m);
+  for (std::size_t i = 0; i < f_hz.size(); ++i) {
+    const double f = f_hz[i];
+    if (!(f > shape_f_hz.front())) {
+      out[i] = shape_amplitude.front();
+    } else if (!(f < shape_f_hz.back())) {
+      out[i] = shape_amplitude.back();
+    } else {
+      // The segment [f_p, f_{p+1}) holding f.
+      const std::size_t p =
+          static_cast<std::size_t>(std::upper_bound(shape_f_hz.begin(), shape_f_hz.end(), f) - shape_f_hz.begin()) - 1;
+      LPVID_ASSERT(p + 1 < m && shape_f_hz[p] < shape_f_hz[p + 1]);
+      const double x = std::log(f / shape_f_hz[p]) / std::log(shape_f_hz[p + 1] / shape_f_hz[p]);
+      out[i] = shape_amplitude[p] * std::pow(shape_amplitude[p + 1] / shape_amplitude[p], x);
+    }
+  }
+  return out;
 }
 
 Eigen::MatrixXd hadamard_coding(Index n) {

@@ -18,9 +18,11 @@
 // (noise; PRBS with period_samples = 0) is N = samples rows, all inputs at once.
 //
 // Multisine of input j, realisation r, over one period t = 0..L-1:
-//   u(t) = sum_{k in K_j} A cos(2 pi k t / L + phi_{r,j,k}),
-// K_j the excited DFT bins of input j (frequency k * fs / L), A the same on every
-// bin; its DFT over one period is U(k) = (L/2) A e^{i phi} on K_j and 0 elsewhere.
+//   u(t) = sum_{k in K_j} A_k cos(2 pi k t / L + phi_{r,j,k}),
+// K_j the excited DFT bins of input j (frequency k * fs / L), A_k = c_j a(k fs / L):
+// a the relative amplitude spectrum (ExcitationSpec::shape_*; 1 when none is given:
+// the same amplitude on every bin), c_j the scale that meets the RMS/peak limits;
+// its DFT over one period is U(k) = (L/2) A_k e^{i phi} on K_j and 0 elsewhere.
 // It is synthesised with one inverse real FFT per period (FFTW, real_fft.h).
 //
 // References: M. R. Schroeder, "Synthesis of low-peak-factor signals and binary
@@ -84,6 +86,13 @@ struct ExcitationSpec {
   Index every = 1;                 // linear grid, >= 1
   double lines_per_decade = 0.0;   // log grid, > 0
   PhaseChoice phase = PhaseChoice::kRandom;
+  // Relative amplitude spectrum (multisine only; both empty = flat): points
+  // (shape_f_hz[i], shape_amplitude[i]), at least 2, f > 0 strictly increasing,
+  // amplitudes > 0 and finite, any units (only ratios matter).  The line at f gets
+  // a(f), linear in (log f, log a) between neighbouring points and the end point's
+  // amplitude beyond either end (constant: no extrapolated slope); the RMS/peak
+  // scaling and the crest-factor minimisation come after and keep the ratios.
+  std::vector<double> shape_f_hz, shape_amplitude;
   // Crest-factor minimisation (Van der Ouderaa et al. 1988), per input and
   // realisation: clip the period, keep the phases of its DFT on the excited bins,
   // restore the amplitudes (0 elsewhere), repeat `crest_iterations` times; the
@@ -106,7 +115,8 @@ struct ExcitationSpec {
   //   does not apply to the kind (zipper: multisine only; noise and non-periodic
   //   PRBS: single only), Schroeder phases with kSingle and n > 1 (every input the
   //   same signal), R > 1 for a PRBS, a PRBS period that is not d (2^m - 1), zipper
-  //   with fewer lines than inputs, N * n > kMaxValues.
+  //   with fewer lines than inputs, N * n > kMaxValues, an amplitude spectrum that
+  //   breaks its rules above or is given for a PRBS or noise.
   void validate() const;
 };
 
@@ -117,6 +127,10 @@ struct ExcitationSignal {
   Index block_samples = 0;  // (T + P) L, or N for a non-periodic signal
   // Excited DFT bins of one period per input (ascending; empty for non-periodic).
   std::vector<std::vector<Index>> excited_bins;
+  // Multisine: per input, the amplitude A_k of each excited bin (same order as
+  // excited_bins) in the final signal, in the input's units, before the coding
+  // weight; empty for a PRBS or noise.
+  std::vector<std::vector<double>> line_amplitudes;
   Eigen::MatrixXd coding;  // E x n (one-at-a-time: identity; hadamard: +-1), or 0 x 0
   // Per input, of the final signal: RMS over one active period (equal for every
   // realisation: Parseval), peak = max |u| over the whole signal, crest = peak / rms.
@@ -135,6 +149,13 @@ ExcitationSignal generate_excitation(const ExcitationSpec& spec);
 // The excited bins of the grid before any zipper split (see ExcitationSpec).
 // @throws InputError as validate() for the band and grid fields.
 std::vector<Index> multisine_grid(const ExcitationSpec& spec);
+
+// The relative amplitude a(f) of the spectrum (shape_f_hz, shape_amplitude) at each
+// of the frequencies (Hz), by the rule of ExcitationSpec::shape_*: log-log linear
+// inside, constant beyond the ends.  Empty points: 1 everywhere.  The points must
+// pass validate()'s rules (asserted: size, order and positivity).
+std::vector<double> amplitude_shape_at(const std::vector<double>& shape_f_hz, const std::vector<double>& shape_amplitude,
+                                       const std::vector<double>& f_hz);
 
 // Sylvester Hadamard matrix of order n_e = smallest power of two >= n, its first n
 // columns: n_e x n, entries +-1, H^T H = n_e I.  n >= 1.

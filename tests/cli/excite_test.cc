@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
+#include <fstream>
 #include <numbers>
 
 #include "formats/io/csv_log.h"
@@ -55,6 +57,87 @@ TEST(Excite, WritesAPeriodicMultisineWithItsDesignLine) {
     EXPECT_NEAR(rms, j == 1 ? 0.1 : 2.0, 1e-12 * rms);
     EXPECT_NEAR(d.rms[static_cast<std::size_t>(j - 1)], rms, 1e-12 * rms);
   }
+}
+
+// excite --amplitude FILE: the points (10 Hz, 1), (100 Hz, 0.01), (200 Hz, 0.04) are
+// a(f) = (f/10)^-2 on [10, 100], 0.01 (f/100)^2 on [100, 200] (straight lines in
+// log-log), 1 below 10 Hz and 0.04 above 200 Hz (constant beyond the ends): the
+// closed form below, not lpvid's interpolator, is the truth.
+double three_point_shape(double f) {
+  if (f <= 10) return 1.0;
+  if (f <= 100) return std::pow(f / 10, -2.0);
+  if (f <= 200) return 0.01 * std::pow(f / 100, 2.0);
+  return 0.04;
+}
+
+// The DFT of one period of the written v1, summed directly at every bin, has
+// amplitude c a(f_k) on the excited lines (c from the RMS asked for, by Parseval) and
+// nothing elsewhere; the design line records the same amplitudes.
+TEST(Excite, AmplitudeFileShapesTheLinesAndTheDesignRecordsThem) {
+  TempDir dir("excite_amp");
+  std::ofstream(dir / "amp.csv") << "# relative amplitude\nf_hz,amplitude\n10,1\n100,0.01\n200,0.04\n";
+  const auto r = run_lpvid("excite --rate-hz 1000 --period-samples 250 --periods 1 --transient-periods 1 "
+                           "--band-hz 4,300 --rms 0.5 --minimise-crest --crest-iterations 30 --amplitude " +
+                           (dir / "amp.csv") + " --out " + (dir / "ms.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("amplitude spectrum"));
+  const ExcitationFile f = read_excitation_file(dir / "ms.csv");
+  const std::vector<Index>& bins = f.design.excited_bins.at(0);
+  ASSERT_EQ(bins.size(), 75u);  // 4 Hz lines, 4..300 Hz
+  ASSERT_EQ(f.design.amplitudes.size(), 1u);
+  ASSERT_EQ(f.design.amplitudes[0].size(), bins.size());
+  double sum = 0;
+  for (Index k : bins) sum += 0.5 * std::pow(three_point_shape(4.0 * static_cast<double>(k)), 2);
+  const double c = 0.5 / std::sqrt(sum);
+  const Eigen::VectorXd period = f.log.data.col(1).segment(250, 250);  // after the transient period
+  // Samples written with 17 significant digits (1e-16 relative) and a 250-term DFT
+  // in double: ~1e-14 of the largest line of round-off; the smallest line is 1/100
+  // of the largest, so 1e-10 of each line bounds the round-off by ~1e4x, and a line
+  // with the wrong slope or a leaked line would be off by percent.
+  constexpr double kRelTolerance = 1e-10;
+  std::size_t i = 0;
+  for (Index k = 0; k <= 125; ++k) {
+    std::complex<double> x(0, 0);
+    for (Index t = 0; t < 250; ++t) x += period(t) * std::polar(1.0, -2 * std::numbers::pi * static_cast<double>((k * t) % 250) / 250.0);
+    const double amplitude = 2 * std::abs(x) / 250.0;
+    if (i < bins.size() && bins[i] == k) {
+      const double want = c * three_point_shape(4.0 * static_cast<double>(k));
+      EXPECT_NEAR(amplitude, want, kRelTolerance * want) << "bin " << k;
+      EXPECT_NEAR(f.design.amplitudes[0][i], want, kRelTolerance * want) << "bin " << k;
+      ++i;
+    } else {
+      EXPECT_LE(amplitude, kRelTolerance * c * 0.01) << "bin " << k;
+    }
+  }
+  EXPECT_EQ(i, bins.size());
+}
+
+TEST(Excite, BadAmplitudeFilesAreRefusedAtTheCellWithNothingWritten) {
+  TempDir dir("excite_ampbad");
+  auto refused = [&](const std::string& text, const std::string& where, const std::string& what,
+                     const std::string& extra = "") {
+    std::ofstream(dir / "amp.csv") << text;
+    const auto r = run_lpvid("excite --period-samples 250 --band-hz 4,300 --rms 0.5 --amplitude " + (dir / "amp.csv") +
+                             extra + " --out " + (dir / "ms.csv"));
+    EXPECT_EQ(r.exit_code, 2) << text;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_THAT(r.err, HasSubstr((dir / "amp.csv") + where)) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(what)) << r.err;
+    EXPECT_EQ(count_files(dir.path()), 1);  // amp.csv only
+  };
+  refused("f_hz,amplitude\n10,1\n20, -2\n", ":3:5:", "amplitude -2 is not positive");
+  refused("f_hz,amplitude\n10,1\n10,2\n", ":3:1:", "is not above the previous row's 10 Hz");
+  refused("f_hz,amplitude\n0,1\n10,2\n", ":2:1:", "frequency 0 Hz is not positive");
+  refused("f_hz,amplitude\n10,1\n", ":3:1:", "an amplitude spectrum needs at least 2 points");
+  refused("f_hz,amp\n10,1\n20,2\n", ":1:1:", "no column 'amplitude'");
+  refused("f_hz,amplitude\n10,1\n20,x\n", ":3:4:", "");
+  // --amplitude shapes multisine lines only.
+  std::ofstream(dir / "amp.csv") << "f_hz,amplitude\n10,1\n20,2\n";
+  const auto r = run_lpvid("excite --kind noise --duration-s 1 --rms 0.5 --amplitude " + (dir / "amp.csv") + " --out " +
+                           (dir / "n.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--amplitude does not apply to a noise (multisine only)"));
+  EXPECT_EQ(count_files(dir.path()), 1);
 }
 
 TEST(Excite, SameSeedGivesTheSameBytes) {

@@ -117,26 +117,36 @@ TEST(FitCli, ClosedLoopSensitivityTargetThroughTheController) {
 // model: C.csv holds the state-space controller's own response on those lines, written
 // with round-trip precision, so fit and compare must agree with the model route (the
 // existing, independently tested one: S data through C(e^{jωTs}) of the model).
-TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
-  TempDir dir("fit_cfrd");
-  const PhysicalModel truth = truth_model();
+// S data of the sampled loop (ZOH at 1 kHz, the discrete PI controllers) at the paper's
+// positions on the lines w, with the controller as C.json and as its FRD C.csv on w;
+// returns the --data arguments.
+std::string write_sampled_loop_s_data(const TempDir& dir, const PhysicalModel& truth, const Eigen::VectorXd& w) {
   FitOptions o;
   o.target = FitTarget::kInputSensitivity;
   o.sample_period_s = 1e-3;
   const StateSpace c = discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3);
   o.controller = c;
   write_state_space(dir / "C.json", c);
-  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 40);
   write_frd_csv(dir / "C.csv", frequency_response(c, w), "C");
-  Eigen::VectorXd shifted = w;
-  shifted(17) *= 1.0 + 1e-6;  // one line off by 1e-6 relative (> the 1e-9 allowed)
-  write_frd_csv(dir / "C_off.csv", frequency_response(c, shifted), "C");
   std::string data;
   for (double xb : kPaperBeamPositions_m) {
     const auto path = dir / fmt::format("S_{}.csv", xb);
     write_frd_csv(path, target_response(truth, xb, w, o), "S");
     data += fmt::format(" --data {}@{}", path, xb);
   }
+  return data;
+}
+
+TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
+  TempDir dir("fit_cfrd");
+  const PhysicalModel truth = truth_model();
+  const Eigen::VectorXd w = log_frequency_grid(2.0, 600.0, 40);
+  const std::string data = write_sampled_loop_s_data(dir, truth, w);
+  Eigen::VectorXd shifted = w;
+  shifted(17) *= 1.0 + 1e-6;  // one line off by 1e-6 relative (> the 1e-9 allowed)
+  write_frd_csv(dir / "C_off.csv",
+                frequency_response(discrete_pi_controller(default_pi_gains(platform_parameters(truth)), 1e-3), shifted),
+                "C");
   PhysicalModel start = truth;
   for (auto& p : start.parameters)
     if (p.free) p.value = std::clamp(1.2 * p.value, p.lower, p.upper);
@@ -207,6 +217,50 @@ TEST(FitCli, MeasuredControllerOnTheDataLinesGivesTheModelControllersFit) {
   EXPECT_EQ(off_compare.exit_code, 2);
   EXPECT_THAT(off_compare.err, HasSubstr("line 18"));
   EXPECT_FALSE(std::filesystem::exists(dir / "cmp.json"));
+}
+
+// A measured controller (FRD) carries no sample period.  Without --rate-hz the model's
+// continuous response stands in for a loop that ran sampled: one warning line on stderr
+// then, and none when the rate is known (the flag, or a discrete controller model).  The
+// truth behind the warning: S data of the sampled loop (ZOH at 1 kHz, the discrete PI
+// controllers) against the TRUE model give an error figure near 0 with --rate-hz 1000
+// and a clearly larger one without (the continuous response misses the ZOH's lag).
+TEST(FitCli, MeasuredControllerWithoutRateWarnsOnceOnStderr) {
+  TempDir dir("fit_cwarn");
+  const PhysicalModel truth = truth_model();
+  const std::string data = write_sampled_loop_s_data(dir, truth, log_frequency_grid(2.0, 2000.0, 30));
+  write_physical_model(dir / "truth.json", truth);
+  struct Run {
+    std::string err;
+    double error = -1.0;
+  };
+  auto compare = [&](const std::string& controller, const std::string& extra) {
+    const auto r = run_lpvid(fmt::format("compare --model {} {} --target S --controller {} --noise-level 0.01 "
+                                         "--json {}",
+                                         dir / "truth.json", data, dir / controller, extra));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return Run{r.err, r.exit_code == 0 ? nlohmann::json::parse(r.out).at("error").get<double>() : -1.0};
+  };
+  const std::string warning = "is a measured response with no sample rate and no --rate-hz was given";
+  const Run bare = compare("C.csv", "");
+  EXPECT_THAT(bare.err, HasSubstr(warning));
+  EXPECT_THAT(bare.err, HasSubstr("give --rate-hz with the controller's sample rate"));
+  EXPECT_EQ(std::count(bare.err.begin(), bare.err.end(), '\n'), 1) << bare.err;
+  const Run rated = compare("C.csv", "--rate-hz 1000");
+  EXPECT_EQ(rated.err, "");
+  const Run model = compare("C.json", "");  // the discrete model gives the rate
+  EXPECT_EQ(model.err, "");
+  // The truth with the right rate fits its own noise-free data (error figure ~ round-off);
+  // the continuous response does not: 10x is far below the measured ratio (see docs).
+  EXPECT_GT(bare.error, 10.0 * rated.error + 1e-6) << bare.error << " vs " << rated.error;
+  std::fprintf(stderr, "[warning] compare error: continuous %.3g, --rate-hz 1000 %.3g\n", bare.error, rated.error);
+  // fit warns the same way (one line, before its summary on stdout).
+  const auto f = run_lpvid(fmt::format("fit --model {} {} --target S --controller {} --no-global --max-iterations 1 "
+                                       "--out {}",
+                                       dir / "truth.json", data, dir / "C.csv", dir / "fitted.json"));
+  EXPECT_EQ(f.exit_code, 0) << f.err;
+  EXPECT_EQ(std::count(f.err.begin(), f.err.end(), '\n'), 1) << f.err;
+  EXPECT_THAT(f.err, HasSubstr(warning));
 }
 
 TEST(FitCli, MissingXbTagIsExit2WithOneLineAndNoOutput) {

@@ -1,6 +1,7 @@
 // Logs in .mat files through the program (issue 14): the same experiment saved as
 // CSV and as .mat (v5, compressed v5, v7.3) gives byte-identical outputs from frf
 // and identify; a bad .mat log is one line on stderr, exit 2, nothing written.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <matio.h>
 
@@ -9,6 +10,7 @@
 #include <memory>
 
 #include "formats/io/csv_log.h"
+#include "formats/io/excitation_design.h"
 #include "formats/io/mat_log.h"
 #include "tests/support/run_lpvid.h"
 
@@ -142,6 +144,63 @@ TEST_F(MatLogCli, BadMatLog_IsOneLineExit2AndNothingWritten) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_NE(r.err.find(p + ":data: column 3 ('" + log.names[2] + "') holds a NaN at row 1207;"), std::string::npos) << r.err;
   EXPECT_EQ(count_files(out.path()), 1);  // run.mat only
+}
+
+// A periodic experiment as a .mat log carries its design in the char variable
+// excitation_design (the JSON of the CSV log's '# lpvid-excitation:' line), and
+// frf --method periodic takes the layout from it without flags: the same FRD bytes as
+// from the CSV log (v5 and v7.3).  A malformed design variable is one line naming
+// file.mat:excitation_design and the column, exit 2, nothing written.
+TEST(MatLogDesign, PeriodicFrfFromAMatLogReadsItsDesignVariableAsTheCsvsLine) {
+  TempDir dir("matlogdesign");
+  RunResult r = run_lpvid("excite --kind multisine --rate-hz 1000 --period-samples 500 --periods 2 --transient-periods 1 "
+                          "--band-hz 2,100 --channels 3 --mimo one-at-a-time --rms 0.05,0.05,1 --out " + (dir / "ms.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("simulate platform --excitation " + (dir / "ms.csv") + " --positions middle --out " + (dir / "rig"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string csv = dir / "rig/middle_1000hz/exp_excitation.csv";
+  const Log log = read_log(csv);
+  const std::optional<ExcitationDesign> design = read_excitation_design(csv);
+  ASSERT_TRUE(design.has_value());
+  const std::string json = excitation_design_json(*design);
+  write_log_mat(dir / "v5.mat", log.names, log.data, false, {{kExcitationDesignVariable, json}});
+  write_log_mat(dir / "v73.mat", log.names, log.data, true, {{kExcitationDesignVariable, json}});
+  const std::string frf = "frf --method periodic --excitation v1,v2,v3 --input u1,u2,u3 --output q1,q2,q3 --out ";
+  for (const char* f : {"exp_excitation.csv", "v5.mat", "v73.mat"}) {
+    SCOPED_TRACE(f);
+    const std::string in = std::string(f) == "exp_excitation.csv" ? csv : dir / f;
+    r = run_lpvid(frf + (dir / (std::string("P_") + f + ".csv")) + " " + in);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const std::string from_csv = slurp(dir / "P_exp_excitation.csv.csv");
+  EXPECT_GT(from_csv.size(), 1000u);
+  EXPECT_EQ(slurp(dir / "P_v5.mat.csv"), from_csv);
+  EXPECT_EQ(slurp(dir / "P_v73.mat.csv"), from_csv);
+
+  // Without the variable the .mat log needs the flags, and says so.
+  write_log_mat(dir / "none.mat", log.names, log.data);
+  r = run_lpvid(frf + (dir / "P_none.csv") + " " + (dir / "none.mat"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("the variable excitation_design of a .mat log"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "P_none.csv"));
+
+  // A malformed design: a JSON syntax error, and a design key with a bad value.
+  const std::string cut = json.substr(0, json.size() / 2);
+  std::string chirp = json;
+  chirp.replace(chirp.find("\"multisine\""), 11, "\"chirp\"    ");
+  int case_no = 0;
+  for (const std::string& text : {cut, chirp}) {
+    SCOPED_TRACE(case_no);
+    const std::string bad = dir / fmt::format("bad{}.mat", case_no++);
+    write_log_mat(bad, log.names, log.data, false, {{kExcitationDesignVariable, text}});
+    const std::string out = bad + ".P.csv";
+    r = run_lpvid(frf + out + " " + bad);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(bad + ":excitation_design:1:"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  EXPECT_NE(r.err.find("kind"), std::string::npos) << r.err;
 }
 
 }  // namespace

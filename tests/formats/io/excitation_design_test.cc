@@ -67,6 +67,35 @@ TEST_F(ExcitationDesignTest, JsonRoundTripKeepsEveryFieldExactly) {
   EXPECT_EQ(d.total_samples(), 2 * 3 * 8);
 }
 
+// excite --amplitude records every line's amplitude; a design without the key (every
+// design before it) still reads, with none.
+TEST_F(ExcitationDesignTest, AmplitudesRoundTripAndAreOptional) {
+  EXPECT_TRUE(parse_excitation_design(excitation_design_json(sample_design()), "x.csv").amplitudes.empty());
+  ExcitationDesign d = sample_design();
+  d.amplitudes = {{0.25, 0.125, 0.1}, {1e-3, 2.5}};
+  const std::string json = excitation_design_json(d);
+  EXPECT_NE(json.find(",\"amplitudes\":[[0.25,0.125,0.1],[0.001,2.5]]}"), std::string::npos) << json;
+  EXPECT_EQ(parse_excitation_design(json, "x.csv").amplitudes, d.amplitudes);
+  auto refused = [&](const std::string& text, const std::string& what) {
+    try {
+      parse_excitation_design(text, "x.csv");
+      ADD_FAILURE() << text;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(what));
+      EXPECT_THAT(e.what(), HasSubstr("x.csv:1:"));
+    }
+  };
+  std::string short_list = json;
+  short_list.replace(short_list.find("[0.001,2.5]"), 11, "[0.001]");
+  refused(short_list, "amplitudes of v2: 1 values for 2 excited bins");
+  std::string negative = json;
+  negative.replace(negative.find("0.125"), 5, "-0.12");
+  refused(negative, "amplitudes of v1: -0.12 is not a positive number");
+  std::string text = json;
+  text.replace(text.find("2.5]"), 3, "\"x\"");
+  refused(text, "x.csv:1:" + std::to_string(text.find("\"amplitudes\"") + 1) + ": excitation design \"amplitudes\"");
+}
+
 TEST_F(ExcitationDesignTest, TheLineIsFoundInALogWrittenWithIt) {
   const ExcitationDesign d = sample_design();
   const Index N = d.total_samples();

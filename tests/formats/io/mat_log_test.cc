@@ -120,6 +120,24 @@ TEST_F(MatLog, LpvidsOwnWriter_AndAFileWithoutTheExtension_ReadAsMat) {
   expect_identical(read_log(path("renamed.log")), csv);
 }
 
+// write_log_mat refuses what write_log refuses, with the same words (one check,
+// detail::check_log_columns; the texts are pinned in csv_log_test.cc), and creates
+// nothing.
+TEST_F(MatLog, LpvidsOwnWriter_RefusesBadColumnsAsTheCsvWriterDoes) {
+  const std::string p = path("bad");
+  const Eigen::MatrixXd d = Eigen::MatrixXd::Zero(2, 2);
+  const std::vector<std::vector<std::string>> cases = {{"t", "a,b"}, {"time", "a"}, {"t"}, {"t", "t"}};
+  for (const auto& names : cases) {
+    const std::string csv = input_error([&] { write_log(p, names, d); });
+    EXPECT_NE(csv.find("cannot write '" + p + "': "), std::string::npos) << csv;
+    EXPECT_EQ(input_error([&] { write_log_mat(p, names, d); }), csv);
+    EXPECT_EQ(input_error([&] { write_log_mat(p, names, d, true); }), csv);
+    EXPECT_FALSE(std::filesystem::exists(p));
+  }
+  EXPECT_EQ(input_error([&] { write_log_mat(p, {"time", "a"}, d); }),
+            "cannot write '" + p + "': no column 't'; a log needs a time column 't' in seconds");
+}
+
 TEST_F(MatLog, OneVariablePerSignal_TakesEveryNumericVectorAndIgnoresScalarsAndText) {
   const Eigen::MatrixXd d = samples(40, 2);
   {

@@ -87,6 +87,79 @@ TEST(Multisine, MinimisedCrestFactorKeepsTheSpectrumExactlyAndLowersTheCrest) {
   EXPECT_NEAR(x.crest_factor(0), crest_factor(period), 1e-12);
 }
 
+// A shaped spectrum: points (10 Hz, 1) and (100 Hz, 0.01) are a(f) = (f / 10)^-2 between
+// them (a straight line of slope -2 in log-log), 1 below 10 Hz and 0.01 above 100 Hz
+// (constant beyond the ends).  The truth is that closed form, not the interpolator.
+double closed_form_shape(double f_hz) {
+  if (f_hz <= 10) return 1.0;
+  if (f_hz >= 100) return 0.01;
+  return std::pow(f_hz / 10.0, -2.0);
+}
+
+TEST(Multisine, AmplitudeShapeIsLogLogLinearInsideAndConstantBeyondTheEnds) {
+  const std::vector<double> f = {1, 10, 20, 31.6227766, 50, 99.9, 100, 1000};
+  const std::vector<double> a = amplitude_shape_at({10, 100}, {1, 0.01}, f);
+  // pow/log round-off: a few ulp.
+  for (std::size_t i = 0; i < f.size(); ++i) EXPECT_NEAR(a[i], closed_form_shape(f[i]), 1e-14) << f[i];
+  // No points: flat.
+  EXPECT_EQ(amplitude_shape_at({}, {}, f), std::vector<double>(f.size(), 1.0));
+}
+
+// The plain DFT of one period has amplitude c a(f_k) on every excited bin (c from the
+// RMS: sum_k (c a_k)^2 / 2 = rms^2, Parseval) and nothing elsewhere, with the crest
+// factor minimised (which must keep the shape), and line_amplitudes says the same.
+TEST(Multisine, ShapedSpectrumHasTheRequestedRelativeAmplitudesOnEveryLine) {
+  ExcitationSpec s = small_multisine();  // 4 Hz lines from 20 to 300 Hz
+  s.shape_f_hz = {10, 100};
+  s.shape_amplitude = {1, 0.01};
+  s.minimise_crest = true;
+  s.crest_iterations = 50;
+  const ExcitationSignal x = generate_excitation(s);
+  const std::vector<Index>& bins = x.excited_bins[0];
+  double sum = 0;
+  for (Index k : bins) sum += 0.5 * std::pow(closed_form_shape(4.0 * static_cast<double>(k)), 2);
+  const double c = 0.5 / std::sqrt(sum);
+  const std::set<Index> excited(bins.begin(), bins.end());
+  // As expect_designed_spectrum: ~1e-15 of the largest line of round-off in the FFT
+  // and the plain DFT; the smallest line is 1/25 of the largest (0.01 vs 0.25 at
+  // 20 Hz), so 1e-12 of each line still bounds the round-off by ~1000x.
+  constexpr double kRelTolerance = 1e-12;
+  ASSERT_EQ(x.line_amplitudes.size(), 1u);
+  ASSERT_EQ(x.line_amplitudes[0].size(), bins.size());
+  std::size_t i = 0;
+  for (Index k = 0; k <= 125; ++k) {
+    const double amplitude = 2 * std::abs(plain_dft(x.samples.col(0).data() + 250, 250, k)) / 250.0;
+    if (excited.count(k) != 0) {
+      const double want = c * closed_form_shape(4.0 * static_cast<double>(k));
+      EXPECT_NEAR(amplitude, want, kRelTolerance * want) << "bin " << k;
+      EXPECT_NEAR(x.line_amplitudes[0][i++], want, kRelTolerance * want) << "bin " << k;
+    } else {
+      EXPECT_LE(amplitude, kRelTolerance * c * 0.01) << "bin " << k;
+    }
+  }
+  EXPECT_LT(x.crest_factor(0), x.crest_factor_initial(0));
+}
+
+TEST(ExcitationSpec, AmplitudeSpectrumBreakingItsRulesIsRefused) {
+  auto refused = [](std::vector<double> f, std::vector<double> a, ExcitationKind kind, const char* text) {
+    ExcitationSpec s = small_multisine();
+    s.kind = kind;
+    if (kind == ExcitationKind::kNoise) s.period_samples = 0, s.samples = 100, s.transient_periods = 0, s.periods = 1;
+    s.shape_f_hz = std::move(f);
+    s.shape_amplitude = std::move(a);
+    try {
+      s.validate();
+      ADD_FAILURE() << text;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(text));
+    }
+  };
+  refused({10}, {1}, ExcitationKind::kMultisine, "give at least 2 points");
+  refused({10, 10}, {1, 2}, ExcitationKind::kMultisine, "point 2: frequency 10 Hz");
+  refused({10, 20}, {1, 0}, ExcitationKind::kMultisine, "point 2: amplitude 0");
+  refused({10, 20}, {1, 2}, ExcitationKind::kNoise, "a noise has no lines");
+}
+
 TEST(Multisine, LogGridStepsByTheRatioWithoutDuplicatesAndWithinTheBand) {
   ExcitationSpec s = small_multisine();
   s.period_samples = 10000;  // 0.1 Hz resolution
