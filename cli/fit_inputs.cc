@@ -84,9 +84,26 @@ std::string measured_controller_rate_warning(const std::string& controller_path)
                      controller_path);
 }
 
+std::string recorded_rate_warning(const std::string& path, double rate_hz, std::size_t more) {
+  return fmt::format("lpvid: warning: {} was estimated from a log sampled at {} Hz (its sample_rate_hz{}) and no "
+                     "--rate-hz was given, so the model's continuous response is fitted to data that map held (ZOH) "
+                     "command samples to output samples: it lacks the ZOH's half-sample delay, which shows up as a "
+                     "missing input_delay of about Ts/2 = {:.6g} s; give --rate-hz {} (or rate_hz in the manifest)",
+                     path, rate_hz,
+                     more > 0 ? fmt::format("; {} more file{} record{} a rate", more, more > 1 ? "s" : "",
+                                            more > 1 ? "" : "s")
+                              : std::string(),
+                     0.5 / rate_hz, rate_hz);
+}
+
 namespace {
 
 double pick(double flag, double manifest) { return std::isnan(flag) ? manifest : flag; }
+
+// The recorded rate and the fit's rate are one rate: as frf joins logs of one sample
+// period (cli/logs.cc), 1e-6 relative, which timestamps rounded to microseconds meet
+// on logs of a second or more; the ZOH phase a 1e-6 difference moves is < 2e-6 rad.
+constexpr double kSameRateTolerance = 1e-6;
 
 }  // namespace
 
@@ -208,10 +225,39 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                                              : d.label);
     in.data.push_back(std::move(d));
   }
-  // A measured controller carries no sample period: without one from elsewhere the
-  // continuous model stands in for a loop that may have run sampled.  Said once, after
-  // every input check (a bad input stays a one-line error).
-  if (options.measured_controller && options.target != FitTarget::kPlant && ts == 0.0)
+  // FRD data (and a measured controller) that lpvid frf estimated from a log record
+  // the log's rate: the response of held samples at that rate.  The fit's rate must be
+  // that one; without any, the continuous model misses the ZOH (said below).
+  struct Recorded {
+    std::string path;
+    double rate_hz;
+  };
+  std::vector<Recorded> recorded;
+  for (const auto& l : loaded)
+    if (l.frd && l.frd->sample_rate_hz > 0) recorded.push_back({l.path, l.frd->sample_rate_hz});
+  const bool controller_used = options.measured_controller && options.target != FitTarget::kPlant;
+  if (controller_used && options.measured_controller->sample_rate_hz > 0)
+    recorded.push_back({in.controller_path, options.measured_controller->sample_rate_hz});
+  if (ts > 0.0)
+    for (const Recorded& r : recorded)
+      if (std::abs(r.rate_hz * ts - 1.0) > kSameRateTolerance) {
+        const std::string source =
+            in.sample_period_source == "--rate-hz" ? fmt::format("--rate-hz {}", 1.0 / ts)
+            : in.sample_period_source == o.datasets ? fmt::format("{}: rate_hz {}", o.datasets, 1.0 / ts)
+            : fmt::format("{} (discrete, ts = {} s, {} Hz)", in.sample_period_source, ts, 1.0 / ts);
+        throw InputError(fmt::format(
+            "{} was estimated from a log sampled at {} Hz (its sample_rate_hz) but the fit's rate is {}; the ZOH "
+            "response is fitted at one rate, the rate of the log: give --rate-hz {} (or re-estimate the FRD from a "
+            "log at the loop's rate)",
+            r.path, r.rate_hz, source, r.rate_hz));
+      }
+  // Without a rate the continuous model stands in for data of a sampled loop.  Said
+  // once, after every input check (a bad input stays a one-line error): the recorded
+  // rate when some file has one, else the measured controller's missing rate.
+  if (ts == 0.0 && !recorded.empty())
+    std::fprintf(stderr, "%s\n",
+                 recorded_rate_warning(recorded.front().path, recorded.front().rate_hz, recorded.size() - 1).c_str());
+  else if (controller_used && ts == 0.0)
     std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
   return in;
 }

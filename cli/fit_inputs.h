@@ -9,6 +9,7 @@
 // flag on the command line wins over it.
 #pragma once
 
+#include <cstddef>
 #include <limits>
 #include <string>
 #include <vector>
@@ -68,8 +69,9 @@ struct FitInputs {
 // (whose outputs the caller has registered) and checks them all
 // (cli/output_set.h), then reads the model, controller and data.  The sample
 // period: --rate-hz (or the manifest's), else a discrete data model's, else the
-// controller's; none with a measured controller for G or S: the warning of
-// measured_controller_rate_warning on stderr, after every input check.
+// controller's; none while an FRD records its log's rate: the warning of
+// recorded_rate_warning, else none with a measured controller for G or S: the
+// warning of measured_controller_rate_warning, on stderr after every input check.
 // @throws InputError  as the readers, OutputSet::check and FitOptions::validate;
 //   --data and --datasets both or neither given.
 FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
@@ -78,5 +80,13 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs);
 // for G or S with no sample period from --rate-hz, the manifest or a discrete data
 // model: the continuous response is then fitted, wrong for a sampled loop.
 std::string measured_controller_rate_warning(const std::string& controller_path);
+
+// The one stderr line load_fit_inputs prints instead when no sample period was given
+// (--rate-hz, the manifest, a discrete data model or controller) but an FRD it read
+// records the rate of the log it was estimated from (lpvid frf's '# sample_rate_hz:'):
+// the first such file (path), its rate, and how many more files record one.  A
+// sample period given that differs from a recorded rate by more than 1e-6 relative is
+// an InputError naming the file and both rates.
+std::string recorded_rate_warning(const std::string& path, double rate_hz, std::size_t more);
 
 }  // namespace lpvid::cli

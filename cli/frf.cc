@@ -220,6 +220,7 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
   }
   frd.input_names = plant ? input : excitation;
   frd.output_names = output;
+  frd.sample_rate_hz = 1.0 / set.sample_period_s;  // '# sample_rate_hz:': the fit's --rate-hz
   write_frd_csv(outputs.stage(o.out), frd, o.quantity, comments);
   text += fmt::format("  written to {}\n", o.out);
   outputs.commit();
@@ -330,6 +331,7 @@ void run(const FrfCliOptions& o) {
   FrequencyResponse frd = plant ? estimate_plant_frf(set.views(), options) : estimate_frf(set.views(), options);
   frd.input_names = plant ? input : excitation;
   frd.output_names = output;
+  frd.sample_rate_hz = 1.0 / set.sample_period_s;  // '# sample_rate_hz:': the fit's --rate-hz
   Index flagged = 0;
   for (bool f : frd.flagged) flagged += f ? 1 : 0;
   write_frd_csv(outputs.stage(o.out), frd, o.quantity,

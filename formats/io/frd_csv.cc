@@ -155,6 +155,10 @@ class FrdCsvReader {
         parse_averages(comment, colon);
         continue;
       }
+      if (key == "sample_rate_hz") {
+        parse_sample_rate(comment, colon);
+        continue;
+      }
       AxisMeta* meta = key == "outputs" ? &outs_meta_ : key == "inputs" ? &ins_meta_ : nullptr;
       if (meta == nullptr) continue;
       const int64_t key_column = comment.column + static_cast<int64_t>(comment.text.find_first_not_of(" \t"));
@@ -214,6 +218,30 @@ class FrdCsvReader {
                                   "the coherence as a number >= 1, e.g. '# averages: 16'",
                                   value));
     averages_ = v;
+  }
+
+  // "# sample_rate_hz: X": the rate of the log the response was estimated from, > 0.
+  template <class Comment>
+  void parse_sample_rate(const Comment& comment, size_t colon) {
+    const int64_t key_column = comment.column + static_cast<int64_t>(comment.text.find_first_not_of(" \t"));
+    if (sample_rate_line_ > 0)
+      detail::fail_at(path_, comment.line, key_column,
+                      fmt::format("'sample_rate_hz' is given twice (also on line {}); give it once", sample_rate_line_));
+    sample_rate_line_ = comment.line;
+    const std::string_view raw = std::string_view(comment.text).substr(colon + 1);
+    const std::string value(trim(raw));
+    const int64_t value_column = comment.column + static_cast<int64_t>(colon + 1) +
+                                 static_cast<int64_t>(value.empty() ? 0 : raw.find_first_not_of(" \t"));
+    char* end = nullptr;
+    const double v = value.empty() ? NAN : std::strtod(value.c_str(), &end);
+    if (value.empty() || end != value.c_str() + value.size() || !std::isfinite(v) || !(v > 0) ||
+        v > frd_detail::kMaxSampleRateHz)
+      detail::fail_at(path_, comment.line, value_column,
+                      fmt::format("'sample_rate_hz: {}' is not a sample rate; give the rate in Hz of the log the "
+                                  "response was estimated from, a number > 0 (at most {:g}), e.g. "
+                                  "'# sample_rate_hz: 1000', or delete the line if it is not known",
+                                  value, frd_detail::kMaxSampleRateHz));
+    sample_rate_hz_ = v;
   }
 
   std::string metadata_hint() const {
@@ -546,6 +574,7 @@ class FrdCsvReader {
     if (any_distortion)
       frd.distortion_variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs_.size, ins_.size));
     frd.averages = averages_;
+    frd.sample_rate_hz = sample_rate_hz_;
     for (const auto& [i, j] : pairs) {
       const Slot& s = slots_[static_cast<size_t>(i * ins_.size + j)];
       for (Index k = 0; k < nf; ++k) {
@@ -610,6 +639,8 @@ class FrdCsvReader {
   Index flag_ = -1;
   double averages_ = 0;
   int64_t averages_line_ = 0;
+  double sample_rate_hz_ = 0;
+  int64_t sample_rate_line_ = 0;
   Axis outs_, ins_;
   std::vector<Slot> slots_;
 };
@@ -737,6 +768,10 @@ void check_frd_for_writing(const std::string& path, const FrequencyResponse& frd
   if (!(frd.averages == 0 || (frd.averages >= 1 && std::isfinite(frd.averages))))
     throw InputError(fmt::format("cannot write '{}': averages {} is not 0 (unknown) or a number >= 1", path,
                                  frd.averages));
+  if (!(frd.sample_rate_hz == 0 ||
+        (frd.sample_rate_hz > 0 && frd.sample_rate_hz <= kMaxSampleRateHz && std::isfinite(frd.sample_rate_hz))))
+    throw InputError(fmt::format("cannot write '{}': sample rate {} Hz is not 0 (not recorded) or a number in (0, {:g}]",
+                                 path, frd.sample_rate_hz, kMaxSampleRateHz));
   if (!frd.flagged.empty() && static_cast<Index>(frd.flagged.size()) != nf)
     throw InputError(fmt::format("cannot write '{}': {} flags for {} frequencies; give one per frequency or none", path,
                                  frd.flagged.size(), nf));
@@ -761,7 +796,7 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
       const std::string_view piece(comment.data() + start, (nl == std::string::npos ? comment.size() : nl) - start);
       const size_t colon = piece.find(':');
       const std::string_view key = colon == std::string_view::npos ? std::string_view() : trim(piece.substr(0, colon));
-      if (key == "outputs" || key == "inputs" || key == "averages")
+      if (key == "outputs" || key == "inputs" || key == "averages" || key == "sample_rate_hz")
         throw InputError(fmt::format("cannot write '{}': comment {} would be read as '# {}:' metadata; reword it", path,
                                      detail::quote_cell(piece), key));
       if (nl == std::string::npos) break;
@@ -829,6 +864,7 @@ void write_frd_csv(AtomicFileWriter& out, const FrequencyResponse& frd, const st
   std::string head;
   detail::append_comments(head, comments);
   if (frd.averages > 0) head += fmt::format("# averages: {}\n", frd.averages);
+  if (frd.sample_rate_hz > 0) head += fmt::format("# sample_rate_hz: {}\n", frd.sample_rate_hz);
   if (!frd.output_names.empty()) head += fmt::format("# outputs: {}\n", fmt::join(frd.output_names, ","));
   if (!frd.input_names.empty()) head += fmt::format("# inputs: {}\n", fmt::join(frd.input_names, ","));
   head += fmt::format("{}\n", fmt::join(names, ","));
@@ -906,6 +942,10 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
       throw InputError(fmt::format("{}: '{}' states {} averages but '{}' states {}; give files measured with the "
                                    "same number of averages (0 = not stated)",
                                    kFail, shown(first), first.frd.averages, shown(p), p.frd.averages));
+    if (p.frd.sample_rate_hz != first.frd.sample_rate_hz)
+      throw InputError(fmt::format("{}: '{}' was estimated from a log sampled at {} Hz but '{}' at {} Hz (0 = not "
+                                   "recorded); give files estimated from logs of one sample rate",
+                                   kFail, shown(first), first.frd.sample_rate_hz, shown(p), p.frd.sample_rate_hz));
   }
   // Axes: named in all parts (match by name) or indexed in all parts (by index).
   struct MergedAxis {
@@ -964,6 +1004,7 @@ FrequencyResponse merge_frd_parts(const std::vector<FrdPart>& parts, const FrdMe
   if (!first.frd.distortion_variance.empty())
     merged.distortion_variance.assign(static_cast<size_t>(nf), Eigen::MatrixXd::Zero(outs.size, ins.size));
   merged.averages = first.frd.averages;
+  merged.sample_rate_hz = first.frd.sample_rate_hz;
   std::vector<Index> owner(static_cast<size_t>(outs.size * ins.size), -1);
   for (size_t p = 0; p < parts.size(); ++p) {
     const FrdPart& part = parts[p];

@@ -19,6 +19,9 @@ inline constexpr double kTwoPi = 2.0 * std::numbers::pi;
 // that a wrong or hostile file cannot ask for gigabytes.
 inline constexpr Index kMaxChannels = 256;
 inline constexpr Index kMaxEntries = Index{1} << 26;
+// Largest sample rate a file may record (sample_rate_hz), Hz: far above any log
+// lpvid reads, low enough that 1 / rate is a normal double.
+inline constexpr double kMaxSampleRateHz = 1e12;
 
 // A quantity prefix: letters and digits, not "coh".
 bool quantity_allowed(std::string_view quantity);

@@ -151,6 +151,16 @@ class MatReader {
                          a.re.size(), a.re.size() == 1 ? fmt::format(" = {}", a.re[0]) : std::string()));
       frd.averages = a.re[0];
     }
+    if (has("sample_rate_hz")) {
+      const Array a = source_->load("sample_rate_hz", false);
+      if (a.re.size() != 1 || !std::isfinite(a.re[0]) || !(a.re[0] > 0) || a.re[0] > frd_detail::kMaxSampleRateHz)
+        fail(fmt::format("'sample_rate_hz' must be one number > 0 (the rate in Hz of the log the response was "
+                         "estimated from, at most {:g}): give one number, or delete the variable if the rate is "
+                         "not known; got {} value(s){}",
+                         frd_detail::kMaxSampleRateHz, a.re.size(),
+                         a.re.size() == 1 ? fmt::format(" = {}", a.re[0]) : std::string()));
+      frd.sample_rate_hz = a.re[0];
+    }
     if (has("flag")) {
       const Array g = source_->load("flag", false);
       if (g.re.size() != nf || std::count_if(g.dims.begin(), g.dims.end(), [](size_t d) { return d != 1; }) > 1)
@@ -324,6 +334,10 @@ void write_frd_mat(AtomicFileWriter& file, const FrequencyResponse& frd, const s
   if (frd.averages > 0) {
     std::vector<double> averages{frd.averages};
     out.add(real_array("averages", {1, 1}, averages));
+  }
+  if (frd.sample_rate_hz > 0) {
+    std::vector<double> rate{frd.sample_rate_hz};
+    out.add(real_array("sample_rate_hz", {1, 1}, rate));
   }
   if (!frd.flagged.empty()) {
     std::vector<double> flag(nf);

@@ -61,6 +61,9 @@ struct StateSpace {
 // has the layout of variance and holds the part of variance that the stochastic
 // nonlinear distortions explain (E|Ĝ_BLA − G_BLA|² above the measurement noise);
 // variance stays the TOTAL (noise + distortion) that fits and bands weight with.
+// sample_rate_hz is the rate of the log the response was estimated from (lpvid
+// frf): the response then maps held (ZOH) command samples to output samples;
+// 0 = not recorded (an analyzer's measurement, a model, an older file).
 struct FrequencyResponse {
   Eigen::VectorXd omega_rad_s;
   std::vector<Eigen::MatrixXcd> response;
@@ -68,6 +71,7 @@ struct FrequencyResponse {
   std::vector<Eigen::MatrixXd> variance;
   std::vector<Eigen::MatrixXd> distortion_variance;
   double averages = 0;
+  double sample_rate_hz = 0;
   std::vector<bool> flagged;
   std::vector<std::string> input_names;
   std::vector<std::string> output_names;
