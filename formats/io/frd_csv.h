@@ -39,6 +39,10 @@
 // underscore-free token when outputs are not listed) and a listed input (same).
 // Other comments are ignored.
 //
+// "# sample_rate_hz: X" (optional, at most once, X > 0): the rate of the log the
+// response was estimated from (lpvid frf writes it), FrequencyResponse::sample_rate_hz;
+// 0 when absent.  Written when sample_rate_hz > 0.
+//
 // Errors: InputError "path:line:column: what; what to do" (columns are byte
 // columns of the offending header or data cell).
 #pragma once
@@ -81,8 +85,9 @@ FrequencyResponse parse_frd_csv(const std::string& text, const std::string& path
 // nearest.  Throws InputError on inconsistent shapes, non-finite values,
 // coherence outside [0, 1], non-positive or non-increasing frequencies, names
 // that cannot be written (empty; ',', '"', blanks or line breaks; duplicates;
-// a column that would split two ways), a bad quantity, or a comment that would
-// read as metadata ("outputs: ..." / "inputs: ...").
+// a column that would split two ways), a bad quantity, a sample rate that is
+// not 0 or in (0, 1e12], or a comment that would read as metadata ("outputs: ...",
+// "inputs: ...", "averages: ...", "sample_rate_hz: ...").
 void write_frd_csv(const std::string& path, const FrequencyResponse& frd, const std::string& quantity,
                    const std::vector<std::string>& comments = {});
 // The same into a staged file (AtomicOutputSet::stage); the caller commits.

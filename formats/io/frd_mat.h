@@ -20,6 +20,9 @@
 //   var, dvar (optional) variance (total) and its nonlinear-distortion part, real,
 //                       the response's shape, >= 0, dvar <= var (dvar needs var).
 //   flag (optional)     nf entries, 0 or 1 (double or logical): 1 = untrusted.
+//   sample_rate_hz (optional) one number > 0: the rate of the log the response
+//                       was estimated from (FrequencyResponse::sample_rate_hz).
+//   averages (optional) one number >= 1 (FrequencyResponse::averages).
 //   outputs, inputs     (optional) cell arrays of ny / nu char names.
 // Numeric classes double, single and the integer classes are read (converted
 // to double).  Other variables are ignored.
@@ -43,7 +46,7 @@ enum class MatVersion { kV5, kV73 };
 
 // Writes freq_hz (nf x 1, chosen as write_frd_csv does so that omegas read back
 // identically), <quantity> (ny x nu x nf, complex), coh when frd.coherence is
-// not empty, flag (nf x 1 double) when frd.flagged is not empty, and
+// not empty, averages / sample_rate_hz when > 0, flag (nf x 1 double) when frd.flagged is not empty, and
 // outputs/inputs (cell arrays of char) for named axes; uncompressed.  Atomic:
 // a temporary ".<name>.tmp.<pid>.<n>" in the target's directory is renamed over
 // the target when complete.  Throws InputError on the rules of write_frd_csv,
