@@ -174,17 +174,14 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
     std::string model;
     std::vector<std::string> warnings;
     try {
+      LocalFrfResult r;
       if (o.method == "lpm") {
         LpmOptions lo;
         lo.order = o.lpm_order;
         lo.half_width = o.lpm_half_width;
         lo.stride = o.lpm_stride;
         lo.sample_period_s = set.sample_period_s;
-        LpmResult r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
-        frd = std::move(r.frd);
-        half_width = r.half_width;
-        dof = r.dof;
-        warnings = r.report.warnings;
+        r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
         model = fmt::format("local polynomial order {}", lo.order);
       } else {
         LrmOptions lo;
@@ -194,14 +191,14 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
         lo.half_width = o.lrm_half_width;
         lo.stride = o.lrm_stride;
         lo.sample_period_s = set.sample_period_s;
-        LrmResult r = estimate_lrm_frf(set.views(), plant ? m : 0, lo);
-        frd = std::move(r.frd);
-        half_width = r.half_width;
-        dof = r.dof;
-        warnings = r.report.warnings;
+        r = estimate_lrm_frf(set.views(), plant ? m : 0, lo);
         model = fmt::format("local rational degrees {}/{}, {} reweighting step(s)", lo.numerator_degree,
                             lo.denominator_degree, lo.sk_iterations);
       }
+      frd = std::move(r.frd);
+      half_width = r.half_width;
+      dof = r.dof;
+      warnings = r.report.warnings;
     } catch (const InputError& e) {  // name the file(s)
       throw InputError(fmt::format("{}: {}", where, e.what()));
     }

@@ -54,13 +54,17 @@ struct LpmOptions {
   void validate() const;
 };
 
-struct LpmResult {
+// The result of a local method (LPM here, LRM in lrm.h): the FRD with its noise
+// variance, the estimated bins, the window half-width n and the residual degrees of
+// freedom q per window.
+struct LocalFrfResult {
   FrequencyResponse frd;
   std::vector<Index> bins;
   Index half_width = 0;
   Index dof = 0;  // q
   Report report;
 };
+using LpmResult = LocalFrfResult;
 
 // | argument                   | shape |
 // |----------------------------|-------|

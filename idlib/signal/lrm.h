@@ -74,13 +74,7 @@ struct LrmOptions {
   void validate() const;
 };
 
-struct LrmResult {
-  FrequencyResponse frd;
-  std::vector<Index> bins;
-  Index half_width = 0;
-  Index dof = 0;  // q
-  Report report;
-};
+using LrmResult = LocalFrfResult;  // lpm.h
 
 // | argument                   | shape |
 // |----------------------------|-------|
