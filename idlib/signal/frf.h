@@ -110,7 +110,10 @@ struct FrfOptions {
   enum class Window { kHann, kRectangular } window = Window::kHann;
   // Ts of the logs, s.  Required finite and > 0.
   double sample_period_s = 0;
-  // Subtract each channel's mean over the whole record (per experiment) first.
+  // Subtract each channel's mean: over the whole record (per experiment) for the
+  // classification of the excitation, and each segment's own mean before its window
+  // (scipy's detrend='constant'; frf.cc, segment_mean, says why: line 1 of a Hann
+  // window holds the segment's mean).
   bool remove_mean = true;
   // Flag a frequency when the normalised S_uu has a (1-norm) condition number above
   // this.  Must be > 1.
@@ -158,7 +161,8 @@ namespace lpvid {
 // with S_ee = [I −P̂] S_zz [I −P̂]ᴴ from the full cross-spectral matrix of z = [y; u],
 // n_d the independent averages (estimate_frf's formula) and the last factor for the
 // m columns P̂ took from the same data; plus the same leakage-bias term as
-// estimate_frf (curvature of P̂ over neighbouring lines).  Coherence: the multiple
+// estimate_frf (the larger of the curvature of P̂ over neighbouring lines and the
+// Richardson estimate from a second pass with segments twice as long).  Coherence: the multiple
 // coherence of y_i with the excitations (every entry of row i).
 //
 // experiments[e].excitation is v (N × m); experiments[e].output holds y then u
