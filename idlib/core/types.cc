@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "idlib/core/error.h"
@@ -25,6 +26,27 @@ void StateSpace::validate() const {
     throw InputError(fmt::format("state-space model: {} input names for {} inputs", input_names.size(), m));
   if (!output_names.empty() && static_cast<Index>(output_names.size()) != p)
     throw InputError(fmt::format("state-space model: {} output names for {} outputs", output_names.size(), p));
+}
+
+std::vector<Eigen::MatrixXd> response_scales(const std::vector<Eigen::MatrixXcd>& h, double floor) {
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(h.size());
+  double largest = 0.0;
+  for (const Eigen::MatrixXcd& r : h) {
+    Eigen::MatrixXd s(r.rows(), r.cols());
+    const bool square = r.rows() == r.cols();
+    for (Index i = 0; i < r.rows(); ++i) {
+      const double row_max = r.row(i).cwiseAbs().maxCoeff();
+      for (Index j = 0; j < r.cols(); ++j) {
+        const double diagonal = square ? std::sqrt(std::abs(r(i, i)) * std::abs(r(j, j))) : row_max;
+        if (std::isfinite(diagonal)) largest = std::max(largest, diagonal);
+        s(i, j) = square ? std::max(diagonal, std::abs(r(i, j))) : row_max;
+      }
+    }
+    out.push_back(std::move(s));
+  }
+  for (Eigen::MatrixXd& s : out) s = s.cwiseMax(floor * largest);
+  return out;
 }
 
 }  // namespace lpvid

@@ -81,6 +81,22 @@ struct FrequencyResponse {
   Index num_inputs() const { return response.empty() ? 0 : response.front().cols(); }
 };
 
+// The size each entry's error is measured against (the error figure of idlib/fit,
+// the noise floor and the failing bands of idlib/validate/model_error; docs/math.md,
+// "Error figure"), at every frequency of one data set: for a square response
+//   s_ij = max(sqrt(|H_ii| |H_jj|), |H_ij|),
+// the diagonals' geometric mean, or the entry's own size where it is larger (a
+// strong coupling: the 6-DOF stage's tilt-through-gravity coupling g/(J s⁴) is 17x
+// the geometric mean at its lowest FRF line, and measured against the diagonals
+// alone its relative error there was 99.8 % of the whole figure); for a non-square
+// response the largest |H| of row i.  Each is floored at floor × the largest
+// diagonal scale (geometric mean, or row maximum) over all the set's frequencies, so
+// that no entry is measured against ~0: a diagonal's zero (the ZOH double
+// integrator's at the Nyquist frequency) would otherwise let one line own the figure.
+inline constexpr double kDefaultScaleFloor = 1e-6;
+std::vector<Eigen::MatrixXd> response_scales(const std::vector<Eigen::MatrixXcd>& h,
+                                             double floor = kDefaultScaleFloor);
+
 // Markov parameters g[0..L] of a discrete system, each (outputs x inputs).
 using MarkovSequence = std::vector<Eigen::MatrixXd>;
 

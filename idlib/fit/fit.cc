@@ -472,16 +472,6 @@ void check_controller(const FitOptions& o, const BaseInfo* base) {
                                  c_in, c_out, base->name, no, ni));
 }
 
-// s_ij for one frequency: sqrt(|H_ii||H_jj|) when square, else the row's largest |H|.
-RMat channel_scale(const Eigen::MatrixXcd& h) {
-  RMat s(h.rows(), h.cols());
-  const bool square = h.rows() == h.cols();
-  for (Index i = 0; i < h.rows(); ++i)
-    for (Index j = 0; j < h.cols(); ++j)
-      s(i, j) = square ? std::sqrt(std::abs(h(i, i)) * std::abs(h(j, j))) : h.row(i).cwiseAbs().maxCoeff();
-  return s;
-}
-
 // Per frequency: s_ij floored, σ per real part (header cases), the case's name.
 struct NoiseTable {
   std::vector<RMat> scale, sigma;
@@ -493,8 +483,7 @@ NoiseTable noise_table(const FrequencyResponse& f, const NoiseOptions& noise, do
                        const std::string& label) {
   NoiseTable t;
   const Index F = f.num_frequencies();
-  double largest = 0.0;
-  for (Index k = 0; k < F; ++k) largest = std::max(largest, channel_scale(f.response[static_cast<std::size_t>(k)]).maxCoeff());
+  const std::vector<Eigen::MatrixXd> scales = response_scales(f.response, scale_floor);
   const bool var = !f.variance.empty();
   const bool coh = !f.coherence.empty();
   const double n_d = f.averages > 0 ? f.averages : noise.averages;
@@ -518,9 +507,7 @@ NoiseTable noise_table(const FrequencyResponse& f, const NoiseOptions& noise, do
   for (Index k = 0; k < F; ++k) {
     const auto kk = static_cast<std::size_t>(k);
     const Eigen::MatrixXcd& h = f.response[kk];
-    RMat s = channel_scale(h);
-    for (Index i = 0; i < s.rows(); ++i)
-      for (Index j = 0; j < s.cols(); ++j) s(i, j) = std::max(s(i, j), scale_floor * largest);
+    const RMat s = scales[kk];
     RMat sg(h.rows(), h.cols());
     for (Index i = 0; i < h.rows(); ++i)
       for (Index j = 0; j < h.cols(); ++j) {

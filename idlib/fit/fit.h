@@ -13,9 +13,11 @@
 //   3. else a relative noise level given by the user: E|Ĥ − H|² = (level · s_ij)²;
 //   4. else unknown: σ = s_ij/√2 for the weights only (noise_known = false).
 // σ is never taken below sigma_floor · s_ij (round-off of exported numbers).
-// s_ij(ω) = sqrt(|Ĥ_ii(ω)| |Ĥ_jj(ω)|) (square responses; else the largest |Ĥ| of
-// row i), floored at scale_floor × its largest value over the data set: the scale
-// that makes channels of different units and sizes comparable.
+// s_ij(ω) = max(sqrt(|Ĥ_ii(ω)| |Ĥ_jj(ω)|), |Ĥ_ij(ω)|) for square responses (an entry
+// larger than its diagonals is measured against itself), else the largest |Ĥ| of row
+// i, floored at scale_floor × the largest diagonal scale over the data set
+// (response_scales, idlib/core/types.h): the scale that makes channels of different
+// units and sizes comparable.
 //
 // Error.  For data set d, used frequency ω_k and channel (i, j):
 //   r = (T_ij(θ; s_d, ω_k) − Ĥ_ij(ω_k)) / σ_ij(ω_k),
@@ -123,7 +125,7 @@ struct FitOptions {
 
   int max_iterations = 200;              // Ceres LM, >= 1
   double function_tolerance = 1e-12;     // Ceres: relative cost change to stop
-  double scale_floor = 1e-6;             // see s_ij above; in (0, 1)
+  double scale_floor = kDefaultScaleFloor;  // see s_ij above; in (0, 1)
   double correlation_flag = 0.95;        // in (0, 1]
   double singular_value_flag = 1e-3;     // in (0, 1)
 

@@ -67,6 +67,7 @@ ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eig
   r.model = model;
   r.k = confidence_radius(options.confidence);
   r.skipped.assign(F, false);
+  const std::vector<Eigen::MatrixXd> scales = response_scales(data.response);
   for (std::size_t f = 0; f < F; ++f) {
     if (data.response[f].rows() != p || data.response[f].cols() != m || model[f].rows() != p ||
         model[f].cols() != m || sigma[f].rows() != p || sigma[f].cols() != m)
@@ -78,13 +79,12 @@ ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eig
     Eigen::MatrixXcd e = data.response[f] - model[f];
     Eigen::MatrixXd s(p, m), sc(p, m), rad(p, m);
     BoolMatrix sig = BoolMatrix::Constant(p, m, false);
+    sc = scales[f];
     for (Index i = 0; i < p; ++i) {
-      const double row_max = data.response[f].row(i).cwiseAbs().maxCoeff();
       for (Index j = 0; j < m; ++j) {
         if (!r.skipped[f] && (!finite(data.response[f](i, j)) || !finite(model[f](i, j))))
           throw InputError(fmt::format("model error: non-finite response of output {}, input {} at {:.6g} rad/s",
                                        i + 1, j + 1, data.omega_rad_s(f)));
-        sc(i, j) = p == m ? std::sqrt(std::abs(data.response[f](i, i)) * std::abs(data.response[f](j, j))) : row_max;
         const double sg = sigma[f](i, j);
         if (!(sg > 0) && !(sg == 0 && options.resolution > 0))
           throw InputError(fmt::format("model error: noise level {} of output {}, input {} at {:.6g} rad/s; it must "

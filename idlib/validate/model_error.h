@@ -17,8 +17,9 @@
 // (k = 3.035 for 99 %).  A frequency of channel (i, j) is SIGNIFICANT when
 // |E_ij| > k σ_eff,ij, σ_eff = max(σ_c, resolution · s_ij): the model differs from
 // the measurement by more than its noise explains, and by more than lpvid resolves
-// (`resolution`, 0.01 % of the channel's scale s_ij = sqrt(|Ĥ_ii| |Ĥ_jj|), or the
-// row's largest |Ĥ| for non-square data: round-off of exported numbers, a
+// (`resolution`, 0.01 % of the channel's scale s_ij = max(sqrt(|Ĥ_ii| |Ĥ_jj|), |Ĥ_ij|),
+// or the row's largest |Ĥ| for non-square data, floored as the fit's (response_scales,
+// idlib/core/types.h): round-off of exported numbers, a
 // coherence of exactly 1 and the last digits of a fit would otherwise make every
 // difference on noise-free data significant; 0.01 % stays below the noise of real
 // analyzer data, ~0.05–0.2 %).  σ_c = ∞ (coherence 0) makes
