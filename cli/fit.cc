@@ -103,7 +103,27 @@ void run(const FitCliOptions& o) {
   const std::string& ts_source = in.sample_period_source;
   const PhysicalModel& start = in.start;
 
-  const FitResult r = fit_physical_model(start, data, options);
+  // Global start + Levenberg–Marquardt, then again from the estimate while that lowers
+  // the cost (at most kRestarts more rounds).  A model with an undamped resonance has a
+  // cost that ripples as the resonance moves between FRF lines, and one round can stop
+  // in a ripple: the independent stage's gap seed 104, refitted after `model add
+  // gap_dependence`, stopped at 6.39 % with gamma 224.1 for a true 306.3; a second
+  // round reached 4.03 % (floor 4.12 %) and 306.59.
+  constexpr int kRestarts = 2;
+  FitResult r = fit_physical_model(start, data, options);
+  int restarts = 0;
+  const double first_final = r.cost_final;
+  for (; restarts < kRestarts; ++restarts) {
+    FitResult again = fit_physical_model(r.model, data, options);
+    if (!(again.cost_final < r.cost_final * (1.0 - 1e-6))) break;
+    again.cost_start = r.cost_start;
+    again.cost_global = r.cost_global;
+    for (std::size_t k = 0; k < again.parameters.size() && k < r.parameters.size(); ++k)
+      again.parameters[k].start = r.parameters[k].start;
+    again.iterations += r.iterations;
+    again.seconds += r.seconds;
+    r = std::move(again);
+  }
 
   // The fit section of the model file.
   nlohmann::json params = nlohmann::json::object();
@@ -144,6 +164,7 @@ void run(const FitCliOptions& o) {
       {"cost_start", r.cost_start},
       {"cost_after_global_start", r.cost_global},
       {"cost_final", r.cost_final},
+      {"restarts", restarts},
       {"residuals", r.residual_count},
       {"sigma2", r.sigma2},
       {"aic", r.aic},
@@ -252,6 +273,9 @@ void run(const FitCliOptions& o) {
                                  r.residual_count);
   text += fmt::format("cost: start {:.4g}, after global start {:.4g}, final {:.4g}; AIC {:.1f}, BIC {:.1f}\n",
                       r.cost_start, r.cost_global, r.cost_final, r.aic, r.bic);
+  if (restarts > 0)
+    text += fmt::format("(the first round ended at cost {:.4g}; {} more round{} from the estimate lowered it)\n",
+                        first_final, restarts, restarts > 1 ? "s" : "");
   std::size_t name_width = 26;  // names of user-defined effects' parameters can be longer
   for (const auto& e : r.parameters) name_width = std::max(name_width, e.name.size());
   text += fmt::format("{:<{}} {:>12} {:>12} {:>11} {:>9}  {}\n", "parameter", name_width, "start", "estimate",
