@@ -114,7 +114,12 @@ void run(const FitCliOptions& o) {
   int restarts = 0;
   const double first_final = r.cost_final;
   for (; restarts < kRestarts; ++restarts) {
-    FitResult again = fit_physical_model(r.model, data, options);
+    FitResult again;
+    try {
+      again = fit_physical_model(r.model, data, options);
+    } catch (const NumericalError&) {
+      break;  // the round that ended at r stands
+    }
     if (!(again.cost_final < r.cost_final * (1.0 - 1e-6))) break;
     again.cost_start = r.cost_start;
     again.cost_global = r.cost_global;
