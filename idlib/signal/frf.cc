@@ -478,6 +478,13 @@ FrequencyResponse estimate_plant_frf(const std::vector<ExperimentView>& experime
         "estimate_plant_frf: {} output columns for {} excitation columns; give the plant's outputs y and then its "
         "{} inputs u (one per excitation)",
         q, m, m));
+  // Channel statistics and the finiteness check, once for both passes.
+  std::vector<std::vector<Channel>> channels(static_cast<size_t>(E));
+  for (Index e = 0; e < E; ++e) {
+    std::vector<Channel>& ch = channels[static_cast<size_t>(e)];
+    for (Index a = 0; a < m; ++a) ch.push_back(channel(experiments[e].excitation, a, options.remove_mean, e, "excitation"));
+    for (Index i = 0; i < q; ++i) ch.push_back(channel(experiments[e].output, i, options.remove_mean, e, "output"));
+  }
   // One Welch pass with segments of `nseg` samples: P̂, coherence, flags, averages
   // and the random part of the variance (no bias term).
   struct Pass {
@@ -497,9 +504,7 @@ FrequencyResponse estimate_plant_frf(const std::vector<ExperimentView>& experime
                    Szz = Eigen::MatrixXcd::Zero(bins, q * (q + 1) / 2);
   std::vector<Index> segments;
   for (Index e = 0; e < E; ++e) {
-    std::vector<Channel> ch;
-    for (Index a = 0; a < m; ++a) ch.push_back(channel(experiments[e].excitation, a, options.remove_mean, e, "excitation"));
-    for (Index i = 0; i < q; ++i) ch.push_back(channel(experiments[e].output, i, options.remove_mean, e, "output"));
+    const std::vector<Channel>& ch = channels[static_cast<size_t>(e)];
     const Index n = experiments[e].excitation.rows();
     segments.push_back((n - nseg) / step + 1);
     for (Index s0 = 0; s0 + nseg <= n; s0 += step) {
