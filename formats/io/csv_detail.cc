@@ -314,10 +314,6 @@ uint64_t scan_lines(Source& source, uint64_t begin, uint64_t end, std::vector<ch
   }
 }
 
-// Exact powers of ten 10^0 .. 10^22 (all representable as doubles).
-constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
-                             1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
-
 // Reads the digits at q (at most 8, not past e) as an integer m; returns how
 // many.  Reads 8 bytes at q: the read buffer has kPadBytes after its data.
 // SWAR digit test and conversion as in fast_float's parse_eight_digits_unrolled.

@@ -51,11 +51,13 @@ class MatLogReader {
   }
 
  private:
+  // The location names variables and fields as the file spells them: their bytes
+  // (a line break, a NUL) are escaped with the rest so the message stays one line.
   [[noreturn]] void fail(const std::string& where, const std::string& what) const {
-    throw InputError(fmt::format("{}:{}: {}", path_, where, detail::one_line_message(what)));
+    throw InputError(detail::one_line_message(fmt::format("{}:{}: {}", path_, where, what)));
   }
   [[noreturn]] void fail_file(const std::string& what) const {
-    throw InputError(fmt::format("{}: {}", path_, detail::one_line_message(what)));
+    throw InputError(detail::one_line_message(fmt::format("{}: {}", path_, what)));
   }
 
   bool has(const std::string& name) const {

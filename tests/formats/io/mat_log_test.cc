@@ -241,6 +241,23 @@ TEST_F(MatLog, BadInput_IsAnInputErrorNamingFileAndVariable) {
               0u)
         << e;
   }
+  {
+    // A variable name is bytes from the file: a line break in it (fuzz finding,
+    // log_mat) is escaped like the rest of the message, which stays one line.
+    Eigen::VectorXd t = d.col(0);
+    t(5) += 0.4e-3;
+    File f(path("nl.mat"));
+    const char* fields[] = {"t"};
+    size_t dims[2] = {1, 1};
+    matvar_t* s = Mat_VarCreateStruct("r\nu", 2, dims, fields, 1);
+    Mat_VarSetStructFieldByName(s, "t", 0, num(nullptr, {static_cast<size_t>(t.size()), 1}, t.data()));
+    f.add(s);
+  }
+  {
+    const std::string e = input_error([&] { read_log(path("nl.mat")); });
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+    EXPECT_EQ(e.rfind(path("nl.mat") + ":r\\x0Au.t: time step ", 0), 0u) << e;
+  }
   write_matrix(path("names.mat"), {"t", "v1", "v1", "q1"}, d, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
   EXPECT_EQ(input_error([&] { read_log(path("names.mat")); }),
             path("names.mat") + ":names{3}: channel name 'v1' appears twice (also at names{2}); give every channel its own name");
