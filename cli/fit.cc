@@ -104,31 +104,16 @@ void run(const FitCliOptions& o) {
   const PhysicalModel& start = in.start;
 
   // Global start + Levenberg–Marquardt, then again from the estimate while that lowers
-  // the cost (at most kRestarts more rounds).  A model with an undamped resonance has a
-  // cost that ripples as the resonance moves between FRF lines, and one round can stop
-  // in a ripple: the independent stage's gap seed 104, refitted after `model add
-  // gap_dependence`, stopped at 6.39 % with gamma 224.1 for a true 306.3; a second
-  // round reached 4.03 % (floor 4.12 %) and 306.59.
-  constexpr int kRestarts = 2;
-  FitResult r = fit_physical_model(start, data, options);
-  int restarts = 0;
-  const double first_final = r.cost_final;
-  for (; restarts < kRestarts; ++restarts) {
-    FitResult again;
-    try {
-      again = fit_physical_model(r.model, data, options);
-    } catch (const NumericalError&) {
-      break;  // the round that ended at r stands
-    }
-    if (!(again.cost_final < r.cost_final * (1.0 - 1e-6))) break;
-    again.cost_start = r.cost_start;
-    again.cost_global = r.cost_global;
-    for (std::size_t k = 0; k < again.parameters.size() && k < r.parameters.size(); ++k)
-      again.parameters[k].start = r.parameters[k].start;
-    again.iterations += r.iterations;
-    again.seconds += r.seconds;
-    r = std::move(again);
-  }
+  // the cost (at most 2 more rounds, FitOptions::restarts).  A model with an undamped
+  // resonance has a cost that ripples as the resonance moves between FRF lines, and
+  // one round can stop in a ripple: the independent stage's gap seed 104, refitted
+  // after `model add gap_dependence`, stopped at 6.39 % with gamma 224.1 for a true
+  // 306.3; a second round reached 4.03 % (floor 4.12 %) and 306.59.
+  FitOptions rounds = options;
+  rounds.restarts = 2;
+  const FitResult r = fit_physical_model(start, data, rounds);
+  const int restarts = r.restarts;
+  const double first_final = r.cost_first_round;
 
   // The fit section of the model file.
   nlohmann::json params = nlohmann::json::object();

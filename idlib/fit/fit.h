@@ -123,6 +123,12 @@ struct FitOptions {
   // diagnose searches an added effect's own parameters this way: the rest was fitted.
   std::vector<std::string> global_parameters;
 
+  // Rounds from the estimate (the estimate as the new start: global start + LM
+  // again), at most this many more, while each lowers the cost by more than a
+  // relative 1e-6; the first round that does not, or fails numerically, ends them.
+  // A cost that ripples (an undamped resonance moving between FRF lines) can stop
+  // one round in a ripple (docs/math.md, "Restarts").  >= 0; `lpvid fit` uses 2.
+  int restarts = 0;
   int max_iterations = 200;              // Ceres LM, >= 1
   double function_tolerance = 1e-12;     // Ceres: relative cost change to stop
   double scale_floor = kDefaultScaleFloor;  // see s_ij above; in (0, 1)
@@ -167,8 +173,10 @@ struct FitResult {
   Index residual_count = 0;                   // N (real residuals)
   Index frequencies_used = 0;                 // over all data sets
   double sigma2 = 0.0, aic = 0.0, bic = 0.0;
-  int iterations = 0;
-  double seconds = 0.0;
+  int iterations = 0;          // Levenberg–Marquardt's, summed over the rounds kept
+  int restarts = 0;            // rounds after the first that lowered the cost (FitOptions::restarts)
+  double cost_first_round = 0.0;  // cost_final of the first round (= cost_final without restarts)
+  double seconds = 0.0;        // the whole call, every round
   Report report;
 };
 

@@ -65,6 +65,21 @@ void expect_recovered(const FitResult& r, const PhysicalModel& truth, double tol
   }
 }
 
+// 1 % complex noise relative to each channel's scale sqrt(|P_ii||P_jj|), from kNoiseSeed.
+std::vector<FitDataset> with_noise(std::vector<FitDataset> data) {
+  std::mt19937 rng(kNoiseSeed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (auto& d : data)
+    for (auto& m : d.response.response) {
+      const Eigen::Matrix3cd clean = m;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          m(i, j) += 0.01 * std::sqrt(std::abs(clean(i, i)) * std::abs(clean(j, j))) *
+                     Complex(n01(rng), n01(rng)) / std::sqrt(2.0);
+    }
+  return data;
+}
+
 TEST(PhysicalFit, NoiseFreePlantFromTwoTimesOffStartRecoversWithinOnePercent) {
   const PhysicalModel truth = truth_model();
   const FitOptions o = plant_options();
@@ -79,18 +94,7 @@ TEST(PhysicalFit, NoiseFreePlantFromTwoTimesOffStartRecoversWithinOnePercent) {
 TEST(PhysicalFit, NoisyPlantEstimatesLieWithinThreeReportedSigma) {
   const PhysicalModel truth = truth_model();
   const FitOptions o = plant_options();
-  std::vector<FitDataset> data = data_of(truth, o);
-  std::mt19937 rng(kNoiseSeed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  // 1 % complex noise relative to each channel's scale sqrt(|P_ii||P_jj|).
-  for (auto& d : data)
-    for (auto& m : d.response.response) {
-      const Eigen::Matrix3cd clean = m;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          m(i, j) += 0.01 * std::sqrt(std::abs(clean(i, i)) * std::abs(clean(j, j))) *
-                     Complex(n01(rng), n01(rng)) / std::sqrt(2.0);
-    }
+  const std::vector<FitDataset> data = with_noise(data_of(truth, o));
   const FitResult r = fit_physical_model(two_times_off(truth), data, o);
   for (const auto& e : r.parameters) {
     EXPECT_GT(e.std_error, 0.0) << e.name;
@@ -231,6 +235,45 @@ TEST(PhysicalFit, ExtraStartAtAResonanceFindsAModeTheDefaultsMiss) {
   EXPECT_NEAR(r.model.parameter("mode_frequency_rad_s").value, 1500, 1e-3 * 1500);
   EXPECT_LT(r.error, 1e-6);
   o.extra_starts = {{{"no_such_parameter", 1.0}}};
+  EXPECT_THROW(fit_physical_model(start, data, o), InputError);
+}
+
+// FitOptions::restarts: a round that ends early (here LM capped at 3 iterations, no
+// global start, from 2x-off values) is continued from its estimate while the cost
+// falls; the first round is the fit without restarts; the starts stay the user's.
+TEST(PhysicalFit, RestartsContinueFromTheEstimateOnlyWhileTheCostFalls) {
+  const PhysicalModel truth = truth_model();
+  FitOptions o = plant_options();
+  // Noisy data: the minimum's cost is the noise's (~N·1e-4), so round-off cannot
+  // pass for a lower cost in the converged case below.
+  const std::vector<FitDataset> data = with_noise(data_of(truth, o));
+  const PhysicalModel start = two_times_off(truth);
+  o.global_start = false;
+  o.max_iterations = 3;
+  const FitResult one = fit_physical_model(start, data, o);
+  EXPECT_EQ(one.restarts, 0);
+  EXPECT_EQ(one.cost_first_round, one.cost_final);
+  o.restarts = 4;
+  const FitResult more = fit_physical_model(start, data, o);
+  EXPECT_EQ(more.cost_first_round, one.cost_final);  // the same deterministic first round
+  EXPECT_GE(more.restarts, 1);
+  EXPECT_LE(more.restarts, 4);
+  EXPECT_EQ(more.cost_start, one.cost_start);
+  EXPECT_GT(more.iterations, one.iterations);
+  ASSERT_EQ(more.parameters.size(), one.parameters.size());
+  for (std::size_t k = 0; k < more.parameters.size(); ++k)
+    EXPECT_EQ(more.parameters[k].start, start.parameter(more.parameters[k].name).value) << more.parameters[k].name;
+  // A converged fit is not moved: the round from its own estimate lowers nothing.
+  o.max_iterations = 200;
+  o.global_start = true;
+  const FitResult converged = fit_physical_model(start, data, o);
+  EXPECT_EQ(converged.restarts, 0);
+  // The capped first round stopped short of the minimum (measured: 0.4 % above it);
+  // the restarts reach it (to the LM tolerance, far below 1e-6 relative).
+  EXPECT_GT(one.cost_final, (1.0 + 1e-3) * converged.cost_final);
+  EXPECT_NEAR(more.cost_final, converged.cost_final, 1e-6 * converged.cost_final);
+  EXPECT_EQ(converged.cost_final, converged.cost_first_round);
+  o.restarts = -1;
   EXPECT_THROW(fit_physical_model(start, data, o), InputError);
 }
 
