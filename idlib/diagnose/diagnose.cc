@@ -277,10 +277,14 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model
     // the better one (seed 501: 4.0 % against 6.7 %).
     // With as many global starts as `fit` (the capped count missed the basin on the
     // independent stage's gap seed 102: 23.2 % where `fit` after `model add` reached
-    // 5.0 %).
+    // 5.0 %).  And with fit's restarts (FitOptions::restarts): the gap spring is
+    // undamped, its cost ripples in gamma, and one round can stop in a ripple (the
+    // stage walkthrough: 4.69 % at gamma 237.5 after one round, 3.21 % at 244.9 with
+    // the second, as `fit` after `model add` reaches; docs/math.md, "Restarts").
     FitOptions all = fo;
     all.global_parameters.clear();
     all.global_starts = ctx.refit.global_starts;
+    all.restarts = 2;
     try {
       FitResult again = fit_physical_model(start, ctx.data, all);
       if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
