@@ -65,7 +65,7 @@ for effect in $effects; do
       refit=$(python3 -c "
 import json
 h = [json.loads(l) for l in open('fit2.json.history.jsonl')]
-print(h[-1]['error_mean'])" 2>/dev/null || echo "-")
+print(h[-1]['error'])" 2>/dev/null || echo "-")
     fi
     "$lpvid" stage6 diagnose --log exp_stage6.csv --json > stage6_diagnose.json 2> stage6_diagnose.err || true
     end=$(date +%s.%N)
