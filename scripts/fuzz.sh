@@ -20,8 +20,15 @@ all=(log_csv log_mat frd_csv frd_mat state_space_json physical_model_json histor
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
 
-CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DLPVID_SANITIZE=ON \
-  -DLPVID_BUILD_FUZZ=ON -DLPVID_BUILD_TESTS=OFF -DLPVID_BUILD_BENCH=OFF >/dev/null
+# A tree already configured for the harnesses (LPVID_FUZZ_BUILD_DIR, e.g. CI's
+# sanitizer tree, which also builds the tests) is used as it is; otherwise a tree of
+# the harnesses alone is configured.
+if ! grep -qs "^LPVID_BUILD_FUZZ:BOOL=ON" "$build/CMakeCache.txt"; then
+  gen=()
+  if [ ! -f "$build/CMakeCache.txt" ] && command -v ninja >/dev/null; then gen=(-G Ninja); fi
+  CC=clang CXX=clang++ cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DLPVID_SANITIZE=ON \
+    -DLPVID_BUILD_FUZZ=ON -DLPVID_BUILD_TESTS=OFF -DLPVID_BUILD_BENCH=OFF -DLPVID_BUILD_SIMULATORS=OFF >/dev/null
+fi
 cmake --build "$build" -j"$(nproc)" --target "${harnesses[@]/#/fuzz_}"
 
 out="${LPVID_FUZZ_DIR:-$build/findings}"

@@ -6,7 +6,11 @@
 # (samples/stage6/).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-bash "$root/scripts/build.sh"
+# Builds only what the samples run: the program and the independent simulator that
+# the model-error loop uses as its rig (no tests, no benchmarks: scripts/run-tests.sh
+# builds those into the same tree).
+LPVID_DEPS="" LPVID_BUILD_TARGETS="lpvid indep_sim" bash "$root/scripts/build.sh" \
+  -DLPVID_BUILD_TESTS=OFF -DLPVID_BUILD_BENCH=OFF -DLPVID_BUILD_SIMULATORS=ON
 make -C "$root/samples" -j"$(nproc)" all
 echo "results: $root/samples/out/ (one folder per dataset; summary in samples/out/summary.txt)"
 # The model-error loop on analyzer data with a hidden 1 ms delay (docs/model-error-walkthrough.md).

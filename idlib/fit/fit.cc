@@ -83,15 +83,37 @@ class Engine {
   }
 
  private:
-  template <int N>
-  bool evaluate_impl(const Prepared& d, std::vector<CMat>& T, std::vector<std::vector<CMat>>* dT) const {
-    const Index p = N == 0 ? 0 : num_free();
-    const double ts = options_.sample_period_s;
+  // The model's matrices at the current parameters and, for N > 0, their
+  // derivatives by forward-mode Jets of N lanes (N ≥ the free parameters).  Only
+  // this part depends on N: the response at every frequency (respond) is compiled
+  // once, not once per Jet size.
+  struct Built {
     Eigen::MatrixXd A, Bn, Bo, C, D;
     std::vector<Eigen::MatrixXd> dA, dBn, dBo, dC, dD;
     std::vector<Index> shift;
     std::vector<bool> frac;
     std::vector<double> tau;
+  };
+
+  template <int N>
+  bool evaluate_impl(const Prepared& d, std::vector<CMat>& T, std::vector<std::vector<CMat>>* dT) const {
+    Built b;
+    if (!build<N>(d, b)) return false;
+    return respond(d, N == 0 ? 0 : num_free(), b, T, dT);
+  }
+
+  template <int N>
+  bool build(const Prepared& d, Built& b) const {
+    const Index p = N == 0 ? 0 : num_free();
+    const double ts = options_.sample_period_s;
+    Eigen::MatrixXd& A = b.A; Eigen::MatrixXd& Bn = b.Bn; Eigen::MatrixXd& Bo = b.Bo;
+    Eigen::MatrixXd& C = b.C; Eigen::MatrixXd& D = b.D;
+    std::vector<Eigen::MatrixXd>& dA = b.dA; std::vector<Eigen::MatrixXd>& dBn = b.dBn;
+    std::vector<Eigen::MatrixXd>& dBo = b.dBo; std::vector<Eigen::MatrixXd>& dC = b.dC;
+    std::vector<Eigen::MatrixXd>& dD = b.dD;
+    std::vector<Index>& shift = b.shift;
+    std::vector<bool>& frac = b.frac;
+    std::vector<double>& tau = b.tau;
     if constexpr (N == 0) {
       Eigen::MatrixXd B;
       if (!build_continuous<double>(layout_, full_.data(), d.sched, A, B, C, D)) return false;
@@ -141,6 +163,22 @@ class Engine {
       split(Cj, C, dC);
       split(Dj, D, dD);
     }
+    return true;
+  }
+
+  // T (and dT) at the prepared frequencies from the built matrices; p: the number
+  // of parameters whose derivatives b holds (0: none).
+  bool respond(const Prepared& d, const Index p, const Built& b, std::vector<CMat>& T,
+               std::vector<std::vector<CMat>>* dT) const {
+    const double ts = options_.sample_period_s;
+    const Eigen::MatrixXd& A = b.A; const Eigen::MatrixXd& Bn = b.Bn; const Eigen::MatrixXd& Bo = b.Bo;
+    const Eigen::MatrixXd& C = b.C; const Eigen::MatrixXd& D = b.D;
+    const std::vector<Eigen::MatrixXd>& dA = b.dA; const std::vector<Eigen::MatrixXd>& dBn = b.dBn;
+    const std::vector<Eigen::MatrixXd>& dBo = b.dBo; const std::vector<Eigen::MatrixXd>& dC = b.dC;
+    const std::vector<Eigen::MatrixXd>& dD = b.dD;
+    const std::vector<Index>& shift = b.shift;
+    const std::vector<bool>& frac = b.frac;
+    const std::vector<double>& tau = b.tau;
     if (!A.allFinite() || !Bn.allFinite() || !Bo.allFinite() || !C.allFinite()) return false;
     const Index n = A.rows(), ni = Bn.cols(), no = C.rows();
     const bool any_old = ts > 0.0 && Bo.cwiseAbs().maxCoeff() > 0.0;
