@@ -74,19 +74,29 @@ class Engine {
   // evaluated (mass matrix not positive definite, non-finite response).
   bool evaluate(const Prepared& d, std::vector<CMat>& T, std::vector<std::vector<CMat>>* dT) const {
     const Index p = num_free();
-    if (dT == nullptr || p == 0) return evaluate_impl<0>(d, T, dT);
-    if (p <= 8) return evaluate_impl<8>(d, T, dT);
-    if (p <= 16) return evaluate_impl<16>(d, T, dT);
-    if (p <= 24) return evaluate_impl<24>(d, T, dT);
-    if (p <= 32) return evaluate_impl<32>(d, T, dT);
-    return evaluate_impl<48>(d, T, dT);
+    Built b;
+    if (dT == nullptr || p == 0) {
+      if (!build<0>(d, b, 0)) return false;
+      return respond(d, 0, b, T, nullptr);
+    }
+    // Forward-mode derivatives kLanes parameters at a time (as Ceres'
+    // DynamicAutoDiffCostFunction strides): each lane's arithmetic is the same
+    // whatever the Jet's width, so the derivatives equal those of one Jet as wide as
+    // the parameters, and the file instantiates the model's Jet code once instead
+    // of once per width (it was six widths: 0, 8, 16, 24, 32, 48 — most of this
+    // file's compile time, .ci/run's budget).
+    for (Index q0 = 0; q0 < p; q0 += kLanes)
+      if (!build<kLanes>(d, b, q0)) return false;
+    return respond(d, p, b, T, dT);
   }
 
  private:
-  // The model's matrices at the current parameters and, for N > 0, their
-  // derivatives by forward-mode Jets of N lanes (N ≥ the free parameters).  Only
-  // this part depends on N: the response at every frequency (respond) is compiled
-  // once, not once per Jet size.
+  static constexpr int kLanes = 8;
+
+  // The model's matrices at the current parameters and, for N > 0, the derivatives
+  // by the free parameters q0 .. q0 + N - 1 (forward-mode Jets of N lanes); b's
+  // values and the derivative arrays are set by the call with q0 = 0.  Only this
+  // part depends on N: the response at every frequency (respond) does not.
   struct Built {
     Eigen::MatrixXd A, Bn, Bo, C, D;
     std::vector<Eigen::MatrixXd> dA, dBn, dBo, dC, dD;
@@ -96,21 +106,12 @@ class Engine {
   };
 
   template <int N>
-  bool evaluate_impl(const Prepared& d, std::vector<CMat>& T, std::vector<std::vector<CMat>>* dT) const {
-    Built b;
-    if (!build<N>(d, b)) return false;
-    return respond(d, N == 0 ? 0 : num_free(), b, T, dT);
-  }
-
-  template <int N>
-  bool build(const Prepared& d, Built& b) const {
+  bool build(const Prepared& d, Built& b, const Index q0) const {
     const Index p = N == 0 ? 0 : num_free();
+    const Index lanes = N == 0 ? 0 : std::min<Index>(N, p - q0);
     const double ts = options_.sample_period_s;
     Eigen::MatrixXd& A = b.A; Eigen::MatrixXd& Bn = b.Bn; Eigen::MatrixXd& Bo = b.Bo;
     Eigen::MatrixXd& C = b.C; Eigen::MatrixXd& D = b.D;
-    std::vector<Eigen::MatrixXd>& dA = b.dA; std::vector<Eigen::MatrixXd>& dBn = b.dBn;
-    std::vector<Eigen::MatrixXd>& dBo = b.dBo; std::vector<Eigen::MatrixXd>& dC = b.dC;
-    std::vector<Eigen::MatrixXd>& dD = b.dD;
     std::vector<Index>& shift = b.shift;
     std::vector<bool>& frac = b.frac;
     std::vector<double>& tau = b.tau;
@@ -133,10 +134,11 @@ class Engine {
       using J = ceres::Jet<double, N>;
       std::vector<J> x(static_cast<std::size_t>(full_.size()));
       for (Index i = 0; i < full_.size(); ++i) x[static_cast<std::size_t>(i)] = J(full_(i));
-      for (Index q = 0; q < p; ++q) x[static_cast<std::size_t>(free_[static_cast<std::size_t>(q)])].v[q] = 1.0;
+      for (Index l = 0; l < lanes; ++l) x[static_cast<std::size_t>(free_[static_cast<std::size_t>(q0 + l)])].v[l] = 1.0;
       MatrixT<J> Aj, Bj, Cj, Dj, Boj;
       if (!build_continuous<J>(layout_, x.data(), d.sched, Aj, Bj, Cj, Dj)) return false;
       const std::vector<J> tj = input_delays<J>(layout_, x.data());
+      tau.clear();
       for (const J& t : tj) tau.push_back(t.a);
       if (ts > 0.0) {
         SampledModel<J> sm = sample_model<J>(Aj, Bj, Cj, Dj, tj, ts);
@@ -148,20 +150,20 @@ class Engine {
       } else {
         Boj = MatrixT<J>::Constant(Aj.rows(), Bj.cols(), J(0.0));
       }
-      auto split = [p](const MatrixT<J>& m, Eigen::MatrixXd& v, std::vector<Eigen::MatrixXd>& dv) {
+      auto split = [p, q0, lanes](const MatrixT<J>& m, Eigen::MatrixXd& v, std::vector<Eigen::MatrixXd>& dv) {
         v.resize(m.rows(), m.cols());
-        dv.assign(static_cast<std::size_t>(p), Eigen::MatrixXd(m.rows(), m.cols()));
+        if (q0 == 0) dv.assign(static_cast<std::size_t>(p), Eigen::MatrixXd(m.rows(), m.cols()));
         for (Index i = 0; i < m.rows(); ++i)
           for (Index j = 0; j < m.cols(); ++j) {
             v(i, j) = m(i, j).a;
-            for (Index q = 0; q < p; ++q) dv[static_cast<std::size_t>(q)](i, j) = m(i, j).v[q];
+            for (Index l = 0; l < lanes; ++l) dv[static_cast<std::size_t>(q0 + l)](i, j) = m(i, j).v[l];
           }
       };
-      split(Aj, A, dA);
-      split(Bj, Bn, dBn);
-      split(Boj, Bo, dBo);
-      split(Cj, C, dC);
-      split(Dj, D, dD);
+      split(Aj, A, b.dA);
+      split(Bj, Bn, b.dBn);
+      split(Boj, Bo, b.dBo);
+      split(Cj, C, b.dC);
+      split(Dj, D, b.dD);
     }
     return true;
   }
