@@ -28,24 +28,13 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using lpvid::testing::RunResult;
 using lpvid::testing::run_lpvid;
+using lpvid::testing::run_shell;
 using lpvid::testing::slurp;
 using lpvid::testing::TempDir;
 
 constexpr const char* kSnakemake = "/usr/bin/snakemake";
 
 std::string source(const std::string& path) { return std::string(LPVID_SOURCE_DIR) + "/" + path; }
-
-// Runs `sh -c CMD` in `cwd`, capturing exit code, stdout and stderr.
-RunResult run_shell(const std::string& cmd, const std::string& cwd) {
-  TempDir tmp("shell");
-  const std::string line = "cd '" + cwd + "' && " + cmd + " > " + (tmp / "out") + " 2> " + (tmp / "err");
-  const int status = std::system(line.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = slurp(tmp / "out");
-  r.err = slurp(tmp / "err");
-  return r;
-}
 
 // snakemake on samples/Snakefile in `dir` (its data/ and out/), with lpvid the test's build
 // (and no profile a user may have set in the environment).

@@ -43,19 +43,24 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-// Runs `lpvid ARGS` through the shell (args are passed verbatim: quote them),
-// in the directory `cwd` when given.
-inline RunResult run_lpvid(const std::string& args, const std::string& stdin_file = "", const std::string& cwd = "") {
+// Runs `sh -c CMD` in the directory `cwd` when given, capturing exit code, stdout
+// and stderr.
+inline RunResult run_shell(const std::string& cmd, const std::string& cwd = "") {
   TempDir tmp("run");
-  const std::string cmd = (cwd.empty() ? std::string() : "cd '" + cwd + "' && ") + std::string(LPVID_BINARY) + " " +
-                          args + (stdin_file.empty() ? "" : " < " + stdin_file) + " > " + (tmp / "out") + " 2> " +
-                          (tmp / "err");
-  const int status = std::system(cmd.c_str());
+  const std::string line = (cwd.empty() ? std::string() : "cd '" + cwd + "' && ") + cmd + " > " + (tmp / "out") +
+                           " 2> " + (tmp / "err");
+  const int status = std::system(line.c_str());
   RunResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   r.out = slurp(tmp / "out");
   r.err = slurp(tmp / "err");
   return r;
+}
+
+// Runs `lpvid ARGS` through the shell (args are passed verbatim: quote them),
+// in the directory `cwd` when given.
+inline RunResult run_lpvid(const std::string& args, const std::string& stdin_file = "", const std::string& cwd = "") {
+  return run_shell(std::string(LPVID_BINARY) + " " + args + (stdin_file.empty() ? "" : " < " + stdin_file), cwd);
 }
 
 inline int count_files(const std::filesystem::path& dir) {
