@@ -20,7 +20,6 @@
 namespace lpvid {
 
 namespace {
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Runs f(i) for i in [0, n) on the machine's cores (each call single-threaded;
 // results do not depend on the thread count).  The first exception that is not a
