@@ -1,6 +1,7 @@
 // Realization: partial SVD of a large block Hankel matrix against a full SVD,
 // and the whole ERA on a 3x3 sequence of 2000 lags.
 #include <benchmark/benchmark.h>
+#include "idlib/core/eigen_decompositions.h"
 
 #include <Eigen/SVD>
 #include <cmath>

@@ -1,4 +1,5 @@
 #include "idlib/closedloop/interpolation.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>

@@ -1,4 +1,5 @@
 #include "idlib/closedloop/plant_markov.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

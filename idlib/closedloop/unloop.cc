@@ -1,4 +1,5 @@
 #include "idlib/closedloop/unloop.h"
+#include "idlib/core/eigen_decompositions.h"
 #include "idlib/closedloop/interpolation.h"
 
 #include <fmt/format.h>

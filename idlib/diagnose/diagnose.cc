@@ -1,4 +1,5 @@
 #include "idlib/diagnose/diagnose.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,5 @@
 #include "idlib/fit/fit.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <ceres/ceres.h>
 #include <ceres/jet.h>

@@ -1,4 +1,5 @@
 #include "idlib/identify/identify.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

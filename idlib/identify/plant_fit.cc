@@ -1,4 +1,5 @@
 #include "idlib/identify/plant_fit.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,5 @@
 #include "idlib/identify/response_tail.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,5 @@
 #include "idlib/realization/era.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,5 @@
 #include "idlib/signal/markov.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>

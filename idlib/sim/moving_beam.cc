@@ -1,4 +1,5 @@
 #include "idlib/sim/moving_beam.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,5 @@
 #include "idlib/validate/compare.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <Eigen/SVD>
 #include <fmt/format.h>

@@ -1,4 +1,5 @@
 #include "idlib/validate/frequency_error.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
 

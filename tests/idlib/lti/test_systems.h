@@ -1,6 +1,8 @@
 // Seeded random state-space models for the lti tests.
 #pragma once
 
+#include "idlib/core/eigen_decompositions.h"
+
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <cstdint>

@@ -1,4 +1,5 @@
 #include "idlib/models/platform.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <gtest/gtest.h>
 

@@ -2,6 +2,7 @@
 // (a plain O(L^2) DFT, Parseval, the m-sequence autocorrelation, H^T H), never
 // against the generator's FFT.
 #include "idlib/signal/excitation.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

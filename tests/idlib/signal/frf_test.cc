@@ -1,4 +1,5 @@
 #include "idlib/signal/frf.h"
+#include "idlib/core/eigen_decompositions.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
