@@ -4,9 +4,9 @@
 // criterion: that is the acceptance and keeps its full statistical power.  The
 // sanitizer build (CMake LPVID_FULL_STATISTICS, OFF by default when LPVID_SANITIZE
 // is ON) runs every such test on a documented subset of its seeds: it checks memory
-// and undefined behaviour on the same code paths, with fewer repeats, so that CI
-// (.ci/run: Release, ASan + UBSan and fuzzing on 2 cores in 90 minutes) can run the
-// whole suite under the sanitizers.  A subset run is no statistical evidence; its
+// and undefined behaviour on the same code paths, with fewer repeats, so that the
+// whole suite under the sanitizers stays affordable (LPVID_CI_SANITIZE_ALL=1 .ci/run;
+// CI itself runs only the readers' tests there: docs/dev/CI.md).  A subset run is no statistical evidence; its
 // pass criterion is the full one scaled to the subset, never looser (below).
 #pragma once
 
