@@ -6,9 +6,10 @@
 // them instantiates and compiles anew.  Measured with gcc 12 -O0 (front end only, user
 // CPU, a one-function file): BDCSVD<MatrixXd> 48.5 s, JacobiSVD<MatrixXd> 12.7 s,
 // EigenSolver<MatrixXd> 20.9 s, against 2.3 s for the headers alone; with these
-// declarations a file using BDCSVD or JacobiSVD compiles in 3.1 s at -O2 (docs/dev/CI.md).
-// Include this after Eigen's headers and before the first use, in every file that
-// uses one of them (a file that does not still compiles and links; it only pays again).
+// declarations that one-function file using BDCSVD or JacobiSVD compiles in 3.1 s at
+// -O2 (docs/dev/CI.md).  Include this before the first use (it includes Eigen/Dense), in
+// every file that uses one of them (a file that does not still compiles and links; it
+// only pays again).
 //
 // Covered: the class templates below whole, and compute() of the eigen and Schur
 // solvers on a plain matrix (their compute is a member template: a call on an
