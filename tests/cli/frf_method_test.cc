@@ -154,7 +154,8 @@ TEST(FrfMethod, RefusesLayoutFlagsWithoutPeriodicALongLayoutAndAWrongPeriod) {
            "--output y1",
            "but the layout needs");
   rejected("--method periodic --period-samples 200 --periods 4 --transient-periods 2 --excitation v1 --output y1",
-           "is not periodic with 200 samples in block 1");
+           "repeat with 200 samples: at no bin does its period mean stand 100× above the noise of its "
+           "period-to-period scatter");
 }
 
 // The layout from the design line: excite records it, simulate --excitation copies
