@@ -8,6 +8,9 @@
 // FRF (period means, errors-in-variables variance) must accept the measured reference
 // and agree with the Local Polynomial Method (lpm.h, transient-removing, one DFT of the
 // whole record) at the excited lines: two different estimators on the same data.
+//
+// DaISy robot arm (daisy_robot_arm/README.md): 1024 samples, sample time unknown (t =
+// sample index, Ts = 1): markov's default horizon must come from the data in samples.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -21,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "formats/io/frd_csv.h"
+#include "formats/io/markov_csv.h"
 #include "tests/support/real_data.h"
 #include "tests/support/run_lpvid.h"
 
@@ -114,6 +118,22 @@ TEST(RealData, F16PeriodicFrfRefusesAWrongPeriodLength) {
     EXPECT_THAT(r.err, HasSubstr("check --period-samples"));
     EXPECT_FALSE(std::filesystem::exists(dir / "P.csv"));
   }
+}
+
+TEST(RealData, RobotArmMarkovDefaultHorizonComesFromTheDataInSamples) {
+  LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
+  TempDir dir("arm");
+  const auto r = run_lpvid("markov --excitation u --output y --json --out " + (dir / "g.csv") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // 1024 samples, one input: min(1024 / 4, 1024 / 4) = 256 lags, whatever Ts is.
+  EXPECT_EQ(nlohmann::json::parse(r.out)["lags"], 256);
+  EXPECT_EQ(read_markov_csv(dir / "g.csv").g.size(), 257u);
+  // A horizon in seconds on a log whose time is the sample index: refused, saying so
+  // without contradicting itself (2 s is 2 lags at Ts = 1 s).
+  const auto h = run_lpvid("markov --excitation u --output y --horizon-s 2 --out " + (dir / "h.csv") + " " + log);
+  EXPECT_EQ(h.exit_code, 2);
+  EXPECT_THAT(h.err, HasSubstr("the horizon of 2 s is only 2 lag(s) at the logs' sample time 1 s, fewer than 10; give "
+                               "--lags, or a --horizon-s of at least 10 s"));
 }
 
 }  // namespace
