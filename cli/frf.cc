@@ -9,6 +9,7 @@
 #include <charconv>
 #include <numbers>
 #include <optional>
+#include <string_view>
 
 #include "cli/common.h"
 #include "cli/logs.h"
@@ -76,17 +77,36 @@ bool given(const FrfCliOptions& o, const std::string& name) {
   return std::find(o.given.begin(), o.given.end(), name) != o.given.end();
 }
 
+// "41:307,400,410:412" -> 41..307, 400, 410..412 (ranges inclusive).
 std::vector<Index> parse_bins(const std::string& text) {
   std::vector<Index> bins;
   if (text.empty()) return bins;
-  for (const std::string& item : split_names(text, "--excited-bins")) {
+  auto number = [&](const std::string& item, std::string_view digits) {
     Index v = 0;
-    const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
-    if (ec != std::errc() || end != item.data() + item.size())
-      throw InputError(fmt::format("--excited-bins '{}': '{}' is not a bin number; give DFT bins of one period, e.g. "
-                                   "--excited-bins 1,2,5",
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
+    if (digits.empty() || ec != std::errc() || end != digits.data() + digits.size())
+      throw InputError(fmt::format("--excited-bins '{}': '{}' is not a bin number or a range first:last; give DFT "
+                                   "bins of one period, e.g. --excited-bins 1,2,5 or 41:307",
                                    text, item));
-    bins.push_back(v);
+    return v;
+  };
+  for (const std::string& item : split_names(text, "--excited-bins")) {
+    const auto colon = item.find(':');
+    if (colon == std::string::npos) {
+      bins.push_back(number(item, item));
+      continue;
+    }
+    const std::string_view all(item);
+    const Index first = number(item, all.substr(0, colon)), last = number(item, all.substr(colon + 1));
+    if (last < first)
+      throw InputError(fmt::format("--excited-bins '{}': the range '{}' ends before it starts; give first:last with "
+                                   "first <= last",
+                                   text, item));
+    if (last - first >= kMaxSegment)
+      throw InputError(fmt::format("--excited-bins '{}': the range '{}' holds more bins than any period; give bins of "
+                                   "one period",
+                                   text, item));
+    for (Index k = first; k <= last; ++k) bins.push_back(k);
   }
   return bins;
 }
@@ -131,9 +151,10 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
     frd = r.frd;
     const auto& lay = popt.layout;
     comments.push_back(fmt::format("lpvid frf --method periodic: {} from {} log(s), Ts = {:.6g} s, L = {}, P = {}, "
-                                   "T = {}, R = {}, E = {}; var_ = noise{} (dof {}{})",
+                                   "T = {}, R = {}, E = {}; var_ = noise{}{} (dof {}{})",
                                    what, set.paths.size(), set.sample_period_s, lay.period_samples, lay.periods,
                                    lay.transient_periods, lay.realisations, lay.experiments,
+                                   r.measured_reference ? " of the outputs and the measured excitation" : "",
                                    lay.realisations >= 2 ? " + nonlinear distortion, dvar_ = distortion" : "",
                                    r.noise_dof,
                                    lay.realisations >= 2 ? fmt::format(", realisation dof {}", r.realisation_dof) : ""));
@@ -150,6 +171,22 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
     text = fmt::format("frf (periodic): {} excited lines ({:.4g} to {:.4g} Hz), noise rms per sample: {}\n",
                        frd.num_frequencies(), frd.omega_rad_s(0) / (2 * std::numbers::pi),
                        frd.omega_rad_s(frd.num_frequencies() - 1) / (2 * std::numbers::pi), noise);
+    summary["measured_excitation"] = r.measured_reference;
+    if (r.measured_reference) {
+      std::string vnoise;
+      nlohmann::json vnoise_json = nlohmann::json::object();
+      for (size_t j = 0; j < excitation.size(); ++j) {
+        vnoise += fmt::format("{}{} {:.3g}", j ? ", " : "", excitation[j],
+                              r.excitation_noise_rms(static_cast<Index>(j)));
+        vnoise_json[excitation[j]] = r.excitation_noise_rms(static_cast<Index>(j));
+      }
+      summary["excitation_noise_rms"] = vnoise_json;
+      summary["excitation_periodicity"] = r.excitation_periodicity;
+      text += fmt::format("  measured excitation (noise rms per sample: {}): at its lines its period mean carries "
+                          "{:.3g}× the noise power of its period-to-period scatter; its noise enters the variance "
+                          "(errors in variables)\n",
+                          vnoise, r.excitation_periodicity);
+    }
     if (lay.realisations >= 2) {
       nlohmann::json jb = nlohmann::json::array();
       std::string tb;
@@ -385,7 +422,9 @@ Command make_frf_command() {
             app->add_option("--experiments", o->experiments, "periodic: experiments E per realisation (default 1)")
                 ->check(integer_in(1, 1000000, "the experiments per realisation"));
             app->add_option("--excited-bins", o->excited_bins,
-                            "periodic: DFT bins of one period to use (default: found from the excitation)");
+                            "periodic: DFT bins of one period to use, ranges allowed (e.g. 41:307 or 1,2,5:9; "
+                            "default: the lines where the excitation's period mean stands above its "
+                            "period-to-period scatter)");
             app->add_option("--lpm-order", o->lpm_order, "lpm: local polynomial order R (default 2)")
                 ->check(integer_in(0, 4, "the LPM order"));
             app->add_option("--lpm-half-width", o->lpm_half_width,

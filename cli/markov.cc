@@ -11,6 +11,7 @@
 #include "formats/io/markov_csv.h"
 #include "idlib/core/error.h"
 #include "idlib/identify/identify.h"
+#include "idlib/signal/markov.h"
 
 namespace lpvid::cli {
 namespace {
@@ -30,7 +31,7 @@ struct MarkovCliOptions {
   std::vector<std::string> logs;
   std::string excitation, output, out;
   Index lags = 0;
-  double horizon_s = 2.0;
+  double horizon_s = 0.0;  // 0: not given
   std::string method = "ls";
   bool json = false;
 };
@@ -55,9 +56,22 @@ void run(const MarkovCliOptions& o) {
   outputs.file("--out", o.out);
   outputs.check();
   const ExperimentSet set = read_experiments(o.logs, excitation, output);
-  Index shortest = set.excitations.front().rows();
-  for (const auto& e : set.excitations) shortest = std::min<Index>(shortest, e.rows());
-  options.num_lags = choose_num_lags(chain, set.sample_period_s, shortest);
+  Index shortest = set.excitations.front().rows(), total = 0;
+  for (const auto& e : set.excitations) {
+    shortest = std::min<Index>(shortest, e.rows());
+    total += e.rows();
+  }
+  // Lags given, or a horizon in seconds; else from the data in samples (Ts may be
+  // unknown: a log whose time column is the sample index).
+  const bool by_data = o.lags == 0 && o.horizon_s == 0.0;
+  options.num_lags = by_data ? default_markov_lags(shortest, total, static_cast<Index>(excitation.size()))
+                             : choose_num_lags(chain, set.sample_period_s, shortest);
+  const std::string horizon =
+      by_data ? fmt::format("default: the longest the records support, min(shortest {} / 4, total {} / (4 x {} "
+                            "inputs))",
+                            shortest, total, excitation.size())
+      : o.lags > 0 ? std::string("--lags")
+                   : fmt::format("--horizon-s {:g} s", o.horizon_s);
   const MarkovResult r = estimate_markov(set.views(), options);
 
   MarkovFile file;
@@ -72,6 +86,7 @@ void run(const MarkovCliOptions& o) {
   outputs.commit();
 
   nlohmann::json summary = {{"lags", options.num_lags},
+                            {"horizon", horizon},
                             {"sample_period_s", set.sample_period_s},
                             {"method", o.method},
                             {"experiments", set.paths.size()},
@@ -80,9 +95,10 @@ void run(const MarkovCliOptions& o) {
                             {"termination", r.report.termination},
                             {"warnings", r.report.warnings},
                             {"out", o.out}};
-  std::string text = fmt::format("markov: {} lags from {} experiments ({} samples, Ts = {:.6g} s), method {}: {}\n",
-                                 options.num_lags, set.paths.size(), r.total_samples, set.sample_period_s, o.method,
-                                 r.report.termination);
+  std::string text = fmt::format("markov: {} lags ({}) from {} experiments ({} samples, Ts = {:.6g} s), method {}: "
+                                 "{}\n",
+                                 options.num_lags, horizon, set.paths.size(), r.total_samples, set.sample_period_s,
+                                 o.method, r.report.termination);
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
@@ -99,9 +115,13 @@ Command make_markov_command() {
                 ->required();
             app->add_option("--output", o->output, "output columns, comma separated (e.g. q1,q2,q3)")->required();
             app->add_option("--out", o->out, "Markov parameter CSV to write ('-' = stdout)")->required();
-            app->add_option("--lags", o->lags, "number of lags L (default: --horizon-s / Ts, at most N/4)")
+            app->add_option("--lags", o->lags,
+                            "number of lags L (default: --horizon-s / Ts when given, else the longest the records "
+                            "support: min(N shortest / 4, N total / (4 inputs)), in samples)")
                 ->check(integer_in(10, kMaxLags, "the number of Markov lags"));
-            app->add_option("--horizon-s", o->horizon_s, "impulse-response length in seconds when --lags is not given")
+            app->add_option("--horizon-s", o->horizon_s,
+                            "impulse-response length in seconds (instead of --lags; needs a known sample time), at "
+                            "most a quarter of the shortest record")
                 ->check(positive_up_to(kMaxHorizonS, "the impulse-response length in s"));
             app->add_option("--method", o->method, "ls (least squares, default) or correlation (the paper's)");
             app->add_flag("--json", o->json, "print the summary as JSON");

@@ -756,13 +756,31 @@ void IdentifyOptions::validate() const {
 }
 
 Index choose_num_lags(const IdentifyOptions& options, double sample_period_s, Index shortest_record) {
-  const double horizon_s = options.markov_horizon_s > 0.0 ? options.markov_horizon_s : kEraDefaultHorizon_s;
-  Index lags = options.num_lags > 0 ? options.num_lags : static_cast<Index>(std::llround(horizon_s / sample_period_s));
-  if (options.num_lags == 0) lags = std::min(lags, shortest_record / 4);
-  if (lags < 10 || lags >= shortest_record)
-    throw InputError(fmt::format(
-        "a record of {} samples is too short for {} lags; record at least {} samples (4 x the lags) or lower --lags",
-        shortest_record, lags, 4 * std::max<Index>(lags, 10)));
+  constexpr Index kMinLags = 10;
+  if (options.num_lags > 0) {
+    if (options.num_lags < kMinLags)
+      throw InputError(fmt::format("--lags {}: give at least {} lags", options.num_lags, kMinLags));
+    if (options.num_lags >= shortest_record)
+      throw InputError(fmt::format("--lags {} needs records longer than {} samples, but the shortest has {}; give at "
+                                   "most {} lags (a quarter of it) or record longer",
+                                   options.num_lags, options.num_lags, shortest_record, shortest_record / 4));
+    return options.num_lags;
+  }
+  // A horizon in seconds: it needs a known sample time (a log whose time column is the
+  // sample index has Ts = 1 s, and a horizon of a few seconds is then a few lags).
+  const bool given = options.markov_horizon_s > 0.0;
+  const double horizon_s = given ? options.markov_horizon_s : kEraDefaultHorizon_s;
+  const double raw = std::round(horizon_s / sample_period_s);
+  if (raw < static_cast<double>(kMinLags))
+    throw InputError(fmt::format("{} horizon of {:g} s is only {:g} lag(s) at the logs' sample time {:.6g} s, fewer "
+                                 "than {}; give --lags, or a --horizon-s of at least {:.6g} s",
+                                 given ? "the" : "the default", horizon_s, raw, sample_period_s, kMinLags,
+                                 static_cast<double>(kMinLags) * sample_period_s));
+  const Index lags = static_cast<Index>(std::min(raw, static_cast<double>(shortest_record / 4)));
+  if (lags < kMinLags)
+    throw InputError(fmt::format("a record of {} samples supports at most {} lags (a quarter of it), fewer than {}; "
+                                 "record at least {} samples",
+                                 shortest_record, shortest_record / 4, kMinLags, 4 * kMinLags));
   return lags;
 }
 

@@ -289,6 +289,27 @@ void MarkovOptions::validate() const {
                                  max_iterations));
 }
 
+Index default_markov_lags(Index shortest_record, Index total_samples, Index num_excitations) {
+  if (shortest_record < 1 || total_samples < shortest_record || num_excitations < 1)
+    throw InputError(fmt::format("default Markov horizon: {} samples in the shortest record, {} in all, {} excitation "
+                                 "column(s); give records and at least one excitation",
+                                 shortest_record, total_samples, num_excitations));
+  const Index by_record = shortest_record / 4, by_data = total_samples / (4 * num_excitations);
+  const Index lags = std::min(by_record, by_data);
+  if (lags < kMinDefaultMarkovLags) {
+    if (by_record < kMinDefaultMarkovLags)
+      throw InputError(fmt::format("a record of {} samples supports only {} lags by default (a quarter of the "
+                                   "shortest record), fewer than {}; record at least {} samples, or give --lags",
+                                   shortest_record, by_record, kMinDefaultMarkovLags, 4 * kMinDefaultMarkovLags));
+    throw InputError(fmt::format("{} samples in all for {} excitation columns support only {} lags by default (4 "
+                                 "samples per unknown), fewer than {}; record at least {} samples in all, or give "
+                                 "--lags",
+                                 total_samples, num_excitations, by_data, kMinDefaultMarkovLags,
+                                 4 * num_excitations * kMinDefaultMarkovLags));
+  }
+  return lags;
+}
+
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
                              const MarkovOptions& options, MarkovCorrelations* reuse) {
   options.validate();

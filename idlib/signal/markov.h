@@ -150,4 +150,19 @@ struct MarkovCorrelations {
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
                              const MarkovOptions& options, MarkovCorrelations* reuse = nullptr);
 
+// The default horizon when the caller gives neither lags nor a horizon in seconds: from
+// the data, in SAMPLES (the sample time may be unknown, e.g. a log whose time column is
+// the sample index): the longest horizon the records support,
+//   L = min(⌊N_shortest / 4⌋, ⌊N_total / (4 m)⌋),
+// i.e. the lag window is at most a quarter of every record, and the m·L unknowns per
+// output get at least 4 samples each (twice estimate_markov's minimum of 2).  `hankel`
+// and `realize` find the effective length of the response within it (era.h step 3), so
+// a horizon longer than the response costs only computation.  Examples: 2 s at 1 kHz,
+// three one-input-at-a-time logs (m = 3): 500 lags; the DaISy robot arm (1024 samples,
+// m = 1): 256 lags.
+// @throws InputError when that is below kMinDefaultMarkovLags (saying the shortest
+//   record and total that would give it) or the counts are not positive.
+inline constexpr Index kMinDefaultMarkovLags = 16;
+Index default_markov_lags(Index shortest_record, Index total_samples, Index num_excitations);
+
 }  // namespace lpvid

@@ -110,55 +110,153 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
   auto in = alloc_real(L);
   auto out = alloc_complex(nb);
 
-  // 1. The reference: period mean per block, periodicity check, its DFT.
+  // 1. The reference: per block and column the DFT of the period mean and the noise
+  //    variance of that mean from the period-to-period scatter (header comment).  A
+  //    period that repeats the mean exactly costs no transform.
+  const Index kmax = (L - 1) / 2;  // the largest bin below Nyquist
   std::vector<Eigen::MatrixXcd> vspec(static_cast<size_t>(blocks), Eigen::MatrixXcd(nb, m));
+  std::vector<Eigen::MatrixXd> vnoise(static_cast<size_t>(blocks), Eigen::MatrixXd::Zero(nb, m));
+  Eigen::VectorXd reference_ss = Eigen::VectorXd::Zero(m);
+  Eigen::VectorXd mean(L);
   for (Index b = 0; b < blocks; ++b) {
     const Index start = b * block + T * L;
     for (Index j = 0; j < m; ++j) {
       const double* x = reference.col(j).data() + start;
-      double peak = 0, deviation = 0;
       for (Index t = 0; t < L; ++t) in[t] = 0;
       for (Index p = 0; p < P; ++p)
-        for (Index t = 0; t < L; ++t) {
-          const double value = x[p * L + t];
-          peak = std::max(peak, std::abs(value));
-          deviation = std::max(deviation, std::abs(value - x[t]));
-          in[t] += value / static_cast<double>(P);
-        }
-      if (deviation > kPeriodicityTolerance * peak)
-        throw InputError(fmt::format("excitation column {} is not periodic with {} samples in block {} (realisation {}, "
-                                     "experiment {}): periods differ by {:.3g} of its peak; check --period-samples and "
-                                     "the block layout",
-                                     j + 1, L, b + 1, b / E + 1, b % E + 1, deviation / peak));
+        for (Index t = 0; t < L; ++t) in[t] += x[p * L + t] / static_cast<double>(P);
+      for (Index t = 0; t < L; ++t) mean(t) = in[t];
       fft.forward(in.get(), out.get());
       for (Index k = 0; k < nb; ++k) vspec[static_cast<size_t>(b)](k, j) = out[k];
+      Eigen::MatrixXd& noise = vnoise[static_cast<size_t>(b)];
+      for (Index p = 0; p < P; ++p) {
+        double ss = 0;
+        for (Index t = 0; t < L; ++t) {
+          const double d = x[p * L + t] - mean(t);
+          in[t] = d;
+          ss += d * d;
+        }
+        if (ss == 0) continue;
+        reference_ss(j) += ss;
+        fft.forward(in.get(), out.get());
+        for (Index k = 0; k < nb; ++k) noise(k, j) += std::norm(out[k]);
+      }
+      noise.col(j) /= static_cast<double>((P - 1) * P);
     }
   }
+  const bool measured_reference = reference_ss.sum() > 0;
+  result.measured_reference = measured_reference;
+  result.excitation_noise_rms = (reference_ss / static_cast<double>(blocks * L * (P - 1))).cwiseSqrt();
+  Eigen::VectorXd power = Eigen::VectorXd::Zero(nb), scatter = Eigen::VectorXd::Zero(nb);
+  for (Index b = 0; b < blocks; ++b) {
+    power += vspec[static_cast<size_t>(b)].rowwise().squaredNorm();
+    scatter += vnoise[static_cast<size_t>(b)].rowwise().sum();
+  }
+  auto hz_of = [&](Index bin) { return static_cast<double>(bin) / (static_cast<double>(L) * options.sample_period_s); };
 
-  // 2. The excited bins.
+  // 2. The excited bins: power above round-off and, for a measured reference, far above
+  //    the noise of the period mean (its own and its neighbours' median).
   std::vector<Index> bins = options.excited_bins;
   if (bins.empty()) {
-    Eigen::VectorXd power = Eigen::VectorXd::Zero(nb);
-    for (const auto& V : vspec) power += V.rowwise().squaredNorm();
     double top = 0;
-    for (Index k = 1; 2 * k < L; ++k) top = std::max(top, power(k));
-    for (Index k = 1; 2 * k < L; ++k)
-      if (top > 0 && power(k) >= kExcitedLineFraction * top) bins.push_back(k);
-    if (bins.empty()) throw InputError("the excitation carries no power at any bin 1..L/2−1; excite the system");
+    for (Index k = 1; k <= kmax; ++k) top = std::max(top, power(k));
+    if (!(top > 0)) throw InputError("the excitation carries no power at any bin 1..L/2−1; excite the system");
+    Eigen::VectorXd floor = scatter;
+    if (measured_reference) {
+      std::vector<double> window;
+      for (Index k = 1; k <= kmax; ++k) {
+        window.assign(scatter.data() + std::max<Index>(1, k - kLineNoiseHalfWidth),
+                      scatter.data() + std::min(kmax, k + kLineNoiseHalfWidth) + 1);
+        auto mid = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
+        std::nth_element(window.begin(), mid, window.end());
+        floor(k) = std::max(scatter(k), *mid);
+      }
+    }
+    double best = 0;  // the largest power-to-floor ratio, for the message
+    for (Index k = 1; k <= kmax; ++k) {
+      if (!(power(k) >= kExcitedLineFraction * top)) continue;
+      best = std::max(best, floor(k) > 0 ? power(k) / floor(k) : INFINITY);
+      if (power(k) >= kExcitedLineSnr * floor(k)) bins.push_back(k);
+    }
+    if (bins.empty())
+      throw InputError(fmt::format(
+          "the excitation does not repeat with {} samples: at no bin does its period mean stand {:g}× above the noise "
+          "of its period-to-period scatter (at most {:.3g}×); check --period-samples (the generator's samples per "
+          "period) and --transient-periods, or use --method lpm for an excitation that is not periodic",
+          L, kExcitedLineSnr, best));
   }
   const Index K = static_cast<Index>(bins.size());
 
-  // 3. The measured channels: per block the period mean at the bins and its covariance.
-  std::vector<Eigen::MatrixXcd> zbar(static_cast<size_t>(blocks), Eigen::MatrixXcd(K, nz));
+  // 3. Periodicity of every block's reference (header comment): ρ_b, the power of its
+  //    period mean at the lines over the noise power of that mean at every bin; and the
+  //    scatter at the lines against the other bins' (q_b), where the line SNR is modest.
+  result.excitation_periodicity = INFINITY;
+  std::vector<bool> is_line(static_cast<size_t>(nb), false);
+  for (Index k : bins) is_line[static_cast<size_t>(k)] = true;
+  std::vector<double> other;
+  for (Index b = 0; b < blocks; ++b) {
+    const Eigen::MatrixXcd& Vb = vspec[static_cast<size_t>(b)];
+    const Eigen::VectorXd Nb = vnoise[static_cast<size_t>(b)].rowwise().sum();
+    double line_power = 0, line_noise = 0;
+    for (Index k : bins) {
+      line_power += Vb.row(k).squaredNorm();
+      line_noise += Nb(k);
+    }
+    const double noise_power = Nb.segment(1, kmax).sum();
+    if (!(noise_power > 0)) continue;  // an exact reference in this block
+    const double rho = line_power / noise_power;
+    result.excitation_periodicity = std::min(result.excitation_periodicity, rho);
+    const std::string where = fmt::format("the excitation is not periodic with {} samples in block {} (realisation {}, "
+                                          "experiment {}): at its {} excited line(s)",
+                                          L, b + 1, b / E + 1, b % E + 1, K);
+    const std::string fix = "check --period-samples (the generator's samples per period), --transient-periods and the "
+                            "block layout, or use --method lpm for an excitation that is not periodic";
+    if (!(rho >= kMinExcitationPeriodicity))
+      throw InputError(fmt::format("{} its period mean carries only {:.3g} times the noise power of its "
+                                   "period-to-period scatter (at least {:g} needed; a repeating generator signal gives "
+                                   "far more); {}",
+                                   where, rho, kMinExcitationPeriodicity, fix));
+    other.clear();
+    for (Index k = 1; k <= kmax; ++k)
+      if (!is_line[static_cast<size_t>(k)]) other.push_back(Nb(k));
+    if (other.empty() || !(line_noise > 0)) continue;  // every bin excited: no noise floor to compare with
+    auto mid = other.begin() + static_cast<std::ptrdiff_t>(other.size() / 2);
+    std::nth_element(other.begin(), mid, other.end());
+    if (!(*mid > 0)) continue;
+    const double excess = line_noise / static_cast<double>(K) / *mid, line_snr = line_power / line_noise;
+    if (excess > kMaxLineScatterExcess && line_snr < kCoherentLineSnr)
+      throw InputError(fmt::format("{} its period-to-period scatter is {:.3g}× the noise of the other bins and only "
+                                   "{:.3g}× below its period mean: the signal drifts from period to period (a period "
+                                   "length off by a few samples, or a generator not synchronised with the "
+                                   "acquisition); {}",
+                                   where, excess, line_snr, fix));
+  }
+  if (measured_reference) {
+    Index low = 0, worst = -1;
+    for (Index k : bins)
+      if (scatter(k) > 0 && power(k) < kLowLineSnr * scatter(k)) {
+        ++low;
+        if (worst < 0 || power(k) / scatter(k) < power(worst) / scatter(worst)) worst = k;
+      }
+    if (low > 0)
+      result.report.warnings.push_back(fmt::format(
+          "{} excited line(s) where the excitation's period mean is less than {:g}× the noise of its scatter (worst "
+          "{:.6g} Hz, bin {}: {:.3g}×): the ratio of noisy means is biased there by up to e^-SNR",
+          low, kLowLineSnr, hz_of(worst), worst, power(worst) / scatter(worst)));
+  }
+
+  // 4. The measured channels, and the reference when it is measured (errors in
+  //    variables): per block the period mean at the bins and the joint covariance.
+  const Index nw = nz + (measured_reference ? m : 0);
+  std::vector<Eigen::MatrixXcd> zbar(static_cast<size_t>(blocks), Eigen::MatrixXcd(K, nw));
   std::vector<std::vector<Eigen::MatrixXcd>> zcov(static_cast<size_t>(blocks),
                                                   std::vector<Eigen::MatrixXcd>(static_cast<size_t>(K)));
   Eigen::VectorXd noise_ss = Eigen::VectorXd::Zero(nz);
-  std::vector<Eigen::MatrixXcd> periods(static_cast<size_t>(P), Eigen::MatrixXcd(K, nz));
-  Eigen::VectorXd mean(L);
+  std::vector<Eigen::MatrixXcd> periods(static_cast<size_t>(P), Eigen::MatrixXcd(K, nw));
   for (Index b = 0; b < blocks; ++b) {
     const Index start = b * block + T * L;
-    for (Index c = 0; c < nz; ++c) {
-      const double* x = measured.col(c).data() + start;
+    for (Index c = 0; c < nw; ++c) {
+      const double* x = c < nz ? measured.col(c).data() + start : reference.col(c - nz).data() + start;
       mean.setZero();
       for (Index p = 0; p < P; ++p) {
         std::copy(x + p * L, x + (p + 1) * L, in.get());
@@ -166,6 +264,7 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
         for (Index k = 0; k < K; ++k) periods[static_cast<size_t>(p)](k, c) = out[bins[static_cast<size_t>(k)]];
         for (Index t = 0; t < L; ++t) mean(t) += x[p * L + t];
       }
+      if (c >= nz) continue;
       mean /= static_cast<double>(P);
       double ss = 0;
       for (Index p = 0; p < P; ++p)
@@ -180,7 +279,7 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
     for (const auto& Z : periods) zb += Z;
     zb /= static_cast<double>(P);
     for (Index k = 0; k < K; ++k) {
-      Eigen::MatrixXcd C = Eigen::MatrixXcd::Zero(nz, nz);
+      Eigen::MatrixXcd C = Eigen::MatrixXcd::Zero(nw, nw);
       for (const auto& Z : periods) {
         const Eigen::VectorXcd d = (Z.row(k) - zb.row(k)).transpose();
         C.noalias() += d * d.adjoint();
@@ -195,14 +294,14 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
   std::vector<std::vector<Eigen::MatrixXcd>> G(static_cast<size_t>(R), std::vector<Eigen::MatrixXcd>(static_cast<size_t>(K)));
   std::vector<std::vector<Eigen::MatrixXd>> varn(static_cast<size_t>(R), std::vector<Eigen::MatrixXd>(static_cast<size_t>(K)));
   std::vector<bool> flagged(static_cast<size_t>(K), false);
-  auto hz = [&](Index k) { return static_cast<double>(bins[static_cast<size_t>(k)]) / (static_cast<double>(L) * options.sample_period_s); };
+  auto hz = [&](Index k) { return hz_of(bins[static_cast<size_t>(k)]); };
   for (Index r = 0; r < R; ++r)
     for (Index k = 0; k < K; ++k) {
       const Index bin = bins[static_cast<size_t>(k)];
       Eigen::MatrixXcd V(m, E), Z(nz, E);
       for (Index e = 0; e < E; ++e) {
         V.col(e) = vspec[static_cast<size_t>(r * E + e)].row(bin).transpose();
-        Z.col(e) = zbar[static_cast<size_t>(r * E + e)].row(k).transpose();
+        Z.col(e) = zbar[static_cast<size_t>(r * E + e)].row(k).head(nz).transpose();
       }
       const Eigen::MatrixXcd gram = V * V.adjoint();
       const double cond = normalised_condition(gram);
@@ -234,6 +333,12 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
         W.resize(ny, nz);
         W << Eigen::MatrixXcd::Identity(ny, ny), -Gk;
         M = Vp * Sinv;
+      }
+      if (measured_reference) {  // errors in variables: δĜ_z = [I  −Ĝ_z] δW̄ V̄⁺
+        Eigen::MatrixXcd We(W.rows(), nw);
+        We.leftCols(nz) = W;
+        We.rightCols(m) = -W * Gz;
+        W = We;
       }
       Eigen::MatrixXd var = Eigen::MatrixXd::Zero(ny, m);
       for (Index e = 0; e < E; ++e) {
@@ -298,8 +403,13 @@ PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const 
         fmt::format("{} line(s) flagged: the estimated S is singular there (condition above {:.3g})", nflag,
                     options.max_condition));
   result.report.termination =
-      fmt::format("{} excited lines, {} realisation(s) × {} experiment(s) × {} periods (noise dof {})", K, R, E, P,
-                  result.noise_dof);
+      fmt::format("{} excited lines, {} realisation(s) × {} experiment(s) × {} periods (noise dof {}){}", K, R, E, P,
+                  result.noise_dof,
+                  measured_reference
+                      ? fmt::format("; measured excitation, periodic to {:.3g}× its scatter noise (errors in "
+                                    "variables)",
+                                    result.excitation_periodicity)
+                      : std::string());
   return result;
 }
 

@@ -17,23 +17,51 @@
 //   (with a warning in the report).
 //
 // Per block b, period p, channel c: X_c^[p](k) = Σ_{t<L} x_c(t0 + pL + t) e^{−2πi kt/L}
-// at the excited bins k (unnormalised DFT; every scale cancels in the ratios).
-// Per line k and block: the sample mean Z̄(k) = 1/P Σ_p Z^[p](k) (nz-vector of the
-// measured channels) and the sample covariance
-//   Ĉ_Z(k) = 1/(P−1) Σ_p (Z^[p] − Z̄)(Z^[p] − Z̄)ᴴ     (nz × nz, P−1 degrees of freedom),
-// so that the noise covariance of the mean is Ĉ_Z/P (P&S §2.4).  The
-// reference V (m-vector) is the mean over periods as well (it is known exactly).
+// (unnormalised DFT; every scale cancels in the ratios).
+//
+// The excitation (reference) v is MEASURED: a generator's output logged by an ADC repeats
+// from period to period only up to its measurement noise.  Per block, excitation column
+// j and bin k (1 <= k < L/2): the period mean V̄_j(k) (the DFT of the time-domain period
+// mean) and the noise variance of that mean from the period-to-period scatter,
+//   N_j(k) = 1/((P−1)P) Σ_p |V_j^[p](k) − V̄_j(k)|²      (P&S §2.4).
+// Excited lines (when not given): the bins where, summed over blocks and columns,
+//   S(k) = Σ |V̄(k)|²  >=  kExcitedLineFraction · max_k S(k)              (not round-off)
+//   S(k)             >=  kExcitedLineSnr · max(N(k), median N over k ± kLineNoiseHalfWidth)
+// (the period mean stands far above its own scatter: a periodic component, not noise;
+// for a noise-only bin S/N is an F(2, 2(P−1)) variate of mean ≈ 1).  An exact reference
+// (N ≡ 0, e.g. written by lpvid excite) keeps only the first rule.
+// Periodicity of block b: the power of its period mean at the excited lines over the
+// noise power of that mean summed over EVERY bin 1..L/2−1,
+//   ρ_b = Σ_j Σ_lines |V̄_j(k)|² / Σ_j Σ_{k=1}^{L/2−1} N_j(k),
+// must be >= kMinExcitationPeriodicity.  A periodic generator has ρ ≫ 1 (the F-16 GVT
+// voltage: 3·10⁸); random noise or a wrong period length gives ρ <~ 1 (the period mean of
+// a non-repeating signal is no larger than its scatter, at any set of bins).  And the
+// scatter at the lines must be at the noise level of the other bins (q_b below), where
+// the lines' SNR is not overwhelming: a period off by a sample passes ρ but not this.
+//
+// The measured channels w = [z; v] (z the nz measured responses, v the m excitation
+// columns when they are measured, i.e. some N > 0): per line and block the sample mean
+// W̄(k) = 1/P Σ_p W^[p](k) and the sample covariance
+//   Ĉ_W(k) = 1/(P−1) Σ_p (W^[p] − W̄)(W^[p] − W̄)ᴴ     (nw × nw, P−1 degrees of freedom),
+// so that the noise covariance of the mean is Ĉ_W/P (P&S §2.4).  With an exact
+// reference w = z (the reference's variance is zero).
 //
 // Per realisation r and line k, with the E experiments side by side
-// (V: m × E, Z̄: nz × E; m <= E, V of full row rank):
-//   Ĝ_z = Z̄ V⁺,   V⁺ = Vᴴ (V Vᴴ)⁻¹                     (nz × m)
+// (V̄: m × E, Z̄: nz × E; m <= E, V̄ of full row rank):
+//   Ĝ_z = Z̄ V̄⁺,   V̄⁺ = V̄ᴴ (V̄ V̄ᴴ)⁻¹                   (nz × m)
 // Open loop / closed-loop map (no plant inputs): Ĝ = Ĝ_z.  Plant (z = [y; u], the last
 // m channels the plant inputs u): Ŝ = the last m rows of Ĝ_z (v → u), P̂S = the first
-// ny rows (v → y), and P̂ = P̂S Ŝ⁻¹ (the indirect or ratio route).  Linearised noise:
-//   δĜ = W δZ̄ M,  W = I (open loop) or [I  −P̂] (plant),  M = V⁺ (or V⁺ Ŝ⁻¹),
-//   E|δĜ_ij|² = Σ_e |M_ej|² (W (Ĉ_Z,e / P) Wᴴ)_ii,
-// which keeps the joint period-to-period covariance of y and u (their noise is
-// correlated in feedback: δP = (δ(PS) − P δS) S⁻¹).
+// ny rows (v → y), and P̂ = P̂S Ŝ⁻¹ (the indirect or ratio route).  Linearised noise
+// (errors in variables: δĜ_z = (δZ̄ − Ĝ_z δV̄) V̄⁺ to first order):
+//   δĜ = W [I  −Ĝ_z] δW̄ M,  W = I (open loop) or [I  −P̂] (plant),  M = V̄⁺ (or V̄⁺ Ŝ⁻¹),
+//   E|δĜ_ij|² = Σ_e |M_ej|² (W_e (Ĉ_W,e / P) W_eᴴ)_ii,   W_e = W [I  −Ĝ_z] (W alone for
+//   an exact reference),
+// which keeps the joint period-to-period covariance of y, u and v (their noises are
+// correlated in feedback: δP = (δ(PS) − P δS) S⁻¹).  For the plant W [I −Ĝ_z] = [I −P̂ 0]:
+// the reference's noise cancels to first order (P̂ = Ȳ Ū⁻¹ when E = m), and its
+// variance is the classical errors-in-variables one of output AND input noise and their
+// covariance.  The ratio of noisy means is biased by ≈ −Ĝ·e^{−SNR} (SNR = |V̄|²/N at the
+// line), negligible at the lines the rule above finds (SNR >= 100).
 //
 // BLA over R >= 2 random-phase realisations (P&S §4.3.1, the robust method):
 //   Ĝ_BLA = 1/R Σ_r Ĝ_r,
@@ -67,12 +95,35 @@
 
 namespace lpvid {
 
-// A bin is excited when the reference's power there (summed over inputs and blocks) is
-// at least this fraction of the largest such power (multisine lines vs. round-off).
+// A bin is excited when the reference's period-mean power there (summed over inputs and
+// blocks) is at least this fraction of the largest such power (lines vs. round-off) ...
 inline constexpr double kExcitedLineFraction = 1e-8;
-// The reference must repeat from period to period to this relative accuracy (max |v_p −
-// v_0| over max |v|): a wrong period length or layout shows up as a gross violation.
-inline constexpr double kPeriodicityTolerance = 1e-6;
+// ... and at least this many times the noise variance of that mean (the larger of the
+// bin's own, from the period-to-period scatter, and the median over the bins within
+// kLineNoiseHalfWidth, which pools 2·kLineNoiseHalfWidth + 1 bins' degrees of freedom).
+// For a bin holding only noise the ratio to the pooled median exceeds 100 with
+// probability ≈ e^{−69} (an exponential variate over a median >= 0.69 of its mean); the
+// F-16 GVT voltage's lines stand 10⁸–10⁹ above, its other bins at most 30 (measured).
+inline constexpr double kExcitedLineSnr = 100.0;
+inline constexpr Index kLineNoiseHalfWidth = 8;
+// A block's excitation is periodic when the power of its period mean at the excited lines
+// is at least this many times the noise power of that mean over every bin (ρ_b above,
+// 10 dB).  Not periodic (random noise, a wrong --period-samples): ρ <~ 1.
+inline constexpr double kMinExcitationPeriodicity = 10.0;
+// ... and its scatter at the lines must be at the noise level of the other bins: the mean
+// noise variance N at the lines at most kMaxLineScatterExcess times the median N over the
+// bins that are not lines (q_b), unless the lines' SNR Σ|V̄|²/ΣN is at least
+// kCoherentLineSnr (then a signal-proportional scatter, e.g. a generator's gain jitter,
+// is too small to matter and enters the variance as the reference's noise).  A period
+// length off by one to a few samples smears the signal across periods: measured on the
+// F-16 GVT voltage (L = 8192): q = 1.1·10⁴–2.8·10⁶ with line SNR 165–233 at L = 8190,
+// 8191, 8193 (ρ = 2.4–31 there: ρ alone would pass two of them), against q = 6.8–9.0
+// and line SNR 1.5·10⁹–7·10¹⁰ at L = 8192 (levels 1, 2, 7).
+inline constexpr double kMaxLineScatterExcess = 300.0;
+inline constexpr double kCoherentLineSnr = 1e4;
+// A line whose reference SNR |V̄|²/N is below this gets a warning (the ratio's bias
+// e^{−SNR} exceeds 4.5e-5 there).
+inline constexpr double kLowLineSnr = 10.0;
 
 struct PeriodicLayout {
   Index period_samples = 0;     // L >= 4
@@ -91,8 +142,8 @@ struct PeriodicFrfOptions {
   PeriodicLayout layout;
   double sample_period_s = 0;  // Ts, s; finite and > 0
   // DFT bins (of one L-sample period) to estimate at, 1 <= k < L/2, increasing.
-  // Empty: every bin whose reference power is >= kExcitedLineFraction of the largest
-  // (DC and Nyquist never).
+  // Empty: the excited lines found from the reference (see the header comment; DC and
+  // Nyquist never).
   std::vector<Index> excited_bins;
   // Refuse a line where the normalised V Vᴴ has a (1-norm) condition above this; flag a
   // plant line where Ŝ's is.  > 1.
@@ -112,6 +163,13 @@ struct PeriodicFrfResult {
   // Per measured channel (the columns of `measured`): the noise rms per sample, from
   // the period-to-period scatter in the time domain, all bins (units of the channel).
   Eigen::VectorXd channel_noise_rms;
+  // The same for each excitation column (0 for an exact reference).
+  Eigen::VectorXd excitation_noise_rms;
+  // The smallest ρ_b over the blocks (header comment; +inf for an exact reference).
+  double excitation_periodicity = 0;
+  // True when the reference has period-to-period scatter: its noise entered the
+  // variance (errors in variables).
+  bool measured_reference = false;
   Index noise_dof = 0;        // R·E·(P − 1): degrees of freedom behind σ̂²_n (per block P − 1)
   Index realisation_dof = 0;  // R − 1 (0 when R = 1)
   Report report;
@@ -123,14 +181,16 @@ struct PeriodicFrfResult {
 //
 // | argument  | shape |
 // |-----------|-------|
-// | reference | N × m, the excitation v (known exactly, periodic) |
+// | reference | N × m, the excitation v (periodic; exact or measured with noise) |
 // | measured  | N × nz: y (open loop), or [y u] with u the last m columns (plant) |
 //
 // @throws InputError for: invalid options; N below layout.total_samples(); row counts
 //   that differ; a NaN/Inf sample; m > E; plant_inputs not 0 or m, or no output left;
-//   a reference that is not periodic with L samples in some block (names the block);
-//   no excited bin (or a given bin out of range); a singular V at a line (names the line
-//   and realisation: the experiments do not excite the inputs independently there).
+//   no bin where the reference's period mean stands above its scatter (not periodic
+//   with L samples); a block whose reference is not periodic (ρ_b below
+//   kMinExcitationPeriodicity; names the block); a given bin out of range; a singular V
+//   at a line (names the line and realisation: the experiments do not excite the inputs
+//   independently there).
 PeriodicFrfResult estimate_periodic_frf(const Eigen::MatrixXd& reference, const Eigen::MatrixXd& measured,
                                         Index plant_inputs, const PeriodicFrfOptions& options);
 

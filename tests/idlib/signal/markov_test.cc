@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
 
 namespace lpvid {
 namespace {
@@ -489,6 +490,41 @@ TEST(EstimateMarkov, RejectsIdenticalInputsNamingThem) {
   v.col(2) = v.col(0);
   EXPECT_THAT(error_of({{v, q}}, options(Method::kLeastSquares, 10)),
               HasSubstr("excitation inputs [1, 3] are linearly dependent over all experiments"));
+}
+
+// The default horizon in samples (no sample time needed): min(N_shortest/4, N_total/(4m)).
+TEST(DefaultMarkovLags, IsTheLongestHorizonTheRecordsSupportInSamples) {
+  EXPECT_EQ(default_markov_lags(1024, 1024, 1), 256);    // the DaISy robot arm, Ts unknown
+  EXPECT_EQ(default_markov_lags(2000, 6000, 3), 500);    // the golden logs: 3 x 2 s at 1 kHz
+  EXPECT_EQ(default_markov_lags(2000, 2000, 3), 166);    // one log, three inputs: 4 samples per unknown
+  EXPECT_EQ(default_markov_lags(64, 64, 1), kMinDefaultMarkovLags);
+  // Every lag count it returns is one estimate_markov accepts (N > L, total >= 2 m (L + 1)).
+  for (Index n : {64, 100, 1000, 4097})
+    for (Index m : {1, 2, 3}) {
+      if (n / (4 * m) < kMinDefaultMarkovLags) continue;
+      const Index L = default_markov_lags(n, n, m);
+      EXPECT_LT(L, n);
+      EXPECT_GE(n, 2 * m * (L + 1)) << n << " " << m;
+    }
+}
+
+TEST(DefaultMarkovLags, RefusesARecordTooShortSayingWhatWouldDo) {
+  auto error = [](Index shortest, Index total, Index m) {
+    try {
+      default_markov_lags(shortest, total, m);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  // 63 samples: 15 lags < 16; the fix it names (64 samples) does give 16.
+  EXPECT_EQ(error(63, 63, 1), "a record of 63 samples supports only 15 lags by default (a quarter of the shortest "
+                              "record), fewer than 16; record at least 64 samples, or give --lags");
+  EXPECT_EQ(default_markov_lags(64, 64, 1), 16);
+  EXPECT_EQ(error(100, 100, 2), "100 samples in all for 2 excitation columns support only 12 lags by default (4 "
+                                "samples per unknown), fewer than 16; record at least 128 samples in all, or give "
+                                "--lags");
+  EXPECT_EQ(default_markov_lags(100, 128, 2), 16);
 }
 
 }  // namespace

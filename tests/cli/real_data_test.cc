@@ -1,0 +1,140 @@
+// lpvid on real measured data (../shared/real-data, see tests/support/real_data.h):
+// skipped with a message when the data are absent.  Truth from outside the code under
+// test where there is one; otherwise an independent estimator on the same file.
+//
+// F-16 ground vibration test (f16_gvt/README.md): periodic full-grid multisine, 9 periods
+// of 8192 samples at 400 Hz, the generator voltage measured (the reference, with ADC
+// noise), the shaker force measured (the plant input) and 3 accelerations.  The periodic
+// FRF (period means, errors-in-variables variance) must accept the measured reference
+// and agree with the Local Polynomial Method (lpm.h, transient-removing, one DFT of the
+// whole record) at the excited lines: two different estimators on the same data.
+//
+// DaISy robot arm (daisy_robot_arm/README.md): 1024 samples, sample time unknown (t =
+// sample index, Ts = 1): markov's default horizon must come from the data in samples.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "formats/io/frd_csv.h"
+#include "formats/io/markov_csv.h"
+#include "tests/support/real_data.h"
+#include "tests/support/run_lpvid.h"
+
+namespace lpvid {
+namespace {
+
+using ::testing::HasSubstr;
+using lpvid::testing::run_lpvid;
+using lpvid::testing::TempDir;
+
+const std::string kF16Channels = "--excitation voltage --input force --output acc1,acc2,acc3 --quantity P ";
+const std::string kF16Layout = "--method periodic --period-samples 8192 --periods 8 --transient-periods 1 ";
+
+double median(std::vector<double> x) {
+  std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2), x.end());
+  return x[x.size() / 2];
+}
+
+TEST(RealData, F16PeriodicFrfAcceptsTheMeasuredReferenceAndAgreesWithLpm) {
+  LPVID_REAL_DATA_OR_SKIP(log, "f16_gvt/f16_fullmsine_level1.csv");
+  TempDir dir("f16");
+  const std::string per = dir / "P_periodic.csv", lpm = dir / "P_lpm.csv";
+  auto r = run_lpvid("frf " + kF16Layout + kF16Channels + "--json --out " + per + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  // The README's excited lines, found here from the measured voltage: bins 41..307.
+  EXPECT_EQ(summary["lines"], 267);
+  EXPECT_EQ(summary["measured_excitation"], true);
+  // The voltage's period mean stands ~3e8 above its scatter (f16_gvt README: it repeats
+  // to 2e-4 of its norm); 1e6 is far above the refusal threshold and far below that.
+  EXPECT_GT(summary["excitation_periodicity"].get<double>(), 1e6);
+  r = run_lpvid("frf --method lpm " + kF16Channels + "--out " + lpm + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  const FrequencyResponse p = read_frd_csv(per, {"P"}), l = read_frd_csv(lpm, {"P"});
+  ASSERT_EQ(p.num_frequencies(), 267);
+  EXPECT_NEAR(p.omega_rad_s(0) / (2 * std::numbers::pi), 41 * 400.0 / 8192, 1e-9);
+  EXPECT_NEAR(p.omega_rad_s(266) / (2 * std::numbers::pi), 307 * 400.0 / 8192, 1e-9);
+  // The LPM's grid is the whole record's DFT (73728 = 9 × 8192 points): line k of a
+  // period is its bin 9k.
+  std::vector<double> relative, sigmas, variance_ratio;
+  for (Index k = 0; k < p.num_frequencies(); ++k) {
+    Index best = 0;
+    for (Index i = 1; i < l.num_frequencies(); ++i)
+      if (std::abs(l.omega_rad_s(i) - p.omega_rad_s(k)) < std::abs(l.omega_rad_s(best) - p.omega_rad_s(k))) best = i;
+    ASSERT_NEAR(l.omega_rad_s(best), p.omega_rad_s(k), 1e-9 * p.omega_rad_s(k));
+    for (Index i = 0; i < 3; ++i) {
+      const auto a = p.response[static_cast<size_t>(k)](i, 0), b = l.response[static_cast<size_t>(best)](i, 0);
+      relative.push_back(std::abs(a - b) / std::abs(b));
+      sigmas.push_back(std::abs(a - b) / std::sqrt(p.variance[static_cast<size_t>(k)](i, 0)));
+      variance_ratio.push_back(p.variance[static_cast<size_t>(k)](i, 0) / l.variance[static_cast<size_t>(best)](i, 0));
+    }
+  }
+  const double med = median(relative), vr = median(variance_ratio);
+  double within1 = 0, within2 = 0;
+  for (double s : sigmas) {
+    within1 += s <= 1 ? 1.0 : 0.0;
+    within2 += s <= 2 ? 1.0 : 0.0;
+  }
+  const double n = static_cast<double>(sigmas.size());
+  std::printf("F-16 level 1, 267 lines x 3 outputs: median |periodic - lpm| / |lpm| = %.3g %%; within 1 / 2 sigma of "
+              "the periodic estimate: %.3f / %.3f; median var_periodic / var_lpm %.3f\n",
+              100 * med, within1 / n, within2 / n, vr);
+  // Measured: 0.049 % (the issue: LPM agrees with the textbook periodic estimate to
+  // 0.04 %); 0.1 % is twice that and still 3x below the periodic estimate's own median
+  // relative sd (0.14 %).
+  EXPECT_LT(med, 1e-3);
+  // Measured 0.999 and 1.000 (the two estimators see the same noise, so they differ by
+  // less than either's sd; the worst line is an anti-resonance at 5.66 Hz, |P| 4.5e-5
+  // with a 50 % sd, off by 0.94 sd).
+  EXPECT_GE(within1 / n, 0.9);
+  EXPECT_GE(within2 / n, 0.98);
+  // The sd is not inflated: two independent noise estimates — the period-to-period
+  // scatter (periodic, 7 complex dof per line) and the LPM's local residuals (7 dof) —
+  // agree: measured median ratio 0.92; the median over 801 entries of a ratio of two
+  // 7-dof estimates is within ±10 % of its centre, so [0.7, 1.4] flags a 40 % error.
+  EXPECT_GT(vr, 0.7);
+  EXPECT_LT(vr, 1.4);
+}
+
+TEST(RealData, F16PeriodicFrfRefusesAWrongPeriodLength) {
+  LPVID_REAL_DATA_OR_SKIP(log, "f16_gvt/f16_fullmsine_level1.csv");
+  TempDir dir("f16bad");
+  for (const char* L : {"8000", "8191"}) {
+    const auto r = run_lpvid(std::string("frf --method periodic --period-samples ") + L +
+                             " --periods 8 --transient-periods 1 " + kF16Channels + "--out " + (dir / "P.csv") + " " +
+                             log);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(std::string("with ") + L + " samples"));
+    EXPECT_THAT(r.err, HasSubstr("check --period-samples"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "P.csv"));
+  }
+}
+
+TEST(RealData, RobotArmMarkovDefaultHorizonComesFromTheDataInSamples) {
+  LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
+  TempDir dir("arm");
+  const auto r = run_lpvid("markov --excitation u --output y --json --out " + (dir / "g.csv") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // 1024 samples, one input: min(1024 / 4, 1024 / 4) = 256 lags, whatever Ts is.
+  EXPECT_EQ(nlohmann::json::parse(r.out)["lags"], 256);
+  EXPECT_EQ(read_markov_csv(dir / "g.csv").g.size(), 257u);
+  // A horizon in seconds on a log whose time is the sample index: refused, saying so
+  // without contradicting itself (2 s is 2 lags at Ts = 1 s).
+  const auto h = run_lpvid("markov --excitation u --output y --horizon-s 2 --out " + (dir / "h.csv") + " " + log);
+  EXPECT_EQ(h.exit_code, 2);
+  EXPECT_THAT(h.err, HasSubstr("the horizon of 2 s is only 2 lag(s) at the logs' sample time 1 s, fewer than 10; give "
+                               "--lags, or a --horizon-s of at least 10 s"));
+}
+
+}  // namespace
+}  // namespace lpvid
