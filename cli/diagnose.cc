@@ -12,6 +12,7 @@
 #include "cli/stage6_time.h"
 #include "cli/fit_inputs.h"
 #include "cli/output_set.h"
+#include "cli/progress_line.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/physical_model_json.h"
@@ -136,7 +137,10 @@ void run(const DiagnoseCliOptions& o) {
       throw InputError(fmt::format("--candidates: unknown effect '{}'; use one the model could add: {}", c,
                                    fmt::join(absent, ", ")));
     }
+  TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
+  options.progress = progress.get();
   const Diagnosis d = diagnose(in.start, in.data, options);
+  progress.finish();
 
   nlohmann::json ranked = nlohmann::json::array();
   std::string table = fmt::format("{:<4} {:<18} {:>10} {:>8} {:>9} {:>9} {:>10}  {}\n", "rank", "candidate", "error %",

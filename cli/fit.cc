@@ -12,6 +12,7 @@
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
 #include "cli/output_set.h"
+#include "cli/progress_line.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "cli/stage6_time.h"
@@ -111,7 +112,10 @@ void run(const FitCliOptions& o) {
   // 306.3; a second round reached 4.03 % (floor 4.12 %) and 306.59.
   FitOptions rounds = options;
   rounds.restarts = 2;
+  TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
+  rounds.progress = progress.get();
   const FitResult r = fit_physical_model(start, data, rounds);
+  progress.finish();
   const int restarts = r.restarts;
   const double first_final = r.cost_first_round;
 

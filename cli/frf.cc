@@ -14,6 +14,7 @@
 #include "cli/common.h"
 #include "cli/logs.h"
 #include "cli/output_set.h"
+#include "cli/progress_line.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/frd_csv.h"
@@ -218,6 +219,8 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
         lo.half_width = o.lpm_half_width;
         lo.stride = o.lpm_stride;
         lo.sample_period_s = set.sample_period_s;
+        TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
+        lo.progress = progress.get();
         r = estimate_lpm_frf(set.views(), plant ? m : 0, lo);
         model = fmt::format("local polynomial order {}", lo.order);
       } else {
@@ -228,6 +231,8 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
         lo.half_width = o.lrm_half_width;
         lo.stride = o.lrm_stride;
         lo.sample_period_s = set.sample_period_s;
+        TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
+        lo.progress = progress.get();
         r = estimate_lrm_frf(set.views(), plant ? m : 0, lo);
         model = fmt::format("local rational degrees {}/{}, {} reweighting step(s)", lo.numerator_degree,
                             lo.denominator_degree, lo.sk_iterations);

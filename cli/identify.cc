@@ -7,6 +7,7 @@
 #include "cli/common.h"
 #include "cli/logs.h"
 #include "cli/output_set.h"
+#include "cli/progress_line.h"
 #include "cli/registry.h"
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
@@ -142,7 +143,10 @@ void run(const IdentifyCliOptions& o) {
   check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
                            static_cast<Index>(excitation.size()), options.sample_period_tolerance);
 
+  TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
+  options.progress = progress.get();
   IdentifyResult r = identify_closed_loop(set.views(), set.sample_period_s, controller, options);
+  progress.finish();
   r.closed_loop.input_names = excitation;
   r.closed_loop.output_names = output;
   r.plant.input_names = controller.output_names.empty() ? excitation : controller.output_names;

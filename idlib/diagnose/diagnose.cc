@@ -413,7 +413,7 @@ void describe_in_words(ResidualDescription& r) {
 std::vector<ResidualDescription> describe_residual(const PhysicalModel& reference, double ref_error,
                                                    const std::vector<Phenomenon>& phenomena,
                                                    const std::vector<FitDataset>& data, const FitOptions& refit,
-                                                   double floor, int candidate_starts) {
+                                                   double floor, int candidate_starts, Progress* progress) {
   const BaseInfo& base = base_info(reference.base);
   double wmin = INFINITY, wmax = 0;
   for (const FitDataset& ds : data) {
@@ -435,8 +435,17 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
   std::vector<ResidualDescription> found(templates.size());
   std::vector<bool> ok(templates.size(), false);
   const double excess2 = ref_error * ref_error - floor * floor;
+  auto template_name = [&](const Template& tp) { return fmt::format("{} in {} {}", tp.kind, tp.side, tp.channel); };
+  ParallelSteps screening(progress, "diagnose", "residual model", static_cast<Index>(templates.size()));
   parallel_for(templates.size(), [&](std::size_t t) {
     const Template& tp = templates[t];
+    const std::string name = template_name(tp);
+    screening.start(name);
+    struct Finish {  // also on the early returns below
+      ParallelSteps& steps;
+      const std::string& name;
+      ~Finish() { steps.finish(name); }
+    } finish{screening, name};
     EffectInfo e;
     e.name = fmt::format("residual_{}_{}_{}", tp.kind, tp.side, tp.channel);
     const std::string pre = fmt::format("{}_{}_{}", tp.side == "output" ? "sensor" : "actuator", tp.channel, tp.kind);
@@ -493,8 +502,16 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
   if (order.size() > kRefitted) order.resize(kRefitted);
   std::vector<ResidualDescription> refitted(order.size());
   std::vector<bool> refit_ok(order.size(), false);
+  ParallelSteps refits(progress, "diagnose", "residual model refit", static_cast<Index>(order.size()));
   parallel_for(order.size(), [&](std::size_t i) {
     ResidualDescription r = found[order[i]];
+    const std::string name = fmt::format("{} in {} {}", r.kind, r.side, r.channel);
+    refits.start(name);
+    struct Finish {
+      ParallelSteps& steps;
+      const std::string& name;
+      ~Finish() { steps.finish(name); }
+    } finish{refits, name};
     PhysicalModel m = reference;
     EffectInfo e = r.effect;
     e.name = "residual_description";
@@ -571,9 +588,16 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   FitOptions refit = options.fit;
   refit.function_tolerance = std::max(refit.function_tolerance, options.refit_function_tolerance);
   refit.max_iterations = std::min(refit.max_iterations, options.refit_max_iterations);
+  refit.progress = nullptr;  // the candidates' refits run in parallel: diagnose reports them itself
 
   Diagnosis out;
-  out.baseline = fit_physical_model(model, data, refit);
+  {
+    NestedProgress baseline(options.progress, "diagnose baseline");
+    FitOptions first = refit;
+    first.progress = baseline.get();
+    out.baseline = fit_physical_model(model, data, first);
+  }
+  report_progress(options.progress, {"diagnose", "where the baseline fails", 0, 0, "", -1.0});
   out.baseline_error = out.baseline.error;
   out.noise_floor = out.baseline.noise_floor;
   out.noise_source = out.baseline.noise_source;
@@ -592,8 +616,11 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   std::vector<CandidateOutcome> outcomes(candidates.size());
   for (std::size_t i = 0; i < candidates.size(); ++i) outcomes[i].effect = candidates[i];
   const CandidateContext ctx{out, data, options, refit, model, distorted, f, excess2, global_excess, something};
+  ParallelSteps steps(options.progress, "diagnose", "candidate", static_cast<Index>(outcomes.size()));
   parallel_for(outcomes.size(), [&](std::size_t i) {
+    steps.start(outcomes[i].effect);
     evaluate_candidate(outcomes[i], out.baseline.model, ctx);
+    steps.finish(outcomes[i].effect);
   });
 
   std::vector<CandidateOutcome> failed;
@@ -627,6 +654,7 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
       for (std::size_t i = 1; i < out.ranked.size(); ++i)
         if (out.ranked[i].significant && out.ranked[i].error <= options.explained_ratio * f)
           out.indistinguishable.push_back(out.ranked[i].effect);
+    report_progress(options.progress, {"diagnose", "where the winner fails", 0, 0, winner->effect, -1.0});
     const ModelErrorSet rest = model_errors(winner->fit.model, data, refit, options.model_error);
     out.remaining_failures = rest.failures;
     out.remaining_phenomena = group_phenomena(rest.failures, out.baseline.output_names, out.baseline.input_names);
@@ -637,7 +665,8 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     const PhysicalModel& ref = winner != nullptr ? winner->fit.model : out.baseline.model;
     const double ref_error = winner != nullptr ? winner->error : e0;
     const auto& ph = winner != nullptr ? out.remaining_phenomena : out.phenomena;
-    out.descriptions = describe_residual(ref, ref_error, ph, data, refit, f, options.candidate_global_starts);
+    out.descriptions =
+        describe_residual(ref, ref_error, ph, data, refit, f, options.candidate_global_starts, options.progress);
   }
 
   // ---- the report in words ----

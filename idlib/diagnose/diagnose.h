@@ -73,6 +73,12 @@ struct DiagnoseOptions {
   // Global starts of a candidate's refit (its own parameters only, beside the starts
   // read off the failing bands): fewer than a first fit needs, the base is fitted.
   int candidate_global_starts = 4;
+  // Reports (idlib/core/progress.h), nullptr: none; fit.progress is not used (the
+  // refits run in parallel).  Task "diagnose baseline, fit" (the baseline's global
+  // starts and iterations), then "diagnose: candidate K of n: NAMES" (the candidates
+  // running, newest first; bar: the share finished), then the residual's models
+  // ("residual model", "residual model refit").  Called from several threads.
+  Progress* progress = nullptr;
 
   // @throws InputError  a field out of range; fit or model_error options invalid;
   //   the noise of the data unknown (checked by diagnose: data without variance,

@@ -852,7 +852,27 @@ ModelScore score_model(const PhysicalModel& model, const std::vector<FitDataset>
 namespace {
 
 // One round: global start, then Levenberg–Marquardt (fit_physical_model repeats it).
-FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& data, const FitOptions& options) {
+// Levenberg–Marquardt's iterations as progress reports (FitOptions::progress); not
+// iteration 0, the start's evaluation.
+class IterationProgress final : public ceres::IterationCallback {
+ public:
+  IterationProgress(Progress* progress, const std::string& task) : progress_(progress), task_(task) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (s.iteration < 1) return ceres::SOLVER_CONTINUE;
+    // Ceres' cost is half the sum of squares; the fit's (FitResult::cost_final) is the sum.
+    const std::string detail = fmt::format("cost {:.6g}", 2.0 * s.cost);
+    progress_->report({task_, "Levenberg-Marquardt iteration", s.iteration, 0, detail, -1.0});
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  Progress* progress_;
+  const std::string& task_;
+};
+
+// One round: global start + Levenberg–Marquardt; `task` names it in progress reports.
+FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& data, const FitOptions& options,
+                    const std::string& task) {
   const auto t0 = std::chrono::steady_clock::now();
   options.validate();
   start.validate();
@@ -990,7 +1010,11 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
       slo.push_back(coords.lower[static_cast<std::size_t>(q)]);
       shi.push_back(coords.upper[static_cast<std::size_t>(q)]);
     }
-    for (const std::vector<double>& x0 : starts) {
+    for (std::size_t k = 0; k < starts.size(); ++k) {
+      const std::vector<double>& x0 = starts[k];
+      if (options.progress != nullptr)
+        options.progress->report(
+            {task, "global start", static_cast<Index>(k + 1), static_cast<Index>(starts.size()), "", -1.0});
       Sub sb{&coarse, x0, &searched};
       std::vector<double> x;
       for (Index q : searched) x.push_back(x0[static_cast<std::size_t>(q)]);
@@ -1063,6 +1087,11 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   // a third of all fitting time.  A few halvings suffice: the next trust-region
   // step corrects a short one.
   so.max_num_line_search_step_size_iterations = 4;
+  std::optional<IterationProgress> iteration_progress;
+  if (options.progress != nullptr) {
+    iteration_progress.emplace(options.progress, task);
+    so.callbacks.push_back(&*iteration_progress);
+  }
   ceres::Solver::Summary summary;
   ceres::Solve(so, &cp, &summary);
   if (!summary.IsSolutionUsable())
@@ -1193,7 +1222,10 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
 FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDataset>& data,
                              const FitOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
-  FitResult r = fit_round(start, data, options);
+  auto task = [&](int round) {
+    return options.restarts > 0 ? fmt::format("fit round {}", round) : std::string("fit");
+  };
+  FitResult r = fit_round(start, data, options, task(1));
   r.cost_first_round = r.cost_final;
   // A cost that falls by less than this fraction is the same minimum (Ceres'
   // function tolerance is 1e-12; LM from its own end point moves it by round-off).
@@ -1201,7 +1233,7 @@ FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDa
   while (r.restarts < options.restarts) {
     FitResult again;
     try {
-      again = fit_round(r.model, data, options);
+      again = fit_round(r.model, data, options, task(r.restarts + 2));
     } catch (const NumericalError&) {
       break;  // the rounds that ended at r stand
     }

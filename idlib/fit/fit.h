@@ -65,6 +65,7 @@
 #include <vector>
 
 #include "idlib/core/error.h"
+#include "idlib/core/progress.h"
 #include "idlib/core/types.h"
 #include "idlib/physical/physical_model.h"
 
@@ -134,6 +135,10 @@ struct FitOptions {
   double scale_floor = kDefaultScaleFloor;  // see s_ij above; in (0, 1)
   double correlation_flag = 0.95;        // in (0, 1]
   double singular_value_flag = 1e-3;     // in (0, 1)
+  // Reports (idlib/core/progress.h), nullptr: none.  Task "fit" ("fit round R" with
+  // restarts), steps "global start i of n" (bar: the starts done) and
+  // "Levenberg-Marquardt iteration i" (detail: the cost, Σ r²).
+  Progress* progress = nullptr;
 
   // @throws InputError naming the first field out of range.
   void validate() const;

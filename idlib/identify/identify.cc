@@ -209,6 +209,7 @@ IdentifyResult identify_era(const std::vector<ExperimentView>& experiments, doub
   MarkovOptions markov_options;
   markov_options.num_lags = result.num_lags;
   markov_options.method = options.markov_method;
+  report_progress(options.progress, {"identify", "Markov parameters", 0, 0, fmt::format("{} lags", result.num_lags)});
   result.markov = estimate_markov(experiments, markov_options);
   for (const auto& w : result.markov.report.warnings) result.warnings.push_back("markov: " + w);
 
@@ -222,6 +223,7 @@ IdentifyResult identify_era(const std::vector<ExperimentView>& experiments, doub
   // A zero-order-hold sampled plant has no direct feedthrough (D_P = 0), so
   // neither has G = P (I + C P)^-1: D_G = D_P (I + D_C D_P)^-1 = 0.
   era_options.estimate_feedthrough = false;
+  report_progress(options.progress, {"identify", "realization", 0, 0, ""});
   result.era = realize_era(result.markov.g, era_options);
   for (const auto& w : result.era.report.warnings) result.warnings.push_back("realize: " + w);
   // The experiments ran in a stable closed loop, so an unstable model of it is
@@ -237,6 +239,7 @@ IdentifyResult identify_era(const std::vector<ExperimentView>& experiments, doub
   }
   UnloopOptions unloop_options;
   unloop_options.plant_order = options.plant_order;
+  report_progress(options.progress, {"identify", "unloop", 0, 0, ""});
   result.unloop = plant_from_closed_loop(result.era.model, controller, unloop_options);
   for (const auto& w : result.unloop.report.warnings) result.warnings.push_back("unloop: " + w);
   result.closed_loop = result.era.model;
@@ -281,6 +284,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     L = choose_num_lags(options, Ts, shortest);
     mo.num_lags = L;
     corr.max_lag = L;
+    report_progress(options.progress, {"identify", "Markov horizon", 0, 0, fmt::format("{} lags", L)});
     result.markov = estimate_markov(experiments, mo, &corr);
     ch.horizon_reason = fmt::format("{} lags were given", L);
     std::string why;
@@ -292,6 +296,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     std::string why;
     for (;;) {
       mo.num_lags = L;
+      report_progress(options.progress, {"identify", "Markov horizon", 0, 0, fmt::format("{} lags", L)});
       result.markov = estimate_markov(experiments, mo, &corr);
       const ScaledEnergy e = scaled_energy(result.markov);
       if (response_ended(e, L, &why)) {
@@ -316,6 +321,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   const MarkovSequence g0(result.markov.g.begin(), result.markov.g.begin() + L + 1);
 
   // 2. Noise spectrum and the fit band.
+  report_progress(options.progress, {"identify", "noise spectrum", 0, 0, ""});
   const Eigen::MatrixXd R0 = excitation_gram(experiments);
   std::vector<Eigen::MatrixXcd> spectrum = fir_residual_spectrum(experiments, g0, L, L / 2 + 1);
   const MarkovBins all = make_markov_bins(g0, L, L / 2 + 1, spectrum, R0, Ts, kMarkovRelativeAccuracy);
@@ -504,6 +510,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     return c;
   };
 
+  report_progress(options.progress, {"identify", "starting models", 0, 0, "ERA on the plant's impulse response"});
   const MarkovSequence phat0 = plant_markov_from_closed_loop(g0, controller, L);
   const std::vector<Realised> pool0 = realise_all(phat0);
   const bool select_order = options.plant_order == 0;
@@ -530,6 +537,8 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     Index at_floor = -1, best = -1;
     for (Index n = 1; n <= n_cap; ++n) {
       const bool confirming = at_floor >= 0;
+      report_progress(options.progress,
+                      {"identify", "plant order", n, 0, fmt::format("up to {}", n_cap)});
       OrderFit o = fit_order({&pool0}, first, n, confirming ? kOrderScreenIterations : fo.max_iterations);
       if (!o.found) continue;
       ch.order_candidates.push_back(candidate(n, o));
@@ -586,7 +595,11 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
 
   // 5. Staged fit: horizons K0, 2 K0, ..., L.
   ch.stages.push_back({K0, first.num_bins(), fit.iterations, fit.cost});
+  Index stage_count = 1;
+  for (Index K = 2 * K0; K <= L; K *= 2) ++stage_count;
   for (Index K = 2 * K0; K <= L; K *= 2) {
+    report_progress(options.progress, {"identify", "staged fit", static_cast<Index>(ch.stages.size()) + 1, stage_count,
+                                       fmt::format("{} lags", K)});
     const MarkovBins stage = bins_at(g0, spectrum, K);
     fit = fit_plant_closed_loop(stage, controller, fit.plant, fo);
     ch.stages.push_back({K, stage.num_bins(), fit.iterations, fit.cost});
@@ -610,6 +623,9 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     ch.tail_rounds.clear();
     ch.tail_reason = fmt::format("no rounds ({} allowed)", options.max_tail_rounds);
     for (int round = 1; round <= options.max_tail_rounds; ++round) {
+      report_progress(options.progress, {"identify", "tail round", round, 0,
+                                         fmt::format("up to {}{}", options.max_tail_rounds,
+                                                     pass == 1 ? ", after the order check" : "")});
       std::vector<ExperimentView> views;
       parallel_for(static_cast<Index>(experiments.size()), [&](Index e) {  // one task per experiment
         const auto& x = experiments[static_cast<std::size_t>(e)];
@@ -678,6 +694,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     PlantFitResult lower_fit;
     Index lower = top;
     for (Index n = top - 1; n >= 1; --n) {
+      report_progress(options.progress, {"identify", "order check", n, 0, fmt::format("against order {}", top)});
       OrderFit o = fit_order({&pool, &pool0}, small, n, fo.max_iterations);
       if (!o.found) break;
       const double ref = per_dof(top_small);
@@ -707,6 +724,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   //    independent bins and claimed 6-10x too little variance on the independent
   //    simulator (bins' errors correlate over tens to hundreds of bins).
   {
+    report_progress(options.progress, {"identify", "bands", 0, 0, "covariance from the record's segments"});
     std::vector<ExperimentView> views;
     for (std::size_t e = 0; e < experiments.size(); ++e) {
       if (corrected[e].size() > 0)

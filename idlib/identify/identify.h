@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "idlib/closedloop/unloop.h"
+#include "idlib/core/progress.h"
 #include "idlib/core/types.h"
 #include "idlib/identify/plant_fit.h"
 #include "idlib/realization/era.h"
@@ -63,6 +64,11 @@ struct IdentifyOptions {
   int max_tail_rounds = 6;
   // Relative tolerance on |Ts_log - Ts_controller| / Ts_controller.
   double sample_period_tolerance = 1e-6;
+  // Reports (idlib/core/progress.h), nullptr: none.  Task "identify", one step per
+  // stage: kStructured "Markov horizon" (lags), "noise spectrum", "starting models",
+  // "plant order" n (of at most n_max), "staged fit" i of n, "tail round" r, "order
+  // check" n, "bands"; kEra "Markov parameters", "realization", "unloop".
+  Progress* progress = nullptr;
 
   // Throws InputError naming the option and the rule.
   void validate() const;

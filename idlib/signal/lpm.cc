@@ -159,7 +159,12 @@ LpmResult estimate_lpm_frf(const std::vector<ExperimentView>& experiments, Index
   const Eigen::MatrixXcd identity = Eigen::MatrixXcd::Identity(npar, npar);
   Eigen::LDLT<Eigen::MatrixXcd> ldlt(npar);
   Index nflag = 0;
+  // About kProgressReports reports over the run (the renderer shows at most 10 a second).
+  constexpr Index kProgressReports = 200;
+  const Index report_every = std::max<Index>(1, F / kProgressReports);
   for (Index f = 0; f < F; ++f) {
+    if (options.progress != nullptr && f % report_every == 0)
+      options.progress->report({"frf lpm", "frequency line", f + 1, F, "", -1.0});
     const Index k = result.bins[static_cast<size_t>(f)];
     const Index start = std::clamp<Index>(k - n, 1, kmax - width + 1);
     K.setZero();

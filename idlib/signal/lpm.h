@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "idlib/core/error.h"
+#include "idlib/core/progress.h"
 #include "idlib/core/types.h"
 #include "idlib/signal/markov.h"  // ExperimentView
 
@@ -49,6 +50,9 @@ struct LpmOptions {
   Index first_bin = 1;       // >= 1
   Index stride = 1;          // >= 1: estimate every stride-th bin
   double max_condition = 1e10;
+  // Reports (idlib/core/progress.h), nullptr: none: task "frf lpm", step "frequency
+  // line" i of n, a few hundred times over the run.
+  Progress* progress = nullptr;
 
   // @throws InputError naming the first broken rule.
   void validate() const;

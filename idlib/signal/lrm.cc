@@ -70,7 +70,12 @@ LrmResult estimate_lrm_frf(const std::vector<ExperimentView>& experiments, Index
   std::vector<Eigen::MatrixXcd> AG(static_cast<size_t>(nz), Eigen::MatrixXcd(L, m));
   Eigen::LDLT<Eigen::MatrixXcd> ldlt(npar);
   Index nflag = 0, ridged = 0;
+  // About kProgressReports reports over the run (the renderer shows at most 10 a second).
+  constexpr Index kProgressReports = 200;
+  const Index report_every = std::max<Index>(1, F / kProgressReports);
   for (Index f = 0; f < F; ++f) {
+    if (options.progress != nullptr && f % report_every == 0)
+      options.progress->report({"frf lrm", "frequency line", f + 1, F, "", -1.0});
     const Index k = result.bins[static_cast<size_t>(f)];
     const Index start = std::clamp<Index>(k - n, 1, kmax - width + 1);
     // The row-independent part of the regressor: numerators of G and of the transients.

@@ -43,6 +43,7 @@
 #include <vector>
 
 #include "idlib/core/error.h"
+#include "idlib/core/progress.h"
 #include "idlib/core/types.h"
 #include "idlib/signal/lpm.h"     // kLpmMinDof
 #include "idlib/signal/markov.h"  // ExperimentView
@@ -69,6 +70,9 @@ struct LrmOptions {
   Index first_bin = 1;  // >= 1
   Index stride = 1;     // >= 1
   double max_condition = 1e10;
+  // Reports (idlib/core/progress.h), nullptr: none: task "frf lrm", step "frequency
+  // line" i of n, a few hundred times over the run.
+  Progress* progress = nullptr;
 
   // @throws InputError naming the first broken rule.
   void validate() const;

@@ -25,8 +25,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <mutex>
 #include <ostream>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -50,13 +54,32 @@ struct LoopRun {
   Diagnosis d;
 };
 
-LoopRun diagnose_case(std::uint64_t seed, HiddenEffect hidden, Route route) {
+LoopRun diagnose_case(std::uint64_t seed, HiddenEffect hidden, Route route, Progress* progress = nullptr) {
   LoopRun r{testing::make_loop_case(seed, hidden, route), {}};
   DiagnoseOptions o;
   o.fit = testing::loop_fit_options(r.c);
+  o.progress = progress;
   r.d = diagnose(r.c.start, r.c.data, o);
   return r;
 }
+
+// Keeps every progress report (from diagnose's threads too).
+class Recorder final : public Progress {
+ public:
+  struct Seen {
+    std::string task, step, detail;
+    Index index = 0, count = 0;
+    double fraction = 0;
+  };
+  void report(const ProgressStep& s) noexcept override {
+    std::lock_guard<std::mutex> lock(m_);
+    seen.push_back({std::string(s.task), std::string(s.step), std::string(s.detail), s.index, s.count, s.fraction});
+  }
+  std::vector<Seen> seen;
+
+ private:
+  std::mutex m_;
+};
 
 std::string report(const Diagnosis& d) {
   std::string s;
@@ -198,8 +221,37 @@ TEST(IndependentPlantClean, FrfFromLogsCallsNothingSignificant) {
 class OutOfLibrary : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(OutOfLibrary, IsNeverExplainedAndIsDescribedInTheThetaRowAtItsFrequency) {
-  const LoopRun r = diagnose_case(GetParam(), HiddenEffect::kSensorResonance, Route::kAnalyzer);
+  Recorder progress;
+  const LoopRun r = diagnose_case(GetParam(), HiddenEffect::kSensorResonance, Route::kAnalyzer, &progress);
   const Diagnosis& d = r.d;
+  // Progress (idlib/core/progress.h): the baseline's fit first, then every candidate
+  // started once (K counts the starts: 1..n, each name once), the bar reaching all
+  // finished, then the residual's models.
+  ASSERT_FALSE(progress.seen.empty());
+  EXPECT_EQ(progress.seen.front().task, "diagnose baseline, fit");
+  std::vector<std::string> started;
+  Index last_start = 0;
+  double finished = 0;
+  bool residual = false;
+  for (const auto& s : progress.seen) {
+    if (s.step == "candidate") {
+      EXPECT_EQ(s.count, static_cast<Index>(d.ranked.size()));
+      if (s.index > last_start) {  // a start: its name is the newest running
+        EXPECT_EQ(s.index, last_start + 1);
+        started.push_back(s.detail.substr(0, s.detail.find(',')));
+        last_start = s.index;
+      }
+      finished = std::max(finished, s.fraction);
+    }
+    residual = residual || s.step == "residual model";
+  }
+  std::vector<std::string> ranked;
+  for (const auto& c : d.ranked) ranked.push_back(c.effect);
+  std::sort(started.begin(), started.end());
+  std::sort(ranked.begin(), ranked.end());
+  EXPECT_EQ(started, ranked);
+  EXPECT_EQ(finished, 1.0);
+  EXPECT_TRUE(residual);
   EXPECT_FALSE(d.explained) << report(d);
   ASSERT_FALSE(d.descriptions.empty()) << report(d);
   const ResidualDescription& best = d.descriptions.front();

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
+#include <vector>
 
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
@@ -275,6 +277,56 @@ TEST(PhysicalFit, RestartsContinueFromTheEstimateOnlyWhileTheCostFalls) {
   EXPECT_EQ(converged.cost_final, converged.cost_first_round);
   o.restarts = -1;
   EXPECT_THROW(fit_physical_model(start, data, o), InputError);
+}
+
+TEST(PhysicalFit, ProgressReportsEachGlobalStartAndIterationAndChangesNothing) {
+  struct Recorder final : Progress {
+    struct Seen {
+      std::string task, step;
+      Index index, count;
+    };
+    void report(const ProgressStep& s) noexcept override {
+      seen.push_back({std::string(s.task), std::string(s.step), s.index, s.count});
+    }
+    std::vector<Seen> seen;
+  };
+  const PhysicalModel truth = truth_model();
+  FitOptions o = plant_options();
+  o.global_starts = 3;
+  o.max_iterations = 10;
+  const std::vector<FitDataset> data = data_of(truth, o);
+  const FitResult plain = fit_physical_model(two_times_off(truth), data, o);
+  Recorder rec;
+  o.progress = &rec;
+  const FitResult watched = fit_physical_model(two_times_off(truth), data, o);
+  // The observer changes nothing (the fit runs on one thread: bit for bit).
+  EXPECT_EQ(watched.cost_final, plain.cost_final);
+  for (std::size_t k = 0; k < plain.parameters.size(); ++k)
+    EXPECT_EQ(watched.parameters[k].estimate, plain.parameters[k].estimate) << plain.parameters[k].name;
+  // The global starts in order (the start, 2 random points, and the library defaults
+  // when a start value sits on a bound), then one report per Levenberg–Marquardt
+  // iteration 1, 2, ... (FitResult::iterations counts iteration 0 too, the start's
+  // evaluation: Ceres' summary.iterations holds it).
+  std::size_t starts = 0;
+  while (starts < rec.seen.size() && rec.seen[starts].step == "global start") ++starts;
+  ASSERT_GE(starts, 3u);
+  ASSERT_EQ(rec.seen.size(), starts + static_cast<std::size_t>(plain.iterations - 1));
+  for (std::size_t k = 0; k < starts; ++k) {
+    EXPECT_EQ(rec.seen[k].task, "fit");
+    EXPECT_EQ(rec.seen[k].index, static_cast<Index>(k + 1));
+    EXPECT_EQ(rec.seen[k].count, static_cast<Index>(starts));
+  }
+  for (std::size_t k = starts; k < rec.seen.size(); ++k) {
+    EXPECT_EQ(rec.seen[k].step, "Levenberg-Marquardt iteration");
+    EXPECT_EQ(rec.seen[k].index, static_cast<Index>(k - starts + 1));
+  }
+  // With restarts the rounds are named.
+  rec.seen.clear();
+  o.restarts = 1;
+  fit_physical_model(two_times_off(truth), data, o);
+  ASSERT_FALSE(rec.seen.empty());
+  EXPECT_EQ(rec.seen.front().task, "fit round 1");
+  EXPECT_EQ(rec.seen.back().task, "fit round 2");
 }
 
 TEST(PhysicalFit, AnEstimateOnABoundIsFlaggedAndWarned) {

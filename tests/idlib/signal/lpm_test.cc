@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <numbers>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "idlib/lti/frequency_response.h"
 #include "idlib/signal/frf.h"
@@ -130,6 +132,45 @@ TEST(Lpm, ClosedLoopPlantFromTheReference) {
   std::printf("LPM closed-loop plant: 99%% band coverage %.4f (n = %d, q = %d)\n", coverage,
               static_cast<int>(r.half_width), static_cast<int>(r.dof));
   EXPECT_GE(coverage, 0.95);
+}
+
+// Keeps the reports of a local method (idlib/core/progress.h).
+class LineRecorder final : public Progress {
+ public:
+  void report(const ProgressStep& s) noexcept override {
+    task = s.task;
+    step = s.step;
+    indices.push_back(s.index);
+    count = s.count;
+  }
+  std::string task, step;
+  std::vector<Index> indices;
+  Index count = 0;
+};
+
+TEST(Lpm, ReportsItsFrequencyLinesAFewHundredTimesAndGivesTheSameResult) {
+  Resonator g;
+  Eigen::MatrixXd u, y;
+  record(g, 8192, 1e-3, 7, u, y);
+  LpmOptions lo;
+  lo.sample_period_s = kTs;
+  const LpmResult plain = estimate_lpm_frf({{u, y}}, 0, lo);
+  LineRecorder rec;
+  lo.progress = &rec;
+  const LpmResult watched = estimate_lpm_frf({{u, y}}, 0, lo);
+  const Index F = plain.frd.num_frequencies();
+  EXPECT_EQ(rec.task, "frf lpm");
+  EXPECT_EQ(rec.step, "frequency line");
+  EXPECT_EQ(rec.count, F);
+  ASSERT_FALSE(rec.indices.empty());
+  EXPECT_EQ(rec.indices.front(), 1);
+  EXPECT_TRUE(std::is_sorted(rec.indices.begin(), rec.indices.end()));
+  EXPECT_LE(rec.indices.back(), F);
+  // ~200 reports (one per F/200 lines, F = 4095 here): few enough to cost nothing.
+  EXPECT_GE(rec.indices.size(), 100u);
+  EXPECT_LE(rec.indices.size(), 410u);
+  for (Index k = 0; k < F; ++k)
+    EXPECT_EQ(watched.frd.response[static_cast<size_t>(k)], plain.frd.response[static_cast<size_t>(k)]) << k;
 }
 
 TEST(Lpm, RefusesARecordShorterThanItsWindow) {

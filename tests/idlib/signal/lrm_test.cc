@@ -194,6 +194,36 @@ TEST(Lrm, ClosedLoopPlantFromTheReference) {
   EXPECT_GE(coverage, 0.95);
 }
 
+TEST(Lrm, ReportsItsFrequencyLinesAFewHundredTimesAndGivesTheSameResult) {
+  struct Recorder final : Progress {
+    void report(const ProgressStep& s) noexcept override {
+      ok = ok && s.task == "frf lrm" && s.step == "frequency line" && s.count == count && s.index > last;
+      last = s.index;
+      ++reports;
+    }
+    Index count = 0, last = 0;
+    int reports = 0;
+    bool ok = true;
+  };
+  Resonator g;
+  Eigen::MatrixXd u, y;
+  record(g, 4096, 1e-3, 7, u, y);
+  LrmOptions o;
+  o.sample_period_s = kTs;
+  const LrmResult plain = estimate_lrm_frf({{u, y}}, 0, o);
+  Recorder rec;
+  rec.count = plain.frd.num_frequencies();
+  o.progress = &rec;
+  const LrmResult watched = estimate_lrm_frf({{u, y}}, 0, o);
+  EXPECT_TRUE(rec.ok);  // every report "frf lrm: frequency line i of F", i increasing
+  EXPECT_LE(rec.last, rec.count);
+  // ~200 reports (one per F/200 lines, F = 2047 here): few enough to cost nothing.
+  EXPECT_GE(rec.reports, 100);
+  EXPECT_LE(rec.reports, 410);
+  for (Index k = 0; k < plain.frd.num_frequencies(); ++k)
+    EXPECT_EQ(watched.frd.response[static_cast<size_t>(k)], plain.frd.response[static_cast<size_t>(k)]) << k;
+}
+
 TEST(Lrm, RefusesARecordShorterThanItsWindowAndBadDegrees) {
   const Eigen::MatrixXd u = Eigen::MatrixXd::Random(30, 1), y = Eigen::MatrixXd::Random(30, 1);
   LrmOptions ro;
