@@ -68,8 +68,8 @@ void run(const MarkovCliOptions& o) {
                              : choose_num_lags(chain, set.sample_period_s, shortest);
   const std::string horizon =
       by_data ? fmt::format("default: the longest the records support, min(shortest {} / 4, total {} / (4 x {} "
-                            "inputs))",
-                            shortest, total, excitation.size())
+                            "inputs), {})",
+                            shortest, total, excitation.size(), kMaxDefaultMarkovLags)
       : o.lags > 0 ? std::string("--lags")
                    : fmt::format("--horizon-s {:g} s", o.horizon_s);
   const MarkovResult r = estimate_markov(set.views(), options);
@@ -117,7 +117,7 @@ Command make_markov_command() {
             app->add_option("--out", o->out, "Markov parameter CSV to write ('-' = stdout)")->required();
             app->add_option("--lags", o->lags,
                             "number of lags L (default: --horizon-s / Ts when given, else the longest the records "
-                            "support: min(N shortest / 4, N total / (4 inputs)), in samples)")
+                            "support: min(N shortest / 4, N total / (4 inputs), 2000), in samples)")
                 ->check(integer_in(10, kMaxLags, "the number of Markov lags"));
             app->add_option("--horizon-s", o->horizon_s,
                             "impulse-response length in seconds (instead of --lags; needs a known sample time), at "

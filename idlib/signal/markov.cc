@@ -295,7 +295,7 @@ Index default_markov_lags(Index shortest_record, Index total_samples, Index num_
                                  "column(s); give records and at least one excitation",
                                  shortest_record, total_samples, num_excitations));
   const Index by_record = shortest_record / 4, by_data = total_samples / (4 * num_excitations);
-  const Index lags = std::min(by_record, by_data);
+  const Index lags = std::min({by_record, by_data, kMaxDefaultMarkovLags});
   if (lags < kMinDefaultMarkovLags) {
     if (by_record < kMinDefaultMarkovLags)
       throw InputError(fmt::format("a record of {} samples supports only {} lags by default (a quarter of the "

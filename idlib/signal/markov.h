@@ -153,9 +153,11 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
 // The default horizon when the caller gives neither lags nor a horizon in seconds: from
 // the data, in SAMPLES (the sample time may be unknown, e.g. a log whose time column is
 // the sample index): the longest horizon the records support,
-//   L = min(⌊N_shortest / 4⌋, ⌊N_total / (4 m)⌋),
-// i.e. the lag window is at most a quarter of every record, and the m·L unknowns per
-// output get at least 4 samples each (twice estimate_markov's minimum of 2).  `hankel`
+//   L = min(⌊N_shortest / 4⌋, ⌊N_total / (4 m)⌋, 2000),
+// i.e. the lag window is at most a quarter of every record, the m·L unknowns per
+// output get at least 4 samples each (twice estimate_markov's minimum of 2), and at
+// most kMaxDefaultMarkovLags lags (a bound on the work: `hankel` and `realize` grow with
+// L; 2000 is the 2 s the default used to be at 1 kHz; a longer response needs --lags).  `hankel`
 // and `realize` find the effective length of the response within it (era.h step 3), so
 // a horizon longer than the response costs only computation.  Examples: 2 s at 1 kHz,
 // three one-input-at-a-time logs (m = 3): 500 lags; the DaISy robot arm (1024 samples,
@@ -163,6 +165,7 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
 // @throws InputError when that is below kMinDefaultMarkovLags (saying the shortest
 //   record and total that would give it) or the counts are not positive.
 inline constexpr Index kMinDefaultMarkovLags = 16;
+inline constexpr Index kMaxDefaultMarkovLags = 2000;
 Index default_markov_lags(Index shortest_record, Index total_samples, Index num_excitations);
 
 }  // namespace lpvid

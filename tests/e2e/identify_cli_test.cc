@@ -205,7 +205,9 @@ TEST_F(CliBadInput, RecordTooShortForTheLags) {
   TempDir dir("short");
   const auto f = identify_with(edited_log(dir, -1, "", 30) + " --lags 100");
   EXPECT_EQ(f.exit_code, 2);
-  EXPECT_THAT(f.err, HasSubstr("too short"));
+  // The message says what was asked, what the record has, and the most it allows.
+  EXPECT_THAT(f.err, HasSubstr("--lags 100 needs records longer than 100 samples, but the shortest has 30; give at "
+                               "most 7 lags"));
   EXPECT_EQ(f.files_written, 0);
 }
 

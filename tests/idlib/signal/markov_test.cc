@@ -498,6 +498,9 @@ TEST(DefaultMarkovLags, IsTheLongestHorizonTheRecordsSupportInSamples) {
   EXPECT_EQ(default_markov_lags(2000, 6000, 3), 500);    // the golden logs: 3 x 2 s at 1 kHz
   EXPECT_EQ(default_markov_lags(2000, 2000, 3), 166);    // one log, three inputs: 4 samples per unknown
   EXPECT_EQ(default_markov_lags(64, 64, 1), kMinDefaultMarkovLags);
+  // Long records: the work bound, 2000 lags (2 s at 1 kHz), not a quarter of 30 s.
+  EXPECT_EQ(default_markov_lags(30000, 90000, 3), kMaxDefaultMarkovLags);
+  EXPECT_EQ(default_markov_lags(8523, 8523, 2), 1065);  // the DaISy steel subframe: 4 samples per unknown
   // Every lag count it returns is one estimate_markov accepts (N > L, total >= 2 m (L + 1)).
   for (Index n : {64, 100, 1000, 4097})
     for (Index m : {1, 2, 3}) {
