@@ -27,7 +27,12 @@ struct Column {
   std::string label;  // "column 3 ('u1') " inside a matrix, else ""
   const Value* source = nullptr;
   size_t offset = 0;  // first of the N values in source->re
+  size_t stride = 1;  // between successive samples in source->re (a channels × N matrix: its row count)
 };
+
+// The names a lab file may give its sample rate in, as a scalar: Hz, or seconds.
+constexpr const char* kRateNamesHz[] = {"Fs", "fs"};
+constexpr const char* kPeriodNamesS[] = {"Ts", "ts", "dt"};
 
 class MatLogReader {
  public:
@@ -41,10 +46,11 @@ class MatLogReader {
       matrix_layout();
     } else if (has("t")) {
       per_signal_layout();
-    } else if (!simulink_layout() && !struct_layout()) {
+    } else if (!simulink_layout() && !struct_layout() && !lab_layout()) {
       fail_file(fmt::format("no log in the file; save t and the signals as N-vectors, or data (N × channels) and "
-                            "names, or a struct of signals, or Simulink 'Structure With Time' (docs/formats.md, "
-                            "\"Logs in .mat files\"); the file holds: {}",
+                            "names, or a struct of signals, or Simulink 'Structure With Time', or the signals with "
+                            "their sample rate as a scalar Fs (Hz) or Ts (s) (docs/formats.md, \"Logs in .mat "
+                            "files\"); the file holds: {}",
                             holds()));
     }
     return assemble();
@@ -224,6 +230,91 @@ class MatLogReader {
     return time != nullptr;
   }
 
+  // (e): a lab's file without a time vector: a scalar sample rate Fs/fs (Hz) or sample
+  // period Ts/ts/dt (s), and the signals as row or column vectors of N samples or as
+  // channels × N or N × channels matrices (a matrix X of k channels gives X1..Xk); other
+  // scalars are metadata.  N is the longest dimension of the signals; t = 0, Ts, ...
+  bool lab_layout() {
+    std::string rate_name;
+    bool in_hz = false;
+    for (const std::string& name : variables_) {
+      const bool hz = std::find(std::begin(kRateNamesHz), std::end(kRateNamesHz), name) != std::end(kRateNamesHz);
+      const bool s = std::find(std::begin(kPeriodNamesS), std::end(kPeriodNamesS), name) != std::end(kPeriodNamesS);
+      if (!hz && !s) continue;
+      const Value& v = get(name);
+      if (v.kind != Value::Kind::kNumeric || v.count() != 1) continue;
+      if (!rate_name.empty())
+        fail(name, fmt::format("gives the sample rate and so does {}; keep one of them", rate_name));
+      rate_name = name;
+      in_hz = hz;
+    }
+    if (rate_name.empty()) return false;
+    const Value& rate = get(rate_name);
+    need_real_numeric(rate, rate_name, in_hz ? "the sample rate in Hz" : "the sample period in s");
+    const double r = rate.re[0];
+    if (!(std::isfinite(r) && r > 0))
+      fail(rate_name, fmt::format("is {}; give the {} as a positive number", r,
+                                  in_hz ? "sample rate in Hz" : "sample period in s"));
+    const double ts = in_hz ? 1.0 / r : r;
+    // The signals and N.
+    std::vector<std::string> signals;
+    size_t n = 0;
+    for (const std::string& name : variables_) {
+      if (name == rate_name) continue;
+      const Value& v = get(name);
+      if (v.kind != Value::Kind::kNumeric || v.count() <= 1) continue;  // metadata
+      need_real_numeric(v, name, "a signal");
+      if (v.dims.size() != 2)
+        fail(name, fmt::format("is {}; give a signal as a vector of N samples or channels as a 2-D matrix",
+                               mat_detail::dims_text(v.dims)));
+      signals.push_back(name);
+      n = std::max({n, v.dims[0], v.dims[1]});
+    }
+    if (signals.empty())
+      fail(rate_name, fmt::format("gives a sample rate but the file holds no signal (a numeric vector or matrix); "
+                                  "the file holds: {}",
+                                  holds()));
+    Value t;
+    t.kind = Value::Kind::kNumeric;
+    t.dims = {n, 1};
+    t.re.resize(n);
+    for (size_t k = 0; k < n; ++k) t.re[k] = static_cast<double>(k) * ts;
+    const Value& time = keep(std::move(t));
+    rows_ = n;
+    time_where_ = rate_name;
+    columns_.push_back({"t", rate_name, "", &time, 0});
+    name_where_.push_back(rate_name);
+    for (const std::string& name : signals) {
+      const Value& v = get(name);
+      const size_t rows = v.dims[0], cols = v.dims[1];
+      if (is_vector(v)) {
+        if (v.count() != n)
+          fail(name, fmt::format("has {} samples but the longest signal has {}; every signal needs one sample per "
+                                 "time",
+                                 v.count(), n));
+        columns_.push_back({name, name, "", &v, 0});
+        name_where_.push_back(name);
+        continue;
+      }
+      if (rows == n && cols == n)
+        fail(name, fmt::format("is {} × {}: time could run along either dimension; save it as N × channels with a "
+                               "longer record, or as separate vectors",
+                               rows, cols));
+      if (rows != n && cols != n)
+        fail(name, fmt::format("is {}, but the longest signal has {} samples; give channels × N or N × channels",
+                               mat_detail::dims_text(v.dims), n));
+      const bool by_rows = cols == n;  // channels × N: each row a channel
+      const size_t k = by_rows ? rows : cols;
+      for (size_t c = 0; c < k; ++c) {
+        const std::string channel = fmt::format("{}{}", name, c + 1);
+        const std::string label = fmt::format("{} {} ({}) ", by_rows ? "row" : "column", c + 1, detail::quote_cell(channel));
+        columns_.push_back({channel, name, label, &v, by_rows ? c : c * n, by_rows ? rows : 1});
+        name_where_.push_back(name);
+      }
+    }
+    return true;
+  }
+
   Log assemble() {
     source_.reset();  // the values are copied out: free the file's bytes before the matrix is allocated
     // Names: non-empty, valid UTF-8 without control bytes, unique, one "t".
@@ -252,13 +343,16 @@ class MatLogReader {
     for (size_t j = 0; j < columns_.size(); ++j) {
       const Column& c = columns_[j];
       const double* src = c.source->re.data() + c.offset;
+      double* dst = log.data.col(static_cast<Index>(j)).data();
       for (size_t r = 0; r < n; ++r) {
-        if (!std::isfinite(src[r]))
-          fail(c.where, fmt::format("{}holds {} at row {}; a log holds finite numbers only: remove or interpolate the "
+        const double x = src[r * c.stride];
+        if (!std::isfinite(x))
+          fail(c.where, fmt::format("{}holds {} at {} {}; a log holds finite numbers only: remove or interpolate the "
                                     "bad samples",
-                                    c.label, std::isnan(src[r]) ? "a NaN" : (src[r] > 0 ? "Inf" : "-Inf"), r + 1));
+                                    c.label, std::isnan(x) ? "a NaN" : (x > 0 ? "Inf" : "-Inf"),
+                                    c.stride == 1 ? "row" : "sample", r + 1));
+        dst[r] = x;
       }
-      std::copy(src, src + n, log.data.col(static_cast<Index>(j)).data());
       log.names.push_back(c.name);
     }
     // The time rules of read_log (csv_log.cc), row numbers 1-based.

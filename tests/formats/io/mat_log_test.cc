@@ -14,6 +14,7 @@
 
 #include "formats/io/csv_log.h"
 #include "tests/formats/io/test_util.h"
+#include "tests/support/real_data.h"
 
 namespace lpvid {
 namespace {
@@ -208,6 +209,111 @@ TEST_F(MatLog, SimulinkStructureWithTime_NamesChannelsByLabelWidthAndVariable) {
 }
 
 // ---- every broken rule: one InputError naming file and variable -------------
+// Layout (e): a lab's own file (the F-16 benchmark's raw files: row vectors Force and
+// Voltage, a 3 × N Acceleration, a scalar Fs, no time vector).
+TEST_F(MatLog, LabFileWithASampleRate_RowAndColumnVectorsAndChannelMatricesEitherWay) {
+  const Index n = 50;
+  const Eigen::MatrixXd d = samples(n, 6);
+  const Eigen::MatrixXd acc = d.middleCols(3, 3).transpose();  // 3 x N: channels along rows
+  {
+    File f(path("f16.mat"), MAT_FT_MAT5, MAT_COMPRESSION_ZLIB);
+    f.add(num("Force", {1, static_cast<size_t>(n)}, d.col(1).data()));
+    f.add(num("Voltage", {static_cast<size_t>(n), 1}, d.col(2).data()));
+    f.add(num("Acceleration", {3, static_cast<size_t>(n)}, acc.data()));
+    const Eigen::MatrixXd strain = d.middleCols(6, 1);  // N x 1 as a matrix: a column vector
+    f.add(num("Strain", {static_cast<size_t>(n), 1}, strain.data()));
+    const double fs = 400.0, level = 7.0;
+    f.add(num("Fs", {1, 1}, &fs));
+    f.add(num("Level", {1, 1}, &level));  // another scalar: metadata, not a signal
+    f.add(text("note", "shaker at the wing tip"));
+  }
+  const Log log = read_log(path("f16.mat"));
+  EXPECT_EQ(log.names, (std::vector<std::string>{"t", "Force", "Voltage", "Acceleration1", "Acceleration2",
+                                                 "Acceleration3", "Strain"}));
+  ASSERT_EQ(log.data.rows(), n);
+  for (Index k = 0; k < n; ++k) EXPECT_NEAR(log.data(k, 0), static_cast<double>(k) / 400.0, 1e-15);  // t = k Ts
+  EXPECT_TRUE((log.data.middleCols(1, 2).array() == d.middleCols(1, 2).array()).all());
+  EXPECT_TRUE((log.data.middleCols(3, 3).array() == d.middleCols(3, 3).array()).all());  // row c of Acceleration
+  EXPECT_TRUE((log.data.col(6).array() == d.col(6).array()).all());
+  EXPECT_NEAR(log.sample_period_s, 1.0 / 400.0, 1e-15);
+  {
+    // N x channels with a sample period Ts in seconds.
+    File f(path("ts.mat"));
+    const Eigen::MatrixXd y = d.middleCols(1, 2);
+    f.add(num("y", {static_cast<size_t>(n), 2}, y.data()));
+    const double ts = 0.01;
+    f.add(num("Ts", {1, 1}, &ts));
+  }
+  const Log byts = read_log(path("ts.mat"));
+  EXPECT_EQ(byts.names, (std::vector<std::string>{"t", "y1", "y2"}));
+  EXPECT_TRUE((byts.data.rightCols(2).array() == d.middleCols(1, 2).array()).all());
+  EXPECT_NEAR(byts.sample_period_s, 0.01, 1e-15);
+  // Broken rules: one line naming the file and the variable.
+  const double zero = 0.0, fs = 1000.0, ts = 1e-3;
+  {
+    File f(path("rate0.mat"));
+    f.add(num("u", {static_cast<size_t>(n), 1}, d.col(1).data()));
+    f.add(num("fs", {1, 1}, &zero));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("rate0.mat")); }),
+            path("rate0.mat") + ":fs: is 0; give the sample rate in Hz as a positive number");
+  {
+    File f(path("both.mat"));
+    f.add(num("u", {static_cast<size_t>(n), 1}, d.col(1).data()));
+    f.add(num("Fs", {1, 1}, &fs));
+    f.add(num("Ts", {1, 1}, &ts));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("both.mat")); }),
+            path("both.mat") + ":Ts: gives the sample rate and so does Fs; keep one of them");
+  {
+    File f(path("short.mat"));
+    f.add(num("u", {static_cast<size_t>(n), 1}, d.col(1).data()));
+    f.add(num("y", {static_cast<size_t>(n - 1), 1}, d.col(2).data()));
+    f.add(num("Fs", {1, 1}, &fs));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("short.mat")); }),
+            path("short.mat") + ":y: has 49 samples but the longest signal has 50; every signal needs one sample per "
+                                "time");
+  {
+    File f(path("square.mat"));
+    const Eigen::MatrixXd sq = d.topRows(7).leftCols(7);
+    f.add(num("X", {7, 7}, sq.data()));
+    f.add(num("Fs", {1, 1}, &fs));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("square.mat")); }).rfind(path("square.mat") + ":X: is 7 × 7: time could run along either dimension", 0), 0u);
+  {
+    Eigen::MatrixXd bad = acc;
+    bad(1, 20) = std::numeric_limits<double>::infinity();
+    File f(path("inf.mat"));
+    f.add(num("Acceleration", {3, static_cast<size_t>(n)}, bad.data()));
+    f.add(num("Fs", {1, 1}, &fs));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("inf.mat")); }),
+            path("inf.mat") + ":Acceleration: row 2 ('Acceleration2') holds Inf at sample 21; a log holds finite "
+                              "numbers only: remove or interpolate the bad samples");
+}
+
+// The F-16 benchmark's raw file as the lab saved it (../shared/real-data/f16_gvt/raw,
+// read when present): the same samples as the CSV export made from it independently
+// (numpy, f16_gvt/README.md), which prints 10 significant digits.
+TEST_F(MatLog, RealF16RawFile_ReadsAsTheCsvExport) {
+  LPVID_REAL_DATA_OR_SKIP(mat, "f16_gvt/raw/F16Data_FullMSine_Level1.mat");
+  LPVID_REAL_DATA_OR_SKIP(csv, "f16_gvt/f16_fullmsine_level1.csv");
+  const Log raw = read_log(mat), exported = read_log(csv);
+  ASSERT_EQ(raw.data.rows(), exported.data.rows());
+  EXPECT_NEAR(raw.sample_period_s, exported.sample_period_s, 1e-12);
+  const auto col = [](const Log& log, const std::string& name) { return log.data.col(log.column(name)); };
+  for (const auto& [mine, theirs] : std::vector<std::pair<std::string, std::string>>{
+           {"Voltage", "voltage"}, {"Force", "force"}, {"Acceleration1", "acc1"}, {"Acceleration2", "acc2"},
+           {"Acceleration3", "acc3"}}) {
+    const Eigen::VectorXd a = col(raw, mine), b = col(exported, theirs);
+    // 10 significant digits in the CSV: within 1e-9 of each sample's magnitude (plus a
+    // floor of 1e-9 of the channel's peak for samples near zero).
+    const double peak = b.cwiseAbs().maxCoeff();
+    EXPECT_LE(((a - b).array().abs() - 1e-9 * (b.array().abs() + peak)).maxCoeff(), 0.0) << mine;
+  }
+}
+
 TEST_F(MatLog, BadInput_IsAnInputErrorNamingFileAndVariable) {
   Eigen::MatrixXd d = samples(2000, 3);
   const std::vector<std::string> names = {"t", "v1", "u1", "q1"};
