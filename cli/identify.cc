@@ -3,6 +3,7 @@
 // with the Hankel singular values, a Bode plot and a report beside the models.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "cli/common.h"
 #include "cli/logs.h"
@@ -22,6 +23,7 @@
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/frequency_error.h"
+#include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {
 namespace {
@@ -32,7 +34,9 @@ Example:
                  --out result exp_T_psi.csv exp_T_theta.csv exp_F_z.csv
 writes result/closed_loop.json, result/plant.json, result/markov.csv, result/hankel_sv.csv,
 result/hankel_sv.png, result/bode.png and result/report.json (order chosen and why,
-singular values, fit figures).  With --truth PLANT.json the report and the plot also
+singular values, fit figures).  Open-loop data (the excitation IS the plant's input):
+  lpvid identify --open-loop --excitation u --output y --out result robot_arm.csv
+(no closed_loop.json then: the plant is the model of the logs themselves).  With --truth PLANT.json the report and the plot also
 compare the identified plant with a known one (weighted matrix error, 1-400 rad/s).
 Nothing is written unless every step succeeds.)";
 
@@ -44,6 +48,7 @@ struct IdentifyCliOptions {
   double horizon_s = 0.0, fit_band_max = 0.0;
   double band_min = 1.0, band_max = 400.0;
   bool json = false;
+  bool open_loop = false;
 };
 
 nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
@@ -87,11 +92,33 @@ nlohmann::json structured_report(const IdentifyResult& r) {
           {"tail_rounds", rounds},
           {"tail_reason", ch.tail_reason},
           {"bands_reason", ch.bands_reason},
+          {"excitation_reason", ch.excitation_reason},
           {"replicates", r.fit.replicates},
           {"cost", r.fit.cost},
           {"residuals", r.fit.residuals},
           {"parameters", r.fit.parameters},
           {"noise_scale", r.fit.noise_scale}};
+}
+
+// MATLAB compare's figure on the logs: the model (excitation -> output) simulated from
+// zero state on each log's excitation, means removed from both (as the Markov estimate
+// removes them), 100 (1 - ||y - y^|| / ||y - mean y||) per output over all logs.  Null
+// when the simulation diverges (an unstable model).
+nlohmann::json simulation_fit_json(const StateSpace& model, const ExperimentSet& set) {
+  Index total = 0;
+  for (const auto& e : set.excitations) total += e.rows();
+  Eigen::MatrixXd y(total, model.num_outputs()), yhat(total, model.num_outputs());
+  Index row = 0;
+  for (std::size_t e = 0; e < set.excitations.size(); ++e) {
+    const Eigen::MatrixXd u = set.excitations[e].rowwise() - set.excitations[e].colwise().mean();
+    const Index n = u.rows();
+    y.middleRows(row, n) = set.outputs[e].rowwise() - set.outputs[e].colwise().mean();
+    yhat.middleRows(row, n) = simulate_discrete(model, u);
+    row += n;
+  }
+  if (!yhat.allFinite()) return nullptr;
+  const Eigen::VectorXd fit = nrmse_fit_percent(y, yhat);
+  return std::vector<double>(fit.data(), fit.data() + fit.size());
 }
 
 void run(const IdentifyCliOptions& o) {
@@ -114,21 +141,29 @@ void run(const IdentifyCliOptions& o) {
   if (!(o.band_min > 0 && o.band_max > o.band_min))
     throw InputError(fmt::format("--band-min {} is not below --band-max {} (rad/s); give --band-min below --band-max",
                                  o.band_min, o.band_max));
+  if (o.open_loop == !o.controller.empty())
+    throw InputError(o.open_loop ? "--open-loop and --controller both given; give --controller for closed-loop logs "
+                                   "(the plant is unlooped with it) or --open-loop when the excitation is the plant's "
+                                   "input, not both"
+                                 : "no controller: give --controller C.json (the controller that ran, for closed-loop "
+                                   "logs) or --open-loop (the excitation is the plant's input)");
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
   // Every output is checked before anything is read; the directory is created
   // only when the files are published.
   OutputSet outputs;
   outputs.inputs(o.logs);
-  outputs.input(o.controller);
+  if (!o.open_loop) outputs.input(o.controller);
   outputs.input(o.truth);
   outputs.directory("--out", o.out);
-  for (const char* name : {"closed_loop.json", "plant.json", "plant_frd.csv", "markov.csv", "hankel_sv.csv",
+  if (!o.open_loop) outputs.file_in(o.out, "closed_loop.json");
+  for (const char* name : {"plant.json", "plant_frd.csv", "markov.csv", "hankel_sv.csv",
                            "hankel_sv.png", "bode.png", "report.json"})
     outputs.file_in(o.out, name);
   outputs.check();
 
-  const StateSpace controller = read_controller(o.controller);
+  StateSpace controller;
+  if (!o.open_loop) controller = read_controller(o.controller);
   std::optional<StateSpace> truth;
   if (!o.truth.empty()) truth = read_state_space(o.truth);
   Eigen::VectorXd weights = Eigen::VectorXd::Ones(static_cast<Index>(output.size()));
@@ -140,12 +175,15 @@ void run(const IdentifyCliOptions& o) {
     for (std::size_t i = 0; i < w.size(); ++i) weights(static_cast<Index>(i)) = w[i];
   }
   const ExperimentSet set = read_experiments(o.logs, excitation, output);
-  check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
-                           static_cast<Index>(excitation.size()), options.sample_period_tolerance);
+  if (!o.open_loop)
+    check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
+                             static_cast<Index>(excitation.size()), options.sample_period_tolerance);
 
   TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
   options.progress = progress.get();
-  IdentifyResult r = identify_closed_loop(set.views(), set.sample_period_s, controller, options);
+  // Open loop is the closed loop with C = 0 (G(P) = P): the same route and defaults.
+  IdentifyResult r = o.open_loop ? identify_open_loop(set.views(), set.sample_period_s, options)
+                                 : identify_closed_loop(set.views(), set.sample_period_s, controller, options);
   progress.finish();
   r.closed_loop.input_names = excitation;
   r.closed_loop.output_names = output;
@@ -160,7 +198,9 @@ void run(const IdentifyCliOptions& o) {
   const double Ts = set.sample_period_s;
   nlohmann::json report = {
       {"logs", set.paths},
-      {"controller", o.controller},
+      {"controller", o.open_loop ? nlohmann::json(nullptr) : nlohmann::json(o.controller)},
+      {"route", o.open_loop ? "open loop: the excitation is the plant's input (C = 0, G = P)"
+                            : "closed loop with the known controller"},
       {"sample_period_s", Ts},
       {"excitation", excitation},
       {"output", output},
@@ -177,7 +217,8 @@ void run(const IdentifyCliOptions& o) {
        {{"order", r.closed_loop.order()},
         {"stable", is_stable(r.closed_loop)},
         {"poles", poles_json(r.closed_loop)},
-        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))}}},
+        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))},
+        {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set)}}},
       {"plant",
        {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
       {"warnings", r.warnings},
@@ -198,6 +239,7 @@ void run(const IdentifyCliOptions& o) {
                             {"termination", r.unloop.report.termination}});
   } else {
     report["fit"] = structured_report(r);
+    if (o.open_loop) report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
     report["plant"]["termination"] = r.fit.report.termination;
   }
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
@@ -226,6 +268,8 @@ void run(const IdentifyCliOptions& o) {
   series.push_back({"identified plant", plant_frd, BodeSeries::Style::kLine});
   if (!era) {
     plant_frd.variance = plant_response_variance(r.fit, omega);
+    if (r.feedthrough_variance.size() > 0)
+      for (auto& v : plant_frd.variance) v += r.feedthrough_variance;
     FrequencyResponse upper = plant_frd, lower = plant_frd;
     upper.variance.clear();
     lower.variance.clear();
@@ -257,12 +301,16 @@ void run(const IdentifyCliOptions& o) {
   mf.noise_std = r.markov.noise_std;
   mf.input_rms = r.markov.excitation_rms;
   mf.output_rms = r.markov.output_rms;
-  const nlohmann::json provenance = {{"command", "lpvid identify"}, {"logs", set.paths}, {"controller", o.controller}};
+  const nlohmann::json provenance = {
+      {"command", "lpvid identify"},
+      {"logs", set.paths},
+      {"controller", o.open_loop ? nlohmann::json("none (--open-loop)") : nlohmann::json(o.controller)}};
   // All files are staged and renamed into place together at the end: a failure
   // while writing leaves none of them.
   OutputSet& files = outputs;
   files.stage(join_path(o.out, "markov.csv"), markov_csv_text(mf, join_path(o.out, "markov.csv")));
-  std::string written = "closed_loop.json, plant.json, plant_frd.csv, markov.csv, bode.png, report.json";
+  std::string written = o.open_loop ? "plant.json, plant_frd.csv, markov.csv, bode.png, report.json"
+                                    : "closed_loop.json, plant.json, plant_frd.csv, markov.csv, bode.png, report.json";
   if (era) {
     const auto& sel = r.era.selection;
     SingularValuePlotOptions svo;
@@ -290,23 +338,36 @@ void run(const IdentifyCliOptions& o) {
                            : std::string("var_<i>_<j>: E|P^ - P|^2 from the fit's covariance under its noise model "
                                          "(delta method; too few record segments for replicates)")});
   files.stage(join_path(o.out, "bode.png"), bode_bytes);
-  files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
+  if (!o.open_loop)
+    files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "report.json"), json_text(report));
   files.commit();
 
-  std::string text = fmt::format("identify ({}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
-                                 set.paths.size(), Ts);
+  std::string text = fmt::format("identify ({}{}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
+                                 o.open_loop ? ", open loop" : "", set.paths.size(), Ts);
   if (era) {
     text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
                         r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
                         r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
   } else {
     const IdentifyChoices& ch = r.choices;
+    text += fmt::format("  excitation: {}\n", ch.excitation_reason);
     text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "
-                        "closed loop stable\n",
+                        "{}\n",
                         ch.horizon_reason, ch.band_reason, ch.start_reason, ch.plant_order, ch.order_reason,
-                        ch.tail_reason, ch.bands_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)");
+                        ch.tail_reason, ch.bands_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)",
+                        o.open_loop ? "open loop" : "closed loop stable");
+    if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
+  }
+  {
+    const nlohmann::json& sim = report["closed_loop"]["simulation_fit_percent"];
+    std::vector<std::string> figures;
+    for (std::size_t i = 0; i < output.size() && !sim.is_null(); ++i)
+      figures.push_back(fmt::format("{} {:.1f} %", output[i], sim[i].get<double>()));
+    text += sim.is_null() ? std::string("  simulation fit on the logs: the model's response diverges\n")
+                          : fmt::format("  simulation fit on the logs ({}, from zero state): {}\n",
+                                        o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "));
   }
   if (truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
@@ -325,7 +386,12 @@ Command make_identify_command() {
             auto* app = parent.add_subcommand(
                 "identify", "Closed-loop identification from logs to plant model and Bode plot" + std::string(kExample));
             app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
-            app->add_option("--controller", o->controller, "the controller that ran (state-space or transfer-function JSON)")->required();
+            app->add_option("--controller", o->controller,
+                                               "the controller that ran (state-space or transfer-function JSON); "
+                                               "closed-loop logs");
+            app->add_flag("--open-loop", o->open_loop,
+                          "open-loop logs: the excitation is the plant's input (no controller; the plant is fitted "
+                          "to the logs directly)");
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "measured output columns q (comma separated)")->required();
             app->add_option("--out", o->out, "output directory")->required();

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "idlib/closedloop/plant_markov.h"
 #include "idlib/core/error.h"
@@ -38,6 +39,12 @@ constexpr Index kMinHorizonLags = 256;
 // noise").  Measured on drawn plants: a horizon of 1 s where 2.8 s held 99 % of the
 // energy failed (the first fit landed in a wrong minimum); halves holding ≤ 5 % worked.
 constexpr double kHorizonTailEnergyFraction = 0.05;
+// The same with a coloured excitation: its regressors are correlated across lags, so the
+// response left beyond the horizon biases the last lags of ĝ (not only the tail rounds'
+// share); measured on a 5-state plant under low-passed noise (tests/cli/
+// open_loop_identify_test.cc): with 0.05 the horizon stopped at 1.0 s with 29 % of a
+// mode's amplitude beyond it and the fit failed even without noise (order 2, 70 %).
+constexpr double kHorizonTailEnergyFractionColoured = 1e-3;
 // The first Markov estimate computes the correlations up to 2^this times its horizon
 // (estimate_markov's `reuse`), so that this many doublings need no new correlation pass.
 // Measured at 10 kHz (3 x 10^6 samples, one thread): 230 ms up to 16384 lags, ~300 ms up
@@ -149,21 +156,68 @@ ScaledEnergy scaled_energy(const MarkovResult& mr) {
 }
 
 // Whether the response has ended within horizon K (see kHorizonTailEnergyFraction).
-bool response_ended(const ScaledEnergy& e, Index K, std::string* why) {
+bool response_ended(const ScaledEnergy& e, Index K, double fraction, std::string* why) {
   double total = 0.0, tail = 0.0;
   for (Index k = 1; k <= K; ++k) total += e.lag[static_cast<std::size_t>(k)];
   for (Index k = K / 2 + 1; k <= K; ++k) tail += e.lag[static_cast<std::size_t>(k)];
   const double count = static_cast<double>(K - K / 2);
   const bool in_noise = e.noise > 0.0 && tail - count * e.noise <= kHorizonNoiseSigmas * e.noise * std::sqrt(2.0 * count);
-  const bool small = tail <= kHorizonTailEnergyFraction * total;
+  const bool small = tail <= fraction * total;
   if (why != nullptr)
     *why = in_noise ? fmt::format("the lags {}..{} hold {:.3g} of the energy and are within {:g} sigma of the "
                                   "estimation noise",
                                   K / 2 + 1, K, tail / std::max(total, 1e-300), kHorizonNoiseSigmas)
                     : fmt::format("the lags {}..{} hold {:.3g} of the energy (<= {:g}; the rest is left to the tail "
                                   "rounds)",
-                                  K / 2 + 1, K, tail / std::max(total, 1e-300), kHorizonTailEnergyFraction);
+                                  K / 2 + 1, K, tail / std::max(total, 1e-300), fraction);
   return in_noise || small;
+}
+
+// The excitation's spectral density at the bins ω_f = 2π f / K, f < F (m × m, per
+// sample, summed over the experiments like R₀):
+//   S(ω) = Σ_{|d| < M} (1 − |d|/M) R_vv(d) e^{−jωd},  R_vv(−d) = R_vv(d)ᵀ,
+// a Bartlett lag window of M lags (positive semi-definite; M ≤ K/2 does not alias on
+// the K-point grid).  vv: R_vv(0..) from MarkovCorrelations.  S(ω) = R₀ for white v.
+std::vector<Eigen::MatrixXcd> excitation_spectrum_at(const std::vector<Eigen::MatrixXd>& vv, Index M,
+                                                      const Eigen::VectorXd& omega_per_sample) {
+  M = std::max<Index>(1, std::min<Index>(M, static_cast<Index>(vv.size())));
+  std::vector<Eigen::MatrixXcd> out;
+  out.reserve(static_cast<std::size_t>(omega_per_sample.size()));
+  for (Index f = 0; f < omega_per_sample.size(); ++f) {
+    Eigen::MatrixXcd S = vv.front().cast<std::complex<double>>();
+    for (Index d = 1; d < M; ++d) {
+      const std::complex<double> e = std::polar(1.0, -omega_per_sample(f) * static_cast<double>(d));
+      const double w = 1.0 - static_cast<double>(d) / static_cast<double>(M);
+      const Eigen::MatrixXd& R = vv[static_cast<std::size_t>(d)];
+      S += w * (e * R.cast<std::complex<double>>() + std::conj(e) * R.transpose().cast<std::complex<double>>());
+    }
+    out.push_back(0.5 * (S + S.adjoint()));
+  }
+  return out;
+}
+
+// Whether the excitation is coloured: the smallest and largest of each input's spectral
+// density (Bartlett window of kWhitenessLags lags, at 64 frequencies over 0..π) differ
+// by more than kWhitenessRatio.  A white record's estimate scatters by about
+// sqrt(2 M / 3 N) (±15 % for N = 1000), far inside the factor.
+constexpr Index kWhitenessLags = 32;
+constexpr double kWhitenessRatio = 4.0;
+bool excitation_coloured(const std::vector<Eigen::MatrixXd>& vv, double* worst_ratio) {
+  Eigen::VectorXd omega = Eigen::VectorXd::LinSpaced(64, 0.0, M_PI);
+  const auto S = excitation_spectrum_at(vv, kWhitenessLags, omega);
+  const Index m = vv.front().rows();
+  double worst = 1.0;
+  for (Index j = 0; j < m; ++j) {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (const auto& s : S) {
+      lo = std::min(lo, s(j, j).real());
+      hi = std::max(hi, s(j, j).real());
+    }
+    if (hi <= 0.0) continue;  // an input that is never excited: R₀ says so already
+    worst = std::max(worst, lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity());
+  }
+  *worst_ratio = worst;
+  return worst > kWhitenessRatio;
 }
 
 // The noise spectrum at the bins of a K-point transform from one at the L-point bins
@@ -280,6 +334,15 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   // R_vv and R_qv, computed once for the horizon steps (up to kHorizonCorrelationSteps
   // doublings ahead); R_vv is reused by the tail rounds.
   MarkovCorrelations corr;
+  // Whether the excitation is coloured, judged once R_vv is known (the first estimate).
+  double colour_ratio = 1.0;
+  std::optional<bool> coloured_flag;
+  auto coloured_now = [&] {
+    if (!coloured_flag)
+      coloured_flag = corr.vv.size() > 1 && excitation_coloured(corr.vv, &colour_ratio);
+    return *coloured_flag;
+  };
+  auto tail_fraction = [&] { return coloured_now() ? kHorizonTailEnergyFractionColoured : kHorizonTailEnergyFraction; };
   if (given) {
     L = choose_num_lags(options, Ts, shortest);
     mo.num_lags = L;
@@ -288,7 +351,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     result.markov = estimate_markov(experiments, mo, &corr);
     ch.horizon_reason = fmt::format("{} lags were given", L);
     std::string why;
-    response_beyond = !response_ended(scaled_energy(result.markov), L, &why);
+    response_beyond = !response_ended(scaled_energy(result.markov), L, tail_fraction(), &why);
   } else {
     const Index cap = std::max<Index>(kMinHorizonLags, pow2_at_most(shortest / 4));
     L = std::min(cap, std::max(kMinHorizonLags, pow2_at_least(shortest / kHorizonRecordDivisor)));
@@ -299,7 +362,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       report_progress(options.progress, {"identify", "Markov horizon", 0, 0, fmt::format("{} lags", L)});
       result.markov = estimate_markov(experiments, mo, &corr);
       const ScaledEnergy e = scaled_energy(result.markov);
-      if (response_ended(e, L, &why)) {
+      if (response_ended(e, L, tail_fraction(), &why)) {
         ch.horizon_reason = fmt::format("horizon {} lags ({:.4g} s): {}", L, static_cast<double>(L) * Ts, why);
         break;
       }
@@ -323,14 +386,33 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   // 2. Noise spectrum and the fit band.
   report_progress(options.progress, {"identify", "noise spectrum", 0, 0, ""});
   const Eigen::MatrixXd R0 = excitation_gram(experiments);
+  // A coloured excitation (a reference trajectory, band-limited noise, a sweep): the
+  // error of Ĝ_L at bin f is ∝ S_vv(f)⁻¹, not R₀⁻¹, so the fit weighs each bin by the
+  // excitation's own spectral density there (MarkovBins::excitation_spectrum).
+  const bool coloured = coloured_now();
+  ch.excitation_reason =
+      coloured ? fmt::format("coloured: its spectral density spans a factor {:.3g} (> {:g}); each bin weighed by the "
+                             "excitation's spectrum there (Bartlett window of K/2 lags)",
+                             colour_ratio, kWhitenessRatio)
+               : fmt::format("white: its spectral density stays within a factor {:.3g} (<= {:g}); R_0 at every bin",
+                             colour_ratio, kWhitenessRatio);
+  auto with_spectrum = [&](MarkovBins b) {
+    if (coloured) {
+      const Eigen::VectorXd w = b.omega_rad_s * Ts;
+      b.excitation_spectrum = excitation_spectrum_at(corr.vv, b.num_lags / 2, w);
+    }
+    return b;
+  };
   std::vector<Eigen::MatrixXcd> spectrum = fir_residual_spectrum(experiments, g0, L, L / 2 + 1);
-  const MarkovBins all = make_markov_bins(g0, L, L / 2 + 1, spectrum, R0, Ts, kMarkovRelativeAccuracy);
+  const MarkovBins all = with_spectrum(make_markov_bins(g0, L, L / 2 + 1, spectrum, R0, Ts, kMarkovRelativeAccuracy));
   {
     const Index F = all.num_bins();
     std::vector<double> snr(static_cast<std::size_t>(F)), mag(static_cast<std::size_t>(F));
-    const Eigen::MatrixXd D2 = R0 / static_cast<double>(L);
     for (Index f = 0; f < F; ++f) {
       const Eigen::MatrixXcd& G = all.response[static_cast<std::size_t>(f)];
+      const Eigen::MatrixXcd D2 = (coloured ? all.excitation_spectrum[static_cast<std::size_t>(f)]
+                                            : Eigen::MatrixXcd(R0.cast<std::complex<double>>())) /
+                                  static_cast<double>(L);
       snr[static_cast<std::size_t>(f)] =
           std::sqrt(std::max(0.0, (G.adjoint() * all.noise_inverse[static_cast<std::size_t>(f)] * G * D2).trace().real()) /
                     static_cast<double>(p * m));
@@ -392,7 +474,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   const double omega_fit = ch.fit_band_max_rad_s;
   auto bins_at = [&](const MarkovSequence& g, const std::vector<Eigen::MatrixXcd>& fine, Index K) {
     const Index F = std::max<Index>(std::min(K / 2 + 1, kMinStageBins), bins_below(omega_fit, K, Ts));
-    return make_markov_bins(g, K, F, coarser_spectrum(fine, L, K, F), R0, Ts, kMarkovRelativeAccuracy);
+    return with_spectrum(make_markov_bins(g, K, F, coarser_spectrum(fine, L, K, F), R0, Ts, kMarkovRelativeAccuracy));
   };
   // Stages: horizons K = L / 2^s, the shortest with at least kMinStageBins bins (at most
   // three halvings); the first fit is the cheapest and the least nonlinear.
@@ -736,7 +818,21 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     Index total = 0;
     for (const auto& e : experiments) total += e.excitation.rows();
     const Index segment = std::max(L, (total + kTargetReplicates - 1) / kTargetReplicates);
-    const auto reps = markov_error_replicates(views, g_final, R0, segment, L, final_data.num_bins());
+    auto reps = markov_error_replicates(views, g_final, R0, segment, L, final_data.num_bins());
+    // The replicates divide by R₀ (white excitation); a coloured one's LS error at bin f
+    // is the segment's cross-spectrum over S_vv(f): δG_s(f) R₀ S_vv(f)⁻¹.
+    if (coloured && !final_data.excitation_spectrum.empty()) {
+      std::vector<Eigen::MatrixXcd> to_coloured;
+      for (const Eigen::MatrixXcd& S : final_data.excitation_spectrum) {
+        // A ridge of 1e-12 of the mean power keeps an unexcited bin finite (its variance
+        // then says the data hold nothing there).
+        Eigen::MatrixXcd Sr = S;
+        Sr.diagonal().array() += 1e-12 * std::max(S.trace().real(), 1e-300) / static_cast<double>(S.rows());
+        to_coloured.push_back(R0.cast<std::complex<double>>() * Sr.partialPivLu().inverse());
+      }
+      for (auto& rep : reps)
+        for (std::size_t f = 0; f < rep.size(); ++f) rep[f] = rep[f] * to_coloured[f];
+    }
     if (reps.size() >= kMinReplicates) {
       use_replicate_covariance(fit, final_data, controller, reps, fo);
       ch.bands_reason = fmt::format("covariance from {} replicates of the Markov estimate's error, one per {}-sample "
@@ -834,6 +930,70 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
                                  "that in samples); record longer or give --lags",
                                  shortest, kMinHorizonLags));
   return identify_structured(experiments, sample_period_s, controller, options, shortest);
+}
+
+IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
+                                  const IdentifyOptions& options) {
+  if (experiments.empty()) throw InputError("no experiments given; pass at least one log");
+  const Index m = experiments.front().excitation.cols();
+  const Index p = experiments.front().output.cols();
+  // No controller: the closed loop with C = 0 is the plant, G(P) = P (I + C P)^-1 = P.
+  StateSpace none;
+  none.A.resize(0, 0);
+  none.B.resize(0, p);
+  none.C.resize(m, 0);
+  none.D = Eigen::MatrixXd::Zero(m, p);
+  none.sample_period_s = sample_period_s;
+  IdentifyResult r;
+  try {
+    r = identify_closed_loop(experiments, sample_period_s, none, options);
+  } catch (const NumericalError& e) {
+    // The closed-loop wording ("closes a stable loop with the controller") does not fit.
+    std::string what = e.what();
+    const std::string loop = " closes a stable loop with the controller that fits the logs; check that the controller "
+                             "is the one that ran and that the logs are closed-loop data";
+    if (const auto at = what.find(loop); at != std::string::npos)
+      what.replace(at, loop.size(),
+                   " is stable and fits the open-loop logs to their noise floor; the plant may need an order beyond "
+                   "the ladder (give --plant-order) or the route markov + realize");
+    throw NumericalError(what);
+  }
+  r.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
+  if (r.method == IdentifyMethod::kEra) {
+    r.plant = r.era.model;  // nothing to unloop; ERA's D is ĝ[0]
+    r.plant.sample_period_s = sample_period_s;
+    r.choices.feedthrough_reason = "ERA's D is the lag-0 Markov parameter";
+  } else {
+    // The structured fit uses lags 1..L (a sampled plant inside a loop has no
+    // feedthrough). Open loop, lag 0 is the plant's direct feedthrough D (an
+    // accelerometer's response to a force), estimated by least squares with the other
+    // lags: kept where it stands above kFeedthroughSigmas of its standard error.
+    const Eigen::MatrixXd& g0 = r.markov.g.front();
+    const Eigen::MatrixXd& se = r.markov.noise_std;
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(p, m);
+    Index kept = 0;
+    double largest = 0.0;
+    for (Index i = 0; i < p; ++i)
+      for (Index j = 0; j < m; ++j) {
+        const double z = se(i, j) > 0 ? std::abs(g0(i, j)) / se(i, j) : std::numeric_limits<double>::infinity();
+        largest = std::max(largest, std::isfinite(z) ? z : 0.0);
+        if (z > kFeedthroughSigmas) {
+          D(i, j) = g0(i, j);
+          r.feedthrough_variance(i, j) = se(i, j) * se(i, j);
+          ++kept;
+        }
+      }
+    r.plant.D = D;
+    r.choices.feedthrough_reason =
+        kept > 0 ? fmt::format("D from the lag-0 Markov parameter: {} of {} entries above {:g} standard errors (largest "
+                               "{:.3g})",
+                               kept, p * m, kFeedthroughSigmas, largest)
+                 : fmt::format("no feedthrough: the lag-0 Markov parameter is within {:g} standard errors of zero "
+                               "(largest {:.3g}), D = 0",
+                               kFeedthroughSigmas, largest);
+  }
+  r.closed_loop = r.plant;
+  return r;
 }
 
 }  // namespace lpvid

@@ -105,6 +105,8 @@ struct IdentifyChoices {
   std::vector<TailRound> tail_rounds;
   std::string tail_reason;
   std::string bands_reason;  // where the covariance of the bands comes from
+  std::string feedthrough_reason;  // identify_open_loop only: how D was chosen
+  std::string excitation_reason;   // white (R₀ at every bin) or coloured (its spectrum per bin), and why
 };
 
 struct IdentifyResult {
@@ -120,6 +122,10 @@ struct IdentifyResult {
   PlantFitResult fit;        // the final fit (covariance for bands: plant_response_variance)
   IdentifyChoices choices;
   std::vector<std::string> warnings;  // from every step, in order
+  // identify_open_loop, kStructured: p × m variance of D's entries (0 where D = 0), to
+  // add to plant_response_variance's (the lag-0 estimate's error, independent of the
+  // fit's to first order).  Empty otherwise.
+  Eigen::MatrixXd feedthrough_variance;
 };
 
 // | argument        | shape / meaning |
@@ -136,6 +142,16 @@ struct IdentifyResult {
 //                     plant closes a stable loop (the logs do not fit any).
 IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
                                     const StateSpace& controller, const IdentifyOptions& options);
+
+// Open-loop logs (the excitation IS the plant input u; no controller): the same
+// route, defaults, order selection and bands with C = 0, where G(P) = P.  The plant
+// may have a direct feedthrough: structured takes D from the lag-0 Markov parameter
+// where it stands above kFeedthroughSigmas standard errors (the fit itself uses lags
+// 1..L); era keeps ERA's D.  closed_loop is the plant.
+// @throws as identify_closed_loop.
+inline constexpr double kFeedthroughSigmas = 4.0;
+IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
+                                  const IdentifyOptions& options);
 
 // The number of lags for records of `shortest_record` samples when the horizon is
 // given (num_lags or markov_horizon_s > 0; kEra also with both 0: 2 s).

@@ -343,7 +343,10 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
       const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
       const bool real_bin = f == 0 || 2 * f == L;
       const double s = real_bin ? 1.0 : 2.0;
-      const MatrixXcd RD = Rf * D2;
+      const MatrixXcd& D2f = data_.excitation_spectrum.empty()
+                                 ? D2
+                                 : data_.excitation_spectrum[static_cast<std::size_t>(f)];
+      const MatrixXcd RD = Rf * D2f;
       cost += s * (Rf.adjoint() * Phi * RD).trace().real();
       if (!jac) continue;
       // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
@@ -359,7 +362,7 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
       V.middleCols(n, m) = Zt.transpose();
       const MatrixXcd T1 = Phi * U;
       const MatrixXcd Gu = s * (U.adjoint() * T1);
-      const MatrixXcd Gv = V.adjoint() * (D2 * V);
+      const MatrixXcd Gv = V.adjoint() * (D2f * V);
       for (Index g = 0; g < 3; ++g)
         for (Index h = g; h < 3; ++h) {
           const Index k = pair_index(g, h);
@@ -380,7 +383,7 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
         }
       gj.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
       for (std::size_t r = 0; r < S; ++r)
-        gj_rep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2)) * V.conjugate());
+        gj_rep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2f)) * V.conjugate());
     }
     cost_part[static_cast<std::size_t>(chunk)] = cost;
     GJpart[static_cast<std::size_t>(chunk)] = std::move(gj);
@@ -621,6 +624,10 @@ Setup setup(const MarkovBins& data, const StateSpace& controller, const StateSpa
     scaled.noise_inverse[static_cast<std::size_t>(f)] = sq.asDiagonal() * data.noise_inverse[f] * sq.asDiagonal();
   }
   scaled.excitation_gram = su.cwiseInverse().asDiagonal() * data.excitation_gram * su.cwiseInverse().asDiagonal();
+  // Stored already divided by L, as the fit uses it (D2 of Model::evaluate).
+  for (auto& S : scaled.excitation_spectrum)
+    S = su.cwiseInverse().cast<std::complex<double>>().asDiagonal() * S *
+        su.cwiseInverse().cast<std::complex<double>>().asDiagonal() / static_cast<double>(data.num_lags);
   Scaled k;
   k.Ak = controller.A;
   k.Bk = controller.B * sq.asDiagonal();

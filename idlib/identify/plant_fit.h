@@ -66,6 +66,10 @@ struct MarkovBins {
   std::vector<Eigen::MatrixXcd> response;       // F of p × m
   std::vector<Eigen::MatrixXcd> noise_inverse;  // F of p × p
   Eigen::MatrixXd excitation_gram;              // m × m
+  // F of m × m Hermitian: the excitation's spectral density S_vv at each bin, when it is
+  // coloured; the fit then weighs bin f by S_vv(f)/L in place of R₀/L (for white v,
+  // S_vv ≈ R₀).  Empty: R₀ at every bin.
+  std::vector<Eigen::MatrixXcd> excitation_spectrum;
   Index num_bins() const { return omega_rad_s.size(); }
   Index real_residuals() const;  // Σ_f s_f p m (2 per complex entry, 1 at DC / Nyquist)
 };

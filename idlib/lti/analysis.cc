@@ -50,4 +50,27 @@ MarkovSequence markov_parameters(const StateSpace& discrete, Index last_lag) {
   return g;
 }
 
+Eigen::MatrixXd simulate_discrete(const StateSpace& discrete, const Eigen::Ref<const Eigen::MatrixXd>& u) {
+  discrete.validate();
+  if (!discrete.is_discrete()) throw InputError("simulate_discrete needs a discrete model (ts > 0)");
+  if (u.cols() != discrete.num_inputs())
+    throw InputError(fmt::format("the input has {} columns but the model has {} inputs", u.cols(),
+                                 discrete.num_inputs()));
+  const Index N = u.rows();
+  // Time along columns inside (contiguous per step), transposed once at the end.
+  const Eigen::MatrixXd ut = u.transpose();
+  Eigen::MatrixXd yt(discrete.num_outputs(), N);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(discrete.order()), next(discrete.order());
+  for (Index k = 0; k < N; ++k) {
+    yt.col(k).noalias() = discrete.D * ut.col(k);
+    if (discrete.order() == 0) continue;
+    yt.col(k).noalias() += discrete.C * x;
+    next.noalias() = discrete.A * x;
+    next.noalias() += discrete.B * ut.col(k);
+    x.swap(next);
+  }
+  return yt.transpose();
+}
+
 }  // namespace lpvid
+

@@ -31,4 +31,11 @@ bool is_stable(const StateSpace& sys, double margin = kDefaultStabilityMargin);
 // @throws InputError  sys invalid or continuous; last_lag < 0.
 MarkovSequence markov_parameters(const StateSpace& discrete, Index last_lag);
 
+// The response of a discrete model from zero state to an input sequence (MATLAB lsim):
+//   x[0] = 0,  y[k] = C x[k] + D u[k],  x[k+1] = A x[k] + B u[k].
+// | u: N × m | result: N × p |.  O(N (n² + n m + p n)).  An unstable model's response
+// grows without bound and may overflow to Inf: the caller checks.
+// @throws InputError  sys invalid or continuous; u's columns differ from its inputs.
+Eigen::MatrixXd simulate_discrete(const StateSpace& discrete, const Eigen::Ref<const Eigen::MatrixXd>& u);
+
 }  // namespace lpvid

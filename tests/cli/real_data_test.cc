@@ -136,5 +136,26 @@ TEST(RealData, RobotArmMarkovDefaultHorizonComesFromTheDataInSamples) {
                                "--lags, or a --horizon-s of at least 10 s"));
 }
 
+// identify --open-loop on the robot arm with the defaults: a stable plant of order <= 6
+// and MATLAB compare's simulation fit on the record.  Reference: SLICOT n4sid (s = 20,
+// n = 4) reaches 89.3 % on this file (measured with Octave, ../shared/real-data/
+// daisy_robot_arm/README.md); markov + realize reached 79.9 % (order 4, 200 lags).
+// lpvid's structured route: 87.3 % at order 4 (measured; with R_0 weighting, i.e.
+// before the fit weighed bins by the sweep's own spectrum: -91 %).  The bound 85 % is
+// below n4sid's: the goal (>= 90 %) is not met yet.
+TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) {
+  LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
+  TempDir dir("arm_identify");
+  const auto r = run_lpvid("identify --open-loop --excitation u --output y --json --out " + (dir / "out") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["plant"]["stable"], true);
+  EXPECT_LE(report["plant"]["order"].get<int>(), 6);
+  const double fit = report["closed_loop"]["simulation_fit_percent"][0].get<double>();
+  std::printf("robot arm: order %d, simulation fit %.1f %%\n", report["plant"]["order"].get<int>(), fit);
+  EXPECT_GE(fit, 85.0);
+  EXPECT_THAT(report["fit"]["excitation_reason"].get<std::string>(), HasSubstr("coloured"));
+}
+
 }  // namespace
 }  // namespace lpvid
