@@ -262,7 +262,10 @@ void run(const IdentifyCliOptions& o) {
   // The plant's response with its variance (structured: the fit's covariance by the
   // delta method) on a log grid up to Nyquist: plant_frd.csv, and the band in bode.png.
   const double nyquist = M_PI / Ts;
-  const Eigen::VectorXd omega = log_frequency_grid(std::min(1.0, o.band_min), 0.999 * nyquist, 400);
+  // From 1 rad/s (or --band-min), but at least three decades below Nyquist: a log whose
+  // sample time is unknown (t = sample index, Nyquist pi rad/s) has its dynamics below 1.
+  const Eigen::VectorXd omega =
+      log_frequency_grid(std::min({1.0, o.band_min, 1e-3 * nyquist}), 0.999 * nyquist, 400);
   FrequencyResponse plant_frd = frequency_response(r.plant, omega);
   std::vector<BodeSeries> series;
   series.push_back({"identified plant", plant_frd, BodeSeries::Style::kLine});
