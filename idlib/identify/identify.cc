@@ -643,11 +643,16 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       }
       if (best >= 0 && n >= best + kLadderPlateau) break;
     }
-    if (best < 0)
+    if (best < 0) {
+      // identify_open_loop passes C = 0 (no states, no feedthrough): no loop to speak of.
+      const bool open_loop = controller.order() == 0 && controller.D.isZero(0.0);
       throw NumericalError(fmt::format(
-          "no candidate plant (orders {}) closes a stable loop with the controller that fits the logs; check that the "
-          "controller is the one that ran and that the logs are closed-loop data",
-          order_list(ch.order_candidates)));
+          "no candidate plant (orders {}) {}", order_list(ch.order_candidates),
+          open_loop ? "is stable and fits the open-loop logs to their noise floor; the plant may need an order beyond "
+                      "the ladder (give --plant-order) or the route markov + realize"
+                    : "closes a stable loop with the controller that fits the logs; check that the controller is the "
+                      "one that ran and that the logs are closed-loop data"));
+    }
     Index chosen = at_floor;
     std::string why;
     if (chosen >= 0) {
@@ -944,20 +949,7 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
   none.C.resize(m, 0);
   none.D = Eigen::MatrixXd::Zero(m, p);
   none.sample_period_s = sample_period_s;
-  IdentifyResult r;
-  try {
-    r = identify_closed_loop(experiments, sample_period_s, none, options);
-  } catch (const NumericalError& e) {
-    // The closed-loop wording ("closes a stable loop with the controller") does not fit.
-    std::string what = e.what();
-    const std::string loop = " closes a stable loop with the controller that fits the logs; check that the controller "
-                             "is the one that ran and that the logs are closed-loop data";
-    if (const auto at = what.find(loop); at != std::string::npos)
-      what.replace(at, loop.size(),
-                   " is stable and fits the open-loop logs to their noise floor; the plant may need an order beyond "
-                   "the ladder (give --plant-order) or the route markov + realize");
-    throw NumericalError(what);
-  }
+  IdentifyResult r = identify_closed_loop(experiments, sample_period_s, none, options);
   r.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
   if (r.method == IdentifyMethod::kEra) {
     r.plant = r.era.model;  // nothing to unloop; ERA's D is ĝ[0]

@@ -215,15 +215,7 @@ TEST(ProgressOnATerminal, FrfLrmCountsTheFrequencyLines) {
 // Runs `env ENV lpvid ARGS` through the shell with stdout and stderr to files (as
 // tests/support/run_lpvid.h, with the environment set: "-u LPVID_PROGRESS" removes it).
 RunResult run_env(const std::string& env, const std::string& args) {
-  TempDir tmp("run");
-  const std::string cmd =
-      fmt::format("env {} {} {} > {} 2> {}", env, LPVID_BINARY, args, tmp / "out", tmp / "err");
-  const int status = std::system(cmd.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = slurp(tmp / "out");
-  r.err = slurp(tmp / "err");
-  return r;
+  return lpvid::testing::run_shell(fmt::format("env {} {} {}", env, LPVID_BINARY, args));
 }
 
 TEST(ProgressOffATerminal, OutputIsByteIdenticalAndOnlyTheForcedLineGoesToStderr) {
