@@ -18,7 +18,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kBodeExample = R"(
 Example:
   lpvid bode --out plants.png --labels "left,middle,right" left/plant.json middle/plant.json right/plant.json
   lpvid bode --out p.png --hz --min 0.1 --max 100 plant.json truth_plant.json
@@ -103,7 +103,7 @@ Command make_bode_command() {
   return {"bode", "Bode magnitude/phase PNG of MIMO models", [](CLI::App& parent) {
             auto o = std::make_shared<BodeCliOptions>();
             auto* app = parent.add_subcommand("bode", "Bode plot (p x m grid of panels) of one or more models" +
-                                                          std::string(kExample));
+                                                          std::string(kBodeExample));
             app->add_option("models", o->models, "models (.json) and FRD data (.csv, .mat) to overlay")->required();
             app->add_option("--out", o->out, "PNG to write")->required();
             app->add_option("--labels", o->labels, "legend labels, comma separated (default: file names)");

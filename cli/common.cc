@@ -52,6 +52,10 @@ std::string json_text(const nlohmann::json& value) {
   return value.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
+nlohmann::json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
 void print_summary(bool as_json, const nlohmann::json& summary, const std::string& text) {
   if (as_json) {
     std::fputs(json_text(summary).c_str(), stdout);

@@ -26,6 +26,9 @@ std::vector<double> split_numbers(const std::string& text, const std::string& fl
 // that are not valid UTF-8 (file names) are written with U+FFFD.
 std::string json_text(const nlohmann::json& value);
 
+// A number for a report, or null where it is not finite (JSON has no NaN or inf).
+nlohmann::json number_or_null(double v);
+
 // Prints a summary: as JSON when as_json, else as the given human text.  Text
 // that is not valid UTF-8 (a name from a file) is shown with U+FFFD.
 void print_summary(bool as_json, const nlohmann::json& summary, const std::string& text);

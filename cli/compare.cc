@@ -29,7 +29,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kCompareExample = R"(
 Example:
   lpvid compare --model plant.json --data P_left.csv --data P_right.csv --out-png compare.png
   lpvid compare --model left.json --model right.json --data P_left.csv --data P_right.csv --json
@@ -75,7 +75,6 @@ struct CompareCliOptions {
   double rate_hz = kUnset;
 };
 
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 std::string channel_name(const std::vector<std::string>& names, Index i) {
   return i < static_cast<Index>(names.size()) && !names[static_cast<std::size_t>(i)].empty()
@@ -422,7 +421,7 @@ Command make_compare_command() {
   return {"compare", "where a model fails against measurements (model-error model, failing bands, PNG)", [](CLI::App& parent) {
             auto o = std::make_shared<CompareCliOptions>();
             auto* app = parent.add_subcommand("compare", "Where a model fails: model-error model with noise band and failing bands" +
-                                                             std::string(kExample));
+                                                             std::string(kCompareExample));
             app->add_option("--model", o->models, "model (.json) or FRD; once, or once per --data")
                 ->take_all()
                 ->expected(1);

@@ -23,7 +23,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kDiagnoseExample = R"(
 Example:
   lpvid diagnose --model fit1.json --datasets data.json --png where-it-fails.png
   lpvid model add input_delay --model fit1.json --out start2.json      # add what it names, then
@@ -55,7 +55,6 @@ struct DiagnoseCliOptions {
   bool json = false;
 };
 
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 std::string name_of(const std::vector<std::string>& names, Index i) {
   return i < static_cast<Index>(names.size()) ? names[static_cast<std::size_t>(i)] : std::to_string(i + 1);
@@ -263,7 +262,7 @@ Command make_diagnose_command() {
           [](CLI::App& parent) {
             auto o = std::make_shared<DiagnoseCliOptions>();
             auto* app = parent.add_subcommand(
-                "diagnose", "Which physical effect is the model missing?" + std::string(kExample));
+                "diagnose", "Which physical effect is the model missing?" + std::string(kDiagnoseExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--log", o->log,
                             "time domain (base stage6): diagnose on a closed-loop log (t, v1..v6, u1..u6, q1..q6) "

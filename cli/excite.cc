@@ -26,7 +26,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kExciteExample = R"(
 Example:
   lpvid excite --kind multisine --rate-hz 1000 --period-samples 2000 --periods 4 --transient-periods 1 \
     --band-hz 1,200 --channels 3 --mimo hadamard --rms 0.05,0.05,1 --out ms.csv
@@ -322,7 +322,7 @@ Command make_excite_command() {
             auto o = std::make_shared<ExciteCliOptions>();
             auto g = std::make_shared<Given>();
             auto* app = parent.add_subcommand(
-                "excite", "Write an excitation signal with its design (multisine, PRBS, noise)" + std::string(kExample));
+                "excite", "Write an excitation signal with its design (multisine, PRBS, noise)" + std::string(kExciteExample));
             app->add_option("--kind", o->kind, "multisine (default), prbs or noise");
             app->add_option("--rate-hz", o->rate_hz, "sample rate in Hz (default 1000)")
                 ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz"));

@@ -29,7 +29,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kFitExample = R"(
 Example:
   lpvid model init --out start.json
   lpvid fit --model start.json --rate-hz 1000 --data P_left.csv@-0.1 --data P_mid.csv@0 --data P_right.csv@0.1 \
@@ -307,7 +307,7 @@ Command make_fit_command() {
   return {"fit", "fit a physical LPV model to responses at several x_b", [](CLI::App& parent) {
             auto o = std::make_shared<FitCliOptions>();
             auto* app = parent.add_subcommand("fit", "Fit a physical model's free parameters to responses at several "
-                                                     "beam positions" + std::string(kExample));
+                                                     "beam positions" + std::string(kFitExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--out", o->out, "fitted model file to write (JSON, with a \"fit\" section)")->required();
             app->add_option("--log", o->log,

@@ -29,7 +29,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kFrfExample = R"(
 Example:
   lpvid frf --excitation v1,v2,v3 --output u1,u2,u3 --quantity S --out S.csv exp_T_psi.csv exp_T_theta.csv exp_F_z.csv
   lpvid frf --excitation v1,v2,v3 --output q1,q2,q3 --quantity G --out G.csv --segment 4096 exp_*.csv
@@ -397,7 +397,7 @@ Command make_frf_command() {
   return {"frf", "nonparametric frequency response (H1, Welch) with coherence", [](CLI::App& parent) {
             auto o = std::make_shared<FrfCliOptions>();
             auto* app = parent.add_subcommand("frf", "H1 frequency-response estimate with coherence from logs" +
-                                                         std::string(kExample));
+                                                         std::string(kFrfExample));
             app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "response columns (u for S, q for G), comma separated")->required();

@@ -16,7 +16,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kHankelExample = R"(
 Example:
   lpvid hankel g.csv --out hankel_sv.csv --png hankel_sv.png --count 12
 The Hankel matrix is built from channel-scaled Markov parameters (each excitation and
@@ -97,7 +97,7 @@ Command make_hankel_command() {
   return {"hankel", "Hankel singular values (CSV + PNG) of Markov parameters", [](CLI::App& parent) {
             auto o = std::make_shared<HankelOptions>();
             auto* app = parent.add_subcommand("hankel", "Block Hankel singular values of Markov parameters" +
-                                                            std::string(kExample));
+                                                            std::string(kHankelExample));
             app->add_option("markov", o->markov, "Markov parameter CSV written by 'lpvid markov'")->required();
             app->add_option("--out", o->out, "singular-value CSV to write ('-' = stdout)")->required();
             app->add_option("--png", o->png, "also write a PNG of the largest singular values");

@@ -17,7 +17,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kHistoryExample = R"(
 Example:
   lpvid history --model plant.json --png history.png
   lpvid history --model plant.json --json
@@ -34,7 +34,6 @@ struct HistoryCliOptions {
   bool json = false;
 };
 
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 // The error figure of a record (older records without one: the mean channel error).
 double figure(const HistoryRecord& r) { return std::isfinite(r.error) ? r.error : r.error_mean; }
@@ -122,7 +121,7 @@ void run(const HistoryCliOptions& o) {
 Command make_history_command() {
   return {"history", "the model error fit by fit (table and PNG)", [](CLI::App& parent) {
             auto o = std::make_shared<HistoryCliOptions>();
-            auto* app = parent.add_subcommand("history", "The fits of a model and the error falling" + std::string(kExample));
+            auto* app = parent.add_subcommand("history", "The fits of a model and the error falling" + std::string(kHistoryExample));
             app->add_option("--model", o->model, "model whose history to show (reads MODEL.history.jsonl)")->required();
             app->add_option("--png", o->png, "write a chart of the error falling");
             app->add_flag("--json", o->json, "print the history as JSON");

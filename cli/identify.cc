@@ -28,7 +28,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kIdentifyExample = R"(
 Example:
   lpvid identify --controller controller.json --excitation v1,v2,v3 --output q1,q2,q3 \
                  --out result exp_T_psi.csv exp_T_theta.csv exp_F_z.csv
@@ -387,7 +387,7 @@ Command make_identify_command() {
   return {"identify", "the whole chain: logs -> closed loop -> plant -> Bode", [](CLI::App& parent) {
             auto o = std::make_shared<IdentifyCliOptions>();
             auto* app = parent.add_subcommand(
-                "identify", "Closed-loop identification from logs to plant model and Bode plot" + std::string(kExample));
+                "identify", "Closed-loop identification from logs to plant model and Bode plot" + std::string(kIdentifyExample));
             app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
             app->add_option("--controller", o->controller,
                                                "the controller that ran (state-space or transfer-function JSON); "

@@ -16,7 +16,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kMarkovExample = R"(
 Example:
   lpvid markov --excitation v1,v2,v3 --output q1,q2,q3 --out g.csv exp_T_psi.csv exp_T_theta.csv exp_F_z.csv
 Correlates the outputs with the injected excitation v (never with the plant input u,
@@ -109,7 +109,7 @@ Command make_markov_command() {
   return {"markov", "Markov parameters from closed-loop logs (FFT correlation)", [](CLI::App& parent) {
             auto o = std::make_shared<MarkovCliOptions>();
             auto* app = parent.add_subcommand("markov", "Markov parameters of excitation -> outputs from closed-loop logs" +
-                                                            std::string(kExample));
+                                                            std::string(kMarkovExample));
             app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each ('-' = stdin, CSV)")->required();
             app->add_option("--excitation", o->excitation, "excitation columns, comma separated (e.g. v1,v2,v3)")
                 ->required();

@@ -23,7 +23,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kModelExample = R"(
 Example:
   lpvid model init --out model.json                  (the platform base with beam gravity)
   lpvid model init --out model.json --set k_torque_low_Nm_per_rad=45 --set beam_height_m=0.06
@@ -222,7 +222,7 @@ void run_effects(const ModelCliOptions& o) {
 Command make_model_command() {
   return {"model", "physical model files: init, effects, add, remove, define, export", [](CLI::App& parent) {
             auto o = std::make_shared<ModelCliOptions>();
-            auto* app = parent.add_subcommand("model", "Physical (grey-box) model files" + std::string(kExample));
+            auto* app = parent.add_subcommand("model", "Physical (grey-box) model files" + std::string(kModelExample));
             app->require_subcommand(1);
             auto* init = app->add_subcommand("init", "write a model file: a base with its default effects");
             init->add_option("--out", o->out, "model file to write")->required();

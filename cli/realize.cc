@@ -15,7 +15,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kRealizeExample = R"(
 Example:
   lpvid realize g.csv --out closed_loop.json            # order chosen automatically
   lpvid realize g.csv --out closed_loop.json --order 9
@@ -65,7 +65,7 @@ Command make_realize_command() {
   return {"realize", "state-space model from Markov parameters (Ho-Kalman/ERA)", [](CLI::App& parent) {
             auto o = std::make_shared<RealizeOptions>();
             auto* app = parent.add_subcommand("realize", "Ho-Kalman/ERA realisation with automatic order" +
-                                                             std::string(kExample));
+                                                             std::string(kRealizeExample));
             app->add_option("markov", o->markov, "Markov parameter CSV written by 'lpvid markov'")->required();
             app->add_option("--out", o->out, "state-space JSON to write ('-' = stdout)")->required();
             app->add_option("--order", o->order, "model order (default: automatic)")

@@ -35,7 +35,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kSimulateExample = R"(
 Example:
   lpvid simulate platform --out data --positions left,middle,right --rate-hz 1000 --duration-s 60
 writes data/middle_1000hz/{exp_T_psi.csv, exp_T_theta.csv, exp_F_z.csv} (one experiment
@@ -240,7 +240,7 @@ Command make_simulate_command() {
             sim->require_subcommand(1);
             auto opts = std::make_shared<SimulateOptions>();
             auto* platform = sim->add_subcommand(
-                "platform", "3-DOF LPV platform (seed 000) under three discrete PI controllers" + std::string(kExample));
+                "platform", "3-DOF LPV platform (seed 000) under three discrete PI controllers" + std::string(kSimulateExample));
             platform->add_option("--out", opts->out_dir, "output directory (one folder per position and rate)")
                 ->required();
             auto* positions = platform->add_option("--positions", opts->positions, "beam positions: left, middle, right or metres")

@@ -68,7 +68,7 @@ PhysicalModel truth_physical_model(const stage6::StageParameters& p, const stage
   return m;
 }
 
-constexpr const char* kExample = R"(
+constexpr const char* kSimulateStage6Example = R"(
 Example:
   lpvid simulate stage6 --out fig6
 runs seed 001's regulation from q0 = (0, 0, 250 um, 0.1, 0.2, 0.3 rad) to
@@ -272,7 +272,7 @@ void run(const Stage6Options& o) {
 void install_simulate_stage6(CLI::App& simulate) {
   auto opts = std::make_shared<Stage6Options>();
   auto* c = simulate.add_subcommand(
-      "stage6", "6-DOF maglev stage (seed 001) under sliding-mode control" + std::string(kExample));
+      "stage6", "6-DOF maglev stage (seed 001) under sliding-mode control" + std::string(kSimulateStage6Example));
   c->add_option("--out", opts->out_dir, "output directory")->required();
   c->add_flag("--experiment", opts->experiment,
               "closed-loop identification experiment instead of the paper's regulation run");

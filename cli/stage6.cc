@@ -19,7 +19,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kStage6Example = R"(
 Example:
   lpvid simulate stage6 --experiment --out exp --effects gap --seed 3
   lpvid stage6 diagnose --log exp/exp_stage6.csv                 # which effect is missing?
@@ -100,7 +100,7 @@ void run_diagnose(const Stage6IdOptions& o) {
 Command make_stage6_command() {
   return {"stage6", "grey-box fit and diagnosis of the 6-DOF maglev stage from a log", [](CLI::App& parent) {
             auto* app = parent.add_subcommand(
-                "stage6", "Identify the 6-DOF maglev stage (seed 001) from a closed-loop log" + std::string(kExample));
+                "stage6", "Identify the 6-DOF maglev stage (seed 001) from a closed-loop log" + std::string(kStage6Example));
             app->require_subcommand(1);
             for (const bool diagnose : {false, true}) {
               auto o = std::make_shared<Stage6IdOptions>();

@@ -23,7 +23,7 @@
 namespace lpvid::cli {
 namespace {
 
-constexpr const char* kExample = R"(
+constexpr const char* kUnloopExample = R"(
 Example:
   lpvid unloop --closed-loop closed_loop.json --controller controller.json --out plant.json
 The interconnection G (I - C G)^-1 has order n_G + n_C; the controller's modes cancel
@@ -177,7 +177,7 @@ Command make_unloop_command() {
   return {"unloop", "plant from closed-loop model and controller", [](CLI::App& parent) {
             auto o = std::make_shared<UnloopCliOptions>();
             auto* app = parent.add_subcommand("unloop", "Plant P = G (I - C G)^-1 from the closed loop G and controller C" +
-                                                            std::string(kExample));
+                                                            std::string(kUnloopExample));
             app->add_option("--closed-loop", o->closed_loop,
                             "closed-loop G (v -> q): state-space JSON, or FRD data (.csv, .mat)");
             app->add_option("--sensitivity", o->sensitivity,

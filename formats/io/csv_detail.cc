@@ -88,8 +88,6 @@ CellPosition NumericCsv::key_position(Index row) const {
 
 namespace {
 
-inline bool is_blank(char c) { return c == ' ' || c == '\t'; }
-
 inline const char* skip_blanks(const char* p, const char* e) {
   while (p < e && is_blank(*p)) ++p;
   return p;

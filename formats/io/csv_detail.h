@@ -31,6 +31,9 @@ std::string one_line_message(std::string_view what);
 // control bytes (NUL, line breaks, ESC) shown as \xNN.
 std::string quote_cell(std::string_view text);
 
+// A blank between CSV fields: a space or a tab (never a line end).
+inline bool is_blank(char c) { return c == ' ' || c == '\t'; }
+
 // What a CSV file may ask of the reader (docs/formats.md, "Limits"): bounded
 // so that a wrong file (/dev/zero, a binary, a runaway header) fails at once
 // with a message instead of exhausting memory or time.

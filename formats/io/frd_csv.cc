@@ -49,7 +49,7 @@ namespace {
 
 using frd_detail::kTwoPi;
 
-bool is_blank(char c) { return c == ' ' || c == '\t'; }
+using detail::is_blank;
 
 std::string_view trim(std::string_view s) {
   size_t b = 0, e = s.size();

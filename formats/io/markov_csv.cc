@@ -21,7 +21,7 @@ std::string markov_header_name(const std::string& output, const std::string& inp
   return fmt::format("g_{}_{}", output, input);
 }
 
-bool is_blank(char c) { return c == ' ' || c == '\t'; }
+using detail::is_blank;
 
 // Text with its byte column in the file.
 struct Piece {
