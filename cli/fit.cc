@@ -126,6 +126,10 @@ void run(const FitCliOptions& o) {
     names.push_back(e.name);
     params[e.name] = {{"start", e.start}, {"estimate", e.estimate}, {"std_error", e.std_error},
                       {"unit", e.unit},   {"flags", e.flags}};
+    if (e.prior_sigma > 0.0)
+      params[e.name]["prior"] = {{"mean", e.prior_mean},
+                                 {"sigma", e.prior_sigma},
+                                 {"pull_sigmas", (e.estimate - e.prior_mean) / e.prior_sigma}};
   }
   nlohmann::json corr = nlohmann::json::array();
   for (Index a = 0; a < r.correlation.rows(); ++a) {
@@ -276,6 +280,7 @@ void run(const FitCliOptions& o) {
                       "std error", "unit", "flags");
   for (const auto& e : r.parameters) {
     std::string flags;
+    if (e.prior_sigma > 0.0) flags = fmt::format("prior {:g} ± {:g}", e.prior_mean, e.prior_sigma);
     for (const auto& f : e.flags) flags += (flags.empty() ? "" : "; ") + f;
     text += fmt::format("{:<{}} {:>12} {:>12} {:>11} {:>9}  {}\n", e.name, name_width, fmt_value(e.start),
                         fmt_value(e.estimate), fmt_value(e.std_error), e.unit, flags);

@@ -6,6 +6,7 @@
 #include <fmt/ranges.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 
@@ -28,6 +29,8 @@ Example:
   lpvid model init --out model.json                  (the platform base with beam gravity)
   lpvid model init --out model.json --set k_torque_low_Nm_per_rad=45 --set beam_height_m=0.06
                                                      (with the design values you know)
+  lpvid model set --model model.json --set platform_mass_kg=5.3±0.05
+                                                     (a weighed mass: a prior for fit and diagnose)
   lpvid model effects                                (the effect library: parameters, units, bounds)
   lpvid model add input_delay --model fit1.json --out start2.json
                                                      (a new file; its fit history continues fit1's)
@@ -35,7 +38,7 @@ Example:
   lpvid model define --model fit1.json --from theta_mount.json [--add]
                                                      (a user-defined effect from building blocks)
   lpvid model export --model fitted.json --xb 0.05 --rate-hz 1000 --out P_005.json
-'model add/remove/define' rewrite the model file in place unless --out names a new one
+'model set/add/remove/define' rewrite the model file in place unless --out names a new one
 (atomically: a failed run leaves it unchanged); they drop the "fit" section, which no longer
 describes the model, and --out copies the fit history so that 'lpvid history' shows the
 whole lineage.  'model export' writes the state-space JSON at x_b: continuous without
@@ -49,13 +52,26 @@ struct ModelCliOptions {
   bool bare = false, json = false, add_defined = false;
 };
 
-// --set NAME=VALUE: a parameter's value (its bounds must hold it).
+// --set NAME=VALUE: a parameter's value (its bounds must hold it);
+// --set NAME=VALUE±SIGMA (or +-SIGMA): also a Gaussian prior on it, the design value
+// known to ±SIGMA (fit and diagnose estimate the MAP value; docs/formats.md).
 void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
   for (const std::string& s : sets) {
     const size_t eq = s.find('=');
     if (eq == std::string::npos || eq == 0)
-      throw InputError(fmt::format("--set '{}': write NAME=VALUE, e.g. --set k_torque_low_Nm_per_rad=45", s));
-    const std::string name = s.substr(0, eq), text = s.substr(eq + 1);
+      throw InputError(fmt::format("--set '{}': write NAME=VALUE or NAME=VALUE±SIGMA, e.g. --set "
+                                   "k_torque_low_Nm_per_rad=45 or --set platform_mass_kg=5.3±0.05",
+                                   s));
+    const std::string name = s.substr(0, eq);
+    std::string text = s.substr(eq + 1), sigma_text;
+    for (const char* pm : {"\u00b1", "+-"}) {
+      const size_t at = text.find(pm);
+      if (at != std::string::npos) {
+        sigma_text = text.substr(at + std::strlen(pm));
+        text = text.substr(0, at);
+        break;
+      }
+    }
     double v = NAN;
     if (!parse_decimal(text, v))
       throw InputError(fmt::format("--set '{}': '{}' is not a number; give the value in the parameter's unit", s, text));
@@ -64,6 +80,15 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
       throw InputError(fmt::format("--set '{}': {} is outside the bounds [{}, {}] {} of {}; give a value inside them",
                                    s, v, p.lower, p.upper, p.unit, name));
     p.value = v;
+    if (!sigma_text.empty() || s.size() != eq + 1 + text.size()) {
+      double sigma = NAN;
+      if (!parse_decimal(sigma_text, sigma) || !(sigma > 0.0) || !std::isfinite(sigma))
+        throw InputError(fmt::format("--set '{}': the uncertainty '{}' is not a number > 0; write NAME=VALUE±SIGMA in "
+                                     "the parameter's unit ({})",
+                                     s, sigma_text, p.unit));
+      p.prior_mean = v;
+      p.prior_sigma = sigma;
+    }
   }
   m.validate();
 }
@@ -117,6 +142,26 @@ std::string write_changed(const ModelCliOptions& o, OutputSet& outputs, const Ph
   }
   outputs.commit();
   return target;
+}
+
+void run_set(const ModelCliOptions& o) {
+  OutputSet outputs;
+  check_changed(o, outputs);
+  PhysicalModel m = read_physical_model(o.model);
+  apply_sets(m, o.sets);
+  const std::string written = write_changed(o, outputs, m);
+  if (!outputs.to_stdout()) {
+    std::vector<std::string> lines;
+    for (const std::string& s : o.sets) {
+      const PhysicalParameter& p = m.parameter(s.substr(0, s.find('=')));
+      lines.push_back(p.has_prior() ? fmt::format("{} = {:g} {} (prior {:g} ± {:g})", p.name, p.value, p.unit,
+                                                  p.prior_mean, p.prior_sigma)
+                                    : fmt::format("{} = {:g} {}", p.name, p.value, p.unit));
+    }
+    print_summary(o.json, {{"model", written}, {"set", o.sets}},
+                  fmt::format("model set: {}{}\n", fmt::join(lines, ", "),
+                              written == o.model ? " in " + o.model : fmt::format(", wrote {} from {}", written, o.model)));
+  }
 }
 
 void run_add(const ModelCliOptions& o) {
@@ -227,10 +272,18 @@ Command make_model_command() {
             auto* init = app->add_subcommand("init", "write a model file: a base with its default effects");
             init->add_option("--out", o->out, "model file to write")->required();
             init->add_option("--base", o->base, "the base model (default platform)");
-            init->add_option("--set", o->sets, "NAME=VALUE: a design value you know (repeat)");
+            init->add_option("--set", o->sets,
+                             "NAME=VALUE: a design value you know; NAME=VALUE±SIGMA: also its uncertainty, a prior "
+                             "for fit and diagnose (repeat)");
             init->add_flag("--bare", o->bare, "the base alone (no effect)");
             init->add_flag("--json", o->json, "print the summary as JSON");
             init->callback([o] { run_init(*o); });
+            auto* set = app->add_subcommand("set", "set design values (and priors) of a model file's parameters");
+            set->add_option("--model", o->model, "model file to read")->required();
+            set->add_option("--set", o->sets, "NAME=VALUE or NAME=VALUE±SIGMA (a prior; repeat)")->required();
+            set->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
+            set->add_flag("--json", o->json, "print the summary as JSON");
+            set->callback([o] { run_set(*o); });
             auto* add = app->add_subcommand("add", "add an effect (with its defaults) to a model file");
             add->add_option("effect", o->effect, "effect name (see 'lpvid model effects')")->required();
             add->add_option("--model", o->model, "model file to read")->required();

@@ -7,7 +7,8 @@
 #      refit, watch the error fall to the noise floor;
 #   2. a hidden theta-sensor resonance no library effect contains: diagnose says so,
 #      describes it, writes it as a user-defined effect; define it, refit;
-#   3. case 1 again from time-domain logs through `lpvid frf` instead of an analyzer.
+#   3. case 1 again from time-domain logs through `lpvid frf` instead of an analyzer;
+#   4. case 1 with a weighed mass given as a prior (model set NAME=VALUE±SIGMA).
 # Writes samples/loop/.  LPVID and INDEP_SIM override the programs' paths.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -70,4 +71,12 @@ manifest data.json '"S_{p}.csv"'
 run model init --out model.json --set k_torque_low_Nm_per_rad=55 --set beam_height_m=0.08
 run fit --model model.json --datasets data.json --out fit1.json
 run diagnose --model fit1.json --datasets data.json --out fit2.json
+cd ..
+
+# ---- 4. a design value you know: a prior (case 1's data) ---------------------------
+cd lag
+run model set --model model.json --set platform_mass_kg=3.83±0.02 --out prior.json
+run fit --model prior.json --datasets data.json --out fitp.json
+run model add actuator_lag --model fitp.json --out startp2.json
+run fit --model startp2.json --datasets data.json --out fitp2.json
 cd ..

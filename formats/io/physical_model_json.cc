@@ -264,11 +264,11 @@ class Reader {
       fail_at(at, fmt::format("parameter '{}' must be an object; write {{\"value\", \"unit\", \"lower\", \"upper\", \"free\"}}",
                               name));
     for (auto it = v.begin(); it != v.end(); ++it) {
-      static const char* const kFields[] = {"value", "unit", "lower", "upper", "free"};
+      static const char* const kFields[] = {"value", "unit", "lower", "upper", "free", "prior"};
       bool known = false;
       for (const char* k : kFields) known = known || it.key() == k;
       if (!known)
-        fail_at(at, fmt::format("parameter '{}' has unknown field {}; remove it (the fields are value, unit, lower, upper, free)",
+        fail_at(at, fmt::format("parameter '{}' has unknown field {}; remove it (the fields are value, unit, lower, upper, free and optionally prior)",
                                 name, detail::quote_cell(it.key())));
     }
     PhysicalParameter p;
@@ -291,6 +291,20 @@ class Reader {
     if (free == v.end() || !free->is_boolean())
       fail_at(at, fmt::format("parameter '{}': field 'free' must be true or false; write one of them", name));
     p.free = free->get<bool>();
+    const auto prior = v.find("prior");
+    if (prior != v.end()) {
+      const char* const kPriorForm = "write \"prior\": {\"mean\": DESIGN_VALUE, \"sigma\": UNCERTAINTY > 0}";
+      if (!prior->is_object() || prior->size() != 2 || !prior->contains("mean") || !prior->contains("sigma"))
+        fail_at(at, fmt::format("parameter '{}': field 'prior' must hold exactly 'mean' and 'sigma'; {}", name, kPriorForm));
+      const json& mean = (*prior)["mean"];
+      const json& sigma = (*prior)["sigma"];
+      if (!mean.is_number() || !sigma.is_number() || !(sigma.get<double>() > 0.0) ||
+          !std::isfinite(sigma.get<double>()) || !std::isfinite(mean.get<double>()))
+        fail_at(at, fmt::format("parameter '{}': prior mean {} and sigma {} must be finite numbers, sigma > 0; {}", name,
+                                detail::json_excerpt(mean), detail::json_excerpt(sigma), kPriorForm));
+      p.prior_mean = mean.get<double>();
+      p.prior_sigma = sigma.get<double>();
+    }
     return p;
   }
 
@@ -299,9 +313,12 @@ class Reader {
 };
 
 std::string parameter_json_text(const PhysicalParameter& p) {
-  return fmt::format("{{\"value\": {}, \"unit\": {}, \"lower\": {}, \"upper\": {}, \"free\": {}}}",
+  const std::string prior = p.has_prior() ? fmt::format(", \"prior\": {{\"mean\": {}, \"sigma\": {}}}",
+                                                        json(p.prior_mean).dump(), json(p.prior_sigma).dump())
+                                          : std::string();
+  return fmt::format("{{\"value\": {}, \"unit\": {}, \"lower\": {}, \"upper\": {}, \"free\": {}{}}}",
                      json(p.value).dump(), json(p.unit).dump(), json(p.lower).dump(), json(p.upper).dump(),
-                     p.free ? "true" : "false");
+                     p.free ? "true" : "false", prior);
 }
 
 }  // namespace

@@ -332,28 +332,20 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model
           pinned.push_back(fmt::format("{} = {:.4g} at its {} bound", p.name, p.estimate, lower ? "lower" : "upper"));
         }
       }
-  const bool something = ctx.something;
-  const bool bic = c.delta_bic < -ctx.options.significance_delta_bic;
-  // a localized phenomenon (failing bands, the error as a whole within the floor)
-  // is judged by the bands it removes
-  const bool excess = !ctx.global_excess || c.excess_share >= ctx.options.min_excess_share;
-  const bool bands = ctx.d.baseline_band_points == 0 || c.band_share >= ctx.options.min_band_share;
-  c.significant = something && bic && excess && bands && !c.own_parameter_at_bound;
-  if (c.significant) {
-    c.verdict = "significant";
-  } else if (!something) {
-    c.verdict = "not significant: nothing beyond the noise to explain";
-  } else if (c.own_parameter_at_bound) {
-    c.verdict = fmt::format("not significant: {} (used as a patch)", fmt::join(pinned, ", "));
-  } else if (!bic) {
-    c.verdict = fmt::format("not significant: ΔBIC {:.1f} above −{:g}", c.delta_bic, ctx.options.significance_delta_bic);
-  } else if (!excess) {
-    c.verdict = fmt::format("not significant: explains {:.0f} % of the excess (needs {:.0f} %)", 100.0 * c.excess_share,
-                            100.0 * ctx.options.min_excess_share);
-  } else {
-    c.verdict = fmt::format("not significant: removes {:.0f} % of the failing-band points (needs {:.0f} %)",
-                            100.0 * c.band_share, 100.0 * ctx.options.min_band_share);
-  }
+  CandidateEvidence ev;
+  ev.something = ctx.something;
+  ev.global_excess = ctx.global_excess;
+  ev.has_band_points = ctx.d.baseline_band_points > 0;
+  ev.floor = ctx.floor;
+  ev.baseline_error = e0;
+  ev.error = c.error;
+  ev.delta_bic = c.delta_bic;
+  ev.excess_share = c.excess_share;
+  ev.band_share = c.band_share;
+  ev.pinned = std::move(pinned);
+  CandidateJudgement j = judge_candidate(ev, ctx.options);
+  c.significant = j.significant;
+  c.verdict = std::move(j.verdict);
 }
 
 std::string channel_label(const std::vector<std::string>& names, Index i, const char* fallback) {
@@ -554,6 +546,37 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
 
 }  // namespace
 
+CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOptions& options) {
+  const bool raises = e.error > e.baseline_error;
+  const bool bic = e.delta_bic < -options.significance_delta_bic;
+  // a localized phenomenon (failing bands, the error as a whole within the floor)
+  // is judged by the bands it removes
+  const bool excess = !e.global_excess || e.excess_share >= options.min_excess_share;
+  const bool to_floor = e.global_excess && e.error <= options.explained_ratio * e.floor;
+  const bool bands = !e.has_band_points || to_floor || e.band_share >= options.min_band_share;
+  CandidateJudgement j;
+  j.significant = e.something && e.pinned.empty() && !raises && bic && excess && bands;
+  if (j.significant) {
+    j.verdict = "significant";
+  } else if (!e.something) {
+    j.verdict = "not significant: nothing beyond the noise to explain";
+  } else if (!e.pinned.empty()) {
+    j.verdict = fmt::format("not significant: {} (used as a patch)", fmt::join(e.pinned, ", "));
+  } else if (raises) {
+    j.verdict = fmt::format("not significant: it raises the error figure from {} to {} (ΔBIC {:.1f})",
+                            percent(e.baseline_error), percent(e.error), e.delta_bic);
+  } else if (!bic) {
+    j.verdict = fmt::format("not significant: ΔBIC {:.1f} above −{:g}", e.delta_bic, options.significance_delta_bic);
+  } else if (!excess) {
+    j.verdict = fmt::format("not significant: explains {:.0f} % of the excess (needs {:.0f} %)", 100.0 * e.excess_share,
+                            100.0 * options.min_excess_share);
+  } else {
+    j.verdict = fmt::format("not significant: removes {:.0f} % of the failing-band points (needs {:.0f} %)",
+                            100.0 * e.band_share, 100.0 * options.min_band_share);
+  }
+  return j;
+}
+
 Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& data, const DiagnoseOptions& options) {
   options.validate();
   model.validate();
@@ -650,10 +673,17 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     out.explained = winner->error <= options.explained_ratio * f &&
                     static_cast<double>(winner->band_points) <=
                         kLeftBandShare * static_cast<double>(out.baseline_band_points);
-    if (out.explained)
-      for (std::size_t i = 1; i < out.ranked.size(); ++i)
-        if (out.ranked[i].significant && out.ranked[i].error <= options.explained_ratio * f)
-          out.indistinguishable.push_back(out.ranked[i].effect);
+    // Another significant candidate the data do not separate from the winner: with
+    // the winner explained, one that explains too; otherwise one whose ΔBIC is within
+    // the significance margin of the winner's (a gain and a uniform scaling of M, D
+    // and K are the same plant: rod_twist against gain_error, issue 25).
+    for (std::size_t i = 1; i < out.ranked.size(); ++i) {
+      const CandidateOutcome& c = out.ranked[i];
+      if (!c.significant) continue;
+      const bool same = out.explained ? c.error <= options.explained_ratio * f
+                                      : c.delta_bic - winner->delta_bic < options.significance_delta_bic;
+      if (same) out.indistinguishable.push_back(c.effect);
+    }
     report_progress(options.progress, {"diagnose", "where the winner fails", 0, 0, winner->effect, -1.0});
     const ModelErrorSet rest = model_errors(winner->fit.model, data, refit, options.model_error);
     out.remaining_failures = rest.failures;
@@ -714,16 +744,21 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     if (out.ranked.size() > 1 && out.ranked[1].fitted)
       s.push_back(fmt::format("  runner-up: {} (error {}, {:.0f} % of the excess; {})", out.ranked[1].effect,
                               percent(out.ranked[1].error), 100.0 * out.ranked[1].excess_share, out.ranked[1].verdict));
+    if (!out.indistinguishable.empty()) {
+      const CandidateOutcome& second = out.ranked[1];
+      s.push_back(fmt::format(
+          "  indistinguishable on these data from {}: {} {}; {} has the better likelihood (ΔBIC {:.1f} against {:.1f}, "
+          "within {:g}). What would separate them: a prior on a parameter one of them moves (lpvid model set --set "
+          "NAME=VALUE±SIGMA: a weighed mass, a datasheet force constant or stiffness), or another experiment (another "
+          "operating point, a static test, a longer or less noisy measurement, a wider band)",
+          fmt::join(out.indistinguishable, ", "), out.indistinguishable.size() == 1 ? "it leaves" : "they leave",
+          out.explained ? "the error within the noise too"
+                        : fmt::format("the error at {} against {}", percent(second.error), percent(winner->error)),
+          winner->effect, winner->delta_bic, second.delta_bic, options.significance_delta_bic));
+    }
     if (out.explained) {
       s.push_back(fmt::format("  explained: with it the error is within the noise ({} <= {:g} x {})",
                               percent(winner->error), options.explained_ratio, percent(f)));
-      if (!out.indistinguishable.empty())
-        s.push_back(fmt::format("  but these data hardly separate it from {}: {} the error within the noise too; {} "
-                                "has the better likelihood (ΔBIC {:.1f} against {:.1f}); a longer or less noisy "
-                                "measurement, or a wider band, would decide",
-                                fmt::join(out.indistinguishable, ", "),
-                                out.indistinguishable.size() == 1 ? "it explains" : "they explain", winner->effect,
-                                winner->delta_bic, out.ranked[1].delta_bic));
     } else {
       s.push_back(fmt::format("  partly explained: with it the error {} is still above {:g} x the noise floor; still "
                               "failing:",

@@ -103,6 +103,35 @@ struct CandidateOutcome {
   std::vector<ParameterEstimate> effect_parameters;  // the effect's own estimates (free ones)
 };
 
+// What the significance test of one candidate sees (diagnose's refit of it).
+struct CandidateEvidence {
+  bool something = false;        // the baseline has something to explain (global excess or failing bands)
+  bool global_excess = false;    // the baseline's error > explained_ratio × floor
+  bool has_band_points = false;  // the baseline has failing-band points
+  double floor = 0.0;            // the effective noise floor, error-figure units
+  double baseline_error = 0.0;   // error figure without the candidate
+  double error = 0.0;            // error figure with it
+  double delta_bic = 0.0;        // BIC(with) − BIC(without)
+  double excess_share = 0.0;     // share of the baseline's excess it explains
+  double band_share = 0.0;       // share of the failing-band points it removes
+  std::vector<std::string> pinned;  // its own parameters on a bound, in words ("tau = 0.01 at its upper bound")
+};
+
+struct CandidateJudgement {
+  bool significant = false;
+  std::string verdict;  // "significant" or "not significant: <the first test it fails>"
+};
+
+// The significance test, in this order: something to explain; none of its own
+// parameters on a bound (a patch); the error figure does not rise (a candidate that
+// raises it is never significant, whatever its ΔBIC: the two measures disagree and
+// the error figure is what the user compares); ΔBIC < −significance_delta_bic; it
+// explains ≥ min_excess_share of a global excess; it removes ≥ min_band_share of the
+// failing-band points, unless it brings a global excess to within explained_ratio ×
+// the floor (what is left is then noise as a whole: residual points of a near-zero
+// entry cannot veto it).
+CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOptions& options);
+
 // A generic error model fitted to the residual (header comment).
 struct ResidualDescription {
   std::string kind;        // "resonance" or "lag"

@@ -394,11 +394,28 @@ Coordinates make_coordinates(const PhysicalModel& model, const std::vector<Index
   return c;
 }
 
+// A free parameter's Gaussian prior: one more residual, (θ − mean) / sigma, in the
+// units of the data's residuals (their noise), so the least squares are a MAP fit.
+struct PriorRow {
+  Index q = 0;  // free-parameter index
+  double mean = 0.0, sigma = 1.0;
+};
+
+std::vector<PriorRow> prior_rows(const PhysicalModel& m, const std::vector<Index>& free) {
+  std::vector<PriorRow> out;
+  for (std::size_t q = 0; q < free.size(); ++q) {
+    const PhysicalParameter& par = m.parameters[static_cast<std::size_t>(free[q])];
+    if (par.has_prior()) out.push_back({static_cast<Index>(q), par.prior_mean, par.prior_sigma});
+  }
+  return out;
+}
+
 struct Problem {
   Engine& engine;
   const Coordinates& coords;
   const std::vector<Prepared>& sets;
-  Index residuals = 0;
+  Index residuals = 0;  // the data's, then one per prior
+  std::vector<PriorRow> priors = {};
 
   void set_z(const double* z) {
     for (Index q = 0; q < engine.num_free(); ++q)
@@ -432,6 +449,16 @@ struct Problem {
               }
             row += 2;
           }
+    }
+    for (const PriorRow& pr : priors) {
+      const auto s = static_cast<std::size_t>(pr.q);
+      const double theta = engine.full()(engine.free()[s]);
+      r[row] = (theta - pr.mean) / pr.sigma;
+      if (jac != nullptr) {
+        for (Index q = 0; q < p; ++q) jac[row * p + q] = 0.0;
+        jac[row * p + pr.q] = (coords.log[s] ? theta : 1.0) / pr.sigma;
+      }
+      ++row;
     }
     return true;
   }
@@ -888,9 +915,18 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   const PreparedAll all = prepare_all(start, data, options);
   const std::vector<Prepared>& sets = all.sets;
   const Coordinates coords = make_coordinates(start, engine.free());
-  Problem full{engine, coords, sets, count_residuals(sets)};
-  if (full.residuals <= p)
-    throw InputError(fmt::format("{} residuals for {} free parameters: give more (unflagged) frequencies", full.residuals,
+  const std::vector<PriorRow> priors = prior_rows(start, engine.free());
+  if (!priors.empty() && !all.noise_known)
+    throw InputError(fmt::format("parameter '{}' has a prior, which weighs against the data's noise, and the noise of "
+                                 "the data is unknown; give the data's variance, or coherence with the number of "
+                                 "averages, or a noise level",
+                                 start.parameters[static_cast<std::size_t>(engine.free()[static_cast<std::size_t>(
+                                                      priors.front().q)])]
+                                     .name));
+  const Index data_residuals = count_residuals(sets);
+  Problem full{engine, coords, sets, data_residuals + static_cast<Index>(priors.size()), priors};
+  if (data_residuals <= p)
+    throw InputError(fmt::format("{} residuals for {} free parameters: give more (unflagged) frequencies", data_residuals,
                                  p));
 
   std::vector<double> z(static_cast<std::size_t>(p));
@@ -971,7 +1007,7 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   if (options.global_start && !searched.empty()) {
     std::vector<Prepared> sub;
     for (const auto& d : sets) sub.push_back(subsample(d, options.global_subsample));
-    Problem coarse{engine, coords, sub, count_residuals(sub)};
+    Problem coarse{engine, coords, sub, count_residuals(sub) + static_cast<Index>(priors.size()), priors};
     std::vector<double> lo(coords.lower), hi(coords.upper);
     for (Index q = 0; q < p; ++q) {
       const auto s = static_cast<std::size_t>(q);
@@ -1113,13 +1149,15 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   Eigen::MatrixXd J = Jz;
   for (Index q = 0; q < p; ++q)
     if (coords.log[static_cast<std::size_t>(q)]) J.col(q) /= std::exp(z[static_cast<std::size_t>(q)]);
-  double ssr = 0.0;
-  for (double x : r) ssr += x * x;
-  result.cost_final = ssr;
-  result.residual_count = N;
+  // The cost is the data's and the priors'; σ², AIC and BIC are the data's alone
+  // (the same with and without priors for the same fit of the data).
+  double ssr = 0.0, cost = 0.0;
+  for (Index i = 0; i < N; ++i) (i < data_residuals ? ssr : cost) += r[static_cast<std::size_t>(i)] * r[static_cast<std::size_t>(i)];
+  result.cost_final = ssr + cost;
+  result.residual_count = data_residuals;
   for (const auto& d : sets) result.frequencies_used += static_cast<Index>(d.omega.size());
-  result.sigma2 = ssr / static_cast<double>(N - p);
-  const double n_d = static_cast<double>(N);
+  result.sigma2 = ssr / static_cast<double>(data_residuals - p);
+  const double n_d = static_cast<double>(data_residuals);
   const double log_term = n_d * std::log(std::max(ssr, std::numeric_limits<double>::min()) / n_d);
   result.aic = log_term + 2.0 * static_cast<double>(p);
   result.bic = log_term + static_cast<double>(p) * std::log(n_d);
@@ -1130,7 +1168,13 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(p);
   for (Index q = 0; q < p; ++q)
     if (sv(q) > 1e-12 * sv(0)) inv2(q) = 1.0 / (sv(q) * sv(q));
-  result.covariance = result.sigma2 * svd.matrixV() * inv2.asDiagonal() * svd.matrixV().transpose();
+  // With priors (the noise is then known, the residuals in its units) the covariance
+  // is the posterior's, (JᵀJ)⁺ over the data's and the priors' rows, inflated by σ²
+  // only when the data scatter more than their noise says (σ² > 1): scaling the
+  // priors' information by the data's σ² would make a ±1 % prior ±0.00001 % on
+  // noise-free data.  Without priors, σ²(JᵀJ)⁺ as always.
+  const double scale = priors.empty() ? result.sigma2 : std::max(result.sigma2, 1.0);
+  result.covariance = scale * svd.matrixV() * inv2.asDiagonal() * svd.matrixV().transpose();
   result.correlation = Eigen::MatrixXd::Zero(p, p);
   for (Index a = 0; a < p; ++a)
     for (Index b = 0; b < p; ++b) {
@@ -1163,6 +1207,19 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
     if (e.at_bound)
       e.flags.push_back(fmt::format("at {} bound {:g}: the data want it beyond", at_lower ? "lower" : "upper",
                                     at_lower ? par.lower : par.upper));
+    if (par.has_prior()) {
+      e.prior_mean = par.prior_mean;
+      e.prior_sigma = par.prior_sigma;
+      const double pull = (e.estimate - par.prior_mean) / par.prior_sigma;
+      if (std::abs(pull) > kPriorPullFlag) {
+        e.flags.push_back(fmt::format("{:+.1f} sigma from its prior {:g} ± {:g}", pull, par.prior_mean, par.prior_sigma));
+        result.report.warnings.push_back(
+            fmt::format("the data pull {} to {:.4g}, {:.1f} standard deviations from its prior {:g} ± {:g}: the design "
+                        "value or its uncertainty is wrong, or the model lacks an effect that this parameter is "
+                        "standing in for",
+                        par.name, e.estimate, std::abs(pull), par.prior_mean, par.prior_sigma));
+      }
+    }
     names.push_back(par.name);
     result.parameters.push_back(e);
   }

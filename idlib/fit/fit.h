@@ -150,8 +150,14 @@ struct ParameterEstimate {
   double std_error = 0.0;  // from the pseudo-inverse: not infinite along a direction the data cannot fix (the flags say so)
   double lower = 0.0, upper = 0.0;
   bool at_bound = false;   // estimate at (within 1e-6 of the span of) a bound
-  std::vector<std::string> flags;  // e.g. "at upper bound 2", "corr -0.999 with ..."
+  std::vector<std::string> flags;  // e.g. "at upper bound 2", "corr -0.999 with ...", "+4.2 sigma from its prior"
+  double prior_mean = 0.0, prior_sigma = 0.0;  // the parameter's prior (sigma 0: none)
 };
+
+// An estimate further than this many prior standard deviations from its prior's
+// mean is flagged (and warned about): beyond 3σ a Gaussian prior is contradicted at
+// the 0.3 % level.
+inline constexpr double kPriorPullFlag = 3.0;
 
 // Relative rms error per channel (same scaling as the error figure).
 struct ChannelFit {

@@ -513,6 +513,9 @@ void PhysicalModel::validate() const {
       throw InputError(fmt::format("parameter '{}': value {} is outside its bounds [{}, {}]; change the value or the "
                                    "bounds",
                                    q.name, q.value, q.lower, q.upper));
+    if (!std::isfinite(q.prior_mean) || !std::isfinite(q.prior_sigma) || q.prior_sigma < 0.0)
+      throw InputError(fmt::format("parameter '{}': prior {} ± {}; give a finite design value and an uncertainty > 0",
+                                   q.name, q.prior_mean, q.prior_sigma));
   }
   for (const auto* x : expected) {
     int count = 0;

@@ -51,6 +51,12 @@ struct PhysicalParameter {
   double lower = 0.0;  // bounds, lower <= value <= upper, both finite
   double upper = 0.0;
   bool free = false;  // estimated by fit, else held at value
+  // A Gaussian prior: a design value known to ±prior_sigma (a weighed mass, a
+  // datasheet force constant); fit and diagnose then estimate the maximum a
+  // posteriori value (idlib/fit/fit.h).  prior_sigma 0: no prior.
+  double prior_mean = 0.0;
+  double prior_sigma = 0.0;
+  bool has_prior() const { return prior_sigma > 0.0; }
 };
 
 enum class BlockKind { kDelay, kFirstOrder, kSecondOrder, kResonance, kGain, kCoupling, kMode };

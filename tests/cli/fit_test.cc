@@ -363,6 +363,47 @@ TEST(ModelCli, AddAndRemoveToANewFileKeepTheLineageAndInitTakesDesignValues) {
   EXPECT_FALSE(std::filesystem::exists(dir / "x.json"));
 }
 
+// Priors (issue 25): NAME=VALUE±SIGMA (or +-) in init and set, kept in the file,
+// bad ones refused with the file unchanged.
+TEST(ModelCli, SetGivesDesignValuesWithPriorsAndRefusesBadOnesLeavingTheFile) {
+  TempDir dir("model_prior");
+  ASSERT_EQ(run_lpvid(fmt::format("model init --out {} --set platform_mass_kg=5.3±0.05", dir / "m.json")).exit_code, 0);
+  PhysicalModel m = read_physical_model(dir / "m.json");
+  EXPECT_EQ(m.parameter("platform_mass_kg").value, 5.3);
+  EXPECT_EQ(m.parameter("platform_mass_kg").prior_mean, 5.3);
+  EXPECT_EQ(m.parameter("platform_mass_kg").prior_sigma, 0.05);
+  EXPECT_FALSE(m.parameter("beam_mass_kg").has_prior());
+  const auto set = run_lpvid(fmt::format("model set --model {} --set beam_mass_kg=0.8+-0.01 --set beam_height_m=0.05",
+                                         dir / "m.json"));
+  ASSERT_EQ(set.exit_code, 0) << set.err;
+  EXPECT_THAT(set.out, HasSubstr("beam_mass_kg = 0.8 kg (prior 0.8 ± 0.01)"));
+  m = read_physical_model(dir / "m.json");
+  EXPECT_EQ(m.parameter("beam_mass_kg").prior_sigma, 0.01);
+  EXPECT_EQ(m.parameter("platform_mass_kg").prior_sigma, 0.05);  // kept
+  EXPECT_EQ(m.parameter("beam_height_m").value, 0.05);
+  const std::string before = lpvid::testing::slurp(dir / "m.json");
+  for (const char* bad : {"beam_mass_kg=0.8±", "beam_mass_kg=0.8±-1", "beam_mass_kg=0.8±x", "beam_mass_kg=0.8±0"}) {
+    const auto r = run_lpvid(fmt::format("model set --model {} --set {}", dir / "m.json", bad));
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_THAT(r.err, HasSubstr("is not a number > 0; write NAME=VALUE±SIGMA")) << bad;
+  }
+  EXPECT_EQ(lpvid::testing::slurp(dir / "m.json"), before);
+  // a prior with sigma <= 0 in the file itself: positioned, with the form to write
+  {
+    std::string text = before;
+    const std::string key = "\"prior\": {\"mean\": 0.8, \"sigma\": 0.01}";
+    const size_t at = text.find(key);
+    ASSERT_NE(at, std::string::npos) << text;
+    text.replace(at, key.size(), "\"prior\": {\"mean\": 0.8, \"sigma\": 0}");
+    std::ofstream(dir / "bad.json") << text;
+  }
+  const auto read_bad = run_lpvid(fmt::format("model export --model {} --xb 0 --out {}", dir / "bad.json", dir / "P.json"));
+  EXPECT_EQ(read_bad.exit_code, 2);
+  EXPECT_THAT(read_bad.err, HasSubstr("bad.json:"));
+  EXPECT_THAT(read_bad.err, HasSubstr("sigma > 0"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "P.json"));
+}
+
 TEST(ModelCli, DefineAddsAUserDefinedEffectFromAFile) {
   TempDir dir("model_define");
   ASSERT_EQ(run_lpvid(fmt::format("model init --out {}", dir / "m.json")).exit_code, 0);

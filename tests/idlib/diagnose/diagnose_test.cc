@@ -332,3 +332,64 @@ TEST(Phenomena, BandsAtOneFrequencyInOneRowAreOnePhenomenonSaidAsThatRow) {
 
 }  // namespace
 }  // namespace lpvid
+
+// The significance test on its own (issue 25, "a verdict never contradicts the
+// error"): the numbers are the cases the issue measured.
+namespace {
+
+lpvid::CandidateEvidence evidence(double e0, double e, double floor, double delta_bic, double band_share) {
+  lpvid::CandidateEvidence ev;
+  ev.floor = floor;
+  ev.baseline_error = e0;
+  ev.error = e;
+  ev.global_excess = e0 > 1.5 * floor;
+  ev.has_band_points = true;
+  ev.something = true;
+  ev.delta_bic = delta_bic;
+  const double excess2 = e0 * e0 - floor * floor;
+  ev.excess_share = excess2 > 0 ? (e0 * e0 - e * e) / excess2 : 0.0;
+  ev.band_share = band_share;
+  return ev;
+}
+
+}  // namespace
+
+TEST(CandidateJudgement, ACandidateThatRaisesTheErrorIsNeverSignificantWhateverItsBic) {
+  // The stage's out-of-library platen mode: gain_error, ΔBIC far below −10, took the
+  // error from 5.09 % to 5.23 % inside 1.5x a 5 % floor (the excess test waived).
+  const lpvid::CandidateJudgement j =
+      lpvid::judge_candidate(evidence(0.0509, 0.0523, 0.05, -3.8e5, 0.9), lpvid::DiagnoseOptions{});
+  EXPECT_FALSE(j.significant);
+  EXPECT_THAT(j.verdict, testing::HasSubstr("raises the error figure from 5.09 % to 5.23 %")) << j.verdict;
+}
+
+TEST(CandidateJudgement, BringingTheErrorToTheFloorIsNotVetoedByTheResidualBands) {
+  // The out-of-library platform case: com_offset took 0.30 % to 0.088 % against a
+  // 0.092 % floor (all the excess) yet removed only 39 % of the failing-band points.
+  const lpvid::CandidateJudgement j =
+      lpvid::judge_candidate(evidence(0.0030, 0.00088, 0.00092, -400.0, 0.39), lpvid::DiagnoseOptions{});
+  EXPECT_TRUE(j.significant) << j.verdict;
+  // Halfway to the floor, the bands still decide.
+  const lpvid::CandidateJudgement half =
+      lpvid::judge_candidate(evidence(0.0030, 0.0016, 0.00092, -400.0, 0.39), lpvid::DiagnoseOptions{});
+  EXPECT_FALSE(half.significant);
+  EXPECT_THAT(half.verdict, testing::HasSubstr("removes 39 % of the failing-band points")) << half.verdict;
+}
+
+TEST(CandidateJudgement, TheOtherTestsInOrder) {
+  const lpvid::DiagnoseOptions o;
+  lpvid::CandidateEvidence ev = evidence(0.0030, 0.0010, 0.00092, -5.0, 0.9);
+  EXPECT_THAT(lpvid::judge_candidate(ev, o).verdict, testing::HasSubstr("ΔBIC -5.0 above −10"));
+  ev = evidence(0.0030, 0.0028, 0.00092, -50.0, 0.9);
+  EXPECT_THAT(lpvid::judge_candidate(ev, o).verdict, testing::HasSubstr("of the excess (needs 50 %)"));
+  ev.pinned = {"tau = 0.01 at its upper bound"};
+  EXPECT_THAT(lpvid::judge_candidate(ev, o).verdict, testing::HasSubstr("tau = 0.01 at its upper bound (used as a patch)"));
+  ev = evidence(0.0010, 0.0009, 0.00092, -50.0, 0.9);
+  ev.something = false;
+  EXPECT_THAT(lpvid::judge_candidate(ev, o).verdict, testing::HasSubstr("nothing beyond the noise"));
+  // A localized phenomenon (no global excess): judged by its bands.
+  ev.something = true;
+  EXPECT_TRUE(lpvid::judge_candidate(ev, o).significant);
+  ev.band_share = 0.2;
+  EXPECT_FALSE(lpvid::judge_candidate(ev, o).significant);
+}
