@@ -315,7 +315,7 @@ TEST_F(BadInput, AllZeroStageLog_IsNotFittedToItsStartValues) {
 
 TEST_F(BadInput, UnknownSubcommand_IsNamedWithTheKnownOnes) {
   refused("frobnicate", "unknown subcommand 'frobnicate'; the subcommands are simulate, markov");
-  refused("model frob", "unknown subcommand 'frob'; the subcommands are init, add, remove, define, export, effects");
+  refused("model frob", "unknown subcommand 'frob'; the subcommands are init, set, add, remove, define, export, effects");
 }
 
 TEST_F(BadInput, EmptyValue_IsNotTakenForAFlagLeftOut) {
