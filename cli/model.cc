@@ -64,9 +64,11 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
                                    s));
     const std::string name = s.substr(0, eq);
     std::string text = s.substr(eq + 1), sigma_text;
+    bool with_prior = false;  // a ± (or +-) was written, with or without a number after it
     for (const char* pm : {"\u00b1", "+-"}) {
       const size_t at = text.find(pm);
       if (at != std::string::npos) {
+        with_prior = true;
         sigma_text = text.substr(at + std::strlen(pm));
         text = text.substr(0, at);
         break;
@@ -80,7 +82,7 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
       throw InputError(fmt::format("--set '{}': {} is outside the bounds [{}, {}] {} of {}; give a value inside them",
                                    s, v, p.lower, p.upper, p.unit, name));
     p.value = v;
-    if (!sigma_text.empty() || s.size() != eq + 1 + text.size()) {
+    if (with_prior) {
       double sigma = NAN;
       if (!parse_decimal(sigma_text, sigma) || !(sigma > 0.0) || !std::isfinite(sigma))
         throw InputError(fmt::format("--set '{}': the uncertainty '{}' is not a number > 0; write NAME=VALUE±SIGMA in "
