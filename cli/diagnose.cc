@@ -25,9 +25,10 @@ namespace {
 
 constexpr const char* kDiagnoseExample = R"(
 Example:
-  lpvid diagnose --model fit1.json --datasets data.json --png where-it-fails.png
-  lpvid model add input_delay --model fit1.json --out start2.json      # add what it names, then
-  lpvid fit --model start2.json --datasets data.json --out fit2.json
+  lpvid diagnose --model fit1.json --datasets data.json --png where-it-fails.png --report report.json
+  lpvid model add input_delay --model fit1.json --from-diagnosis report.json --out start2.json
+  lpvid fit --model start2.json --datasets data.json --out fit2.json   # add what it names (from where
+                                                                       # diagnose ended), then refit
 Refits the model as it is (the baseline), then once per effect it could add (the library's,
 lpvid model effects, and the file's user-defined ones; --candidates to choose), each from
 starting points read off the failing bands.  A candidate is significant when it lowers
@@ -40,7 +41,8 @@ The report says where the model fails (distinct phenomena: frequency, channels, 
 sets, size, signature), what is missing and how much of the excess it explains, the
 error before and after, and "explained" only when what remains is within 1.5x the noise
 floor.  Significant candidates rank by BIC; others that also leave only noise are named
-as indistinguishable on these data.  When nothing explains it, the residual is described by a resonance or lag in one
+as indistinguishable on these data.  When no single effect leaves only noise, pairs
+(and triples) are tried and named together when each member is needed.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).
@@ -49,7 +51,7 @@ Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BI
 
 struct DiagnoseCliOptions {
   FitInputOptions in;
-  std::string candidates, out, png, out_effect;
+  std::string candidates, out, png, out_effect, report;
   std::string log;  // the stage's time-domain route (cli/stage6_time.h)
   double delta_bic = 10.0;
   bool json = false;
@@ -101,8 +103,8 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.log.empty()) {
     if (!o.in.data.empty() || !o.in.datasets.empty())
       throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
-    if (!o.png.empty() || !o.out_effect.empty())
-      throw InputError("diagnose --log: --png and --out-effect are for the frequency route; see where the model "
+    if (!o.png.empty() || !o.out_effect.empty() || !o.report.empty())
+      throw InputError("diagnose --log: --png, --out-effect and --report are for the frequency route; see where the model "
                        "fails in time with lpvid compare --log RUN.csv --model MODEL.json --out-png F.png");
     {
       OutputSet guard;
@@ -128,6 +130,7 @@ void run(const DiagnoseCliOptions& o) {
   outputs.file("--out", o.out);
   outputs.file("--out-effect", o.out_effect);
   outputs.file("--png", o.png);
+  outputs.file("--report", o.report);
   const FitInputs in = load_fit_inputs(o.in, outputs);
   options.fit = in.options;
   for (const std::string& c : options.candidates)
@@ -141,36 +144,69 @@ void run(const DiagnoseCliOptions& o) {
   const Diagnosis d = diagnose(in.start, in.data, options);
   progress.finish();
 
-  nlohmann::json ranked = nlohmann::json::array();
-  std::string table = fmt::format("{:<4} {:<18} {:>10} {:>8} {:>9} {:>9} {:>10}  {}\n", "rank", "candidate", "error %",
-                                  "x lower", "% excess", "% bands", "ΔBIC", "verdict");
-  int rank = 0;
-  for (const CandidateOutcome& c : d.ranked) {
-    ++rank;
+  // Every candidate (and combination) with its fitted values: `lpvid model add
+  // EFFECT --from-diagnosis REPORT.json` starts the user's refit from them, so the
+  // refit reaches what diagnose reported (issue 25).
+  auto outcome_json = [&](const CandidateOutcome& c) {
     nlohmann::json params = nlohmann::json::array();
     for (const ParameterEstimate& p : c.effect_parameters)
       params.push_back({{"name", p.name}, {"estimate", p.estimate}, {"std_error", number_or_null(p.std_error)},
                         {"unit", p.unit}, {"at_bound", p.at_bound}});
-    ranked.push_back({{"effect", c.effect},
-                      {"fitted", c.fitted},
-                      {"failure", c.failure},
-                      {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
-                      {"excess_share", c.fitted ? number_or_null(c.excess_share) : nlohmann::json(nullptr)},
-                      {"band_share", c.fitted ? number_or_null(c.band_share) : nlohmann::json(nullptr)},
-                      {"delta_bic", c.fitted ? number_or_null(c.delta_bic) : nlohmann::json(nullptr)},
-                      {"delta_aic", c.fitted ? number_or_null(c.delta_aic) : nlohmann::json(nullptr)},
-                      {"own_parameter_at_bound", c.own_parameter_at_bound},
-                      {"significant", c.significant},
-                      {"verdict", c.verdict},
-                      {"seconds", c.fitted ? c.fit.seconds : 0.0},
-                      {"parameters", params}});
+    nlohmann::json values = nlohmann::json::object();
     if (c.fitted)
-      table += fmt::format("{:<4} {:<18} {:>10.4g} {:>8.3g} {:>9.0f} {:>9.0f} {:>10.1f}  {}\n", rank, c.effect,
+      for (const PhysicalParameter& p : c.fit.model.parameters) values[p.name] = p.value;
+    nlohmann::json j = {{"effect", c.effect},
+                        {"members", c.members},
+                        {"fitted", c.fitted},
+                        {"failure", c.failure},
+                        {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
+                        {"excess_share", c.fitted ? number_or_null(c.excess_share) : nlohmann::json(nullptr)},
+                        {"band_share", c.fitted ? number_or_null(c.band_share) : nlohmann::json(nullptr)},
+                        {"delta_bic", c.fitted ? number_or_null(c.delta_bic) : nlohmann::json(nullptr)},
+                        {"delta_aic", c.fitted ? number_or_null(c.delta_aic) : nlohmann::json(nullptr)},
+                        {"own_parameter_at_bound", c.own_parameter_at_bound},
+                        {"significant", c.significant},
+                        {"verdict", c.verdict},
+                        {"seconds", c.fitted ? c.fit.seconds : 0.0},
+                        {"parameters", params},
+                        {"values", values}};
+    if (c.members.size() > 1) {
+      j["member_shares"] = c.member_shares;
+      j["member_needed"] = c.member_needed;
+      nlohmann::json we = nlohmann::json::array(), wb = nlohmann::json::array();
+      for (std::size_t k = 0; k < c.members.size(); ++k) {
+        we.push_back(number_or_null(c.member_without_error[k]));
+        wb.push_back(number_or_null(c.member_without_delta_bic[k]));
+      }
+      j["member_without_error"] = we;
+      j["member_without_delta_bic"] = wb;
+    }
+    return j;
+  };
+  nlohmann::json ranked = nlohmann::json::array(), combinations = nlohmann::json::array();
+  std::string table = fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  {}\n", "rank", "candidate", "error %",
+                                  "x lower", "% excess", "% bands", "ΔBIC", "verdict");
+  auto row = [&](int rank, const CandidateOutcome& c) {
+    if (c.fitted)
+      table += fmt::format("{:<4} {:<34} {:>10.4g} {:>8.3g} {:>9.0f} {:>9.0f} {:>10.1f}  {}\n", rank, c.effect,
                            100.0 * c.error, c.error > 0 ? d.baseline_error / c.error : INFINITY,
                            100.0 * c.excess_share, 100.0 * c.band_share, c.delta_bic, c.verdict);
     else
-      table += fmt::format("{:<4} {:<18} {:>10} {:>8} {:>9} {:>9} {:>10}  refit failed: {}\n", rank, c.effect, "-", "-",
+      table += fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  refit failed: {}\n", rank, c.effect, "-", "-",
                            "-", "-", "-", c.failure);
+  };
+  int rank = 0;
+  for (const CandidateOutcome& c : d.ranked) {
+    ranked.push_back(outcome_json(c));
+    row(++rank, c);
+  }
+  if (!d.combinations.empty()) {
+    table += "combinations (no single effect left only noise; each refitted, every member tested against the rest):\n";
+    rank = 0;
+    for (const CandidateOutcome& c : d.combinations) {
+      combinations.push_back(outcome_json(c));
+      row(++rank, c);
+    }
   }
 
   // An output the result cannot fill is not written; the report is still printed,
@@ -187,7 +223,7 @@ void run(const DiagnoseCliOptions& o) {
                                     : std::string("the residual was not described"),
                         o.out_effect);
   if (unmet.empty() && !o.out.empty())
-    outputs.stage(o.out, physical_model_to_json(d.ranked.front().fit.model, nlohmann::json()));
+    outputs.stage(o.out, physical_model_to_json(d.winner()->fit.model, nlohmann::json()));
   if (unmet.empty() && !o.out_effect.empty())
     outputs.stage(o.out_effect, effect_definition_file(d.descriptions.front().effect));
   if (unmet.empty() && !o.png.empty()) {
@@ -212,16 +248,6 @@ void run(const DiagnoseCliOptions& o) {
     const auto bytes = compare_png(series, marks, po);
     outputs.stage(o.png, bytes);
   }
-  outputs.commit();
-
-  std::string text;
-  for (const std::string& line : d.summary) text += line + "\n";
-  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
-  if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
-  if (unmet.empty() && !o.out_effect.empty())
-    text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
-                        o.out_effect, d.descriptions.front().effect.name, o.out_effect);
-  if (unmet.empty() && !o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
   nlohmann::json descriptions = nlohmann::json::array();
   for (const ResidualDescription& r : d.descriptions)
     descriptions.push_back({{"text", r.text},
@@ -236,6 +262,7 @@ void run(const DiagnoseCliOptions& o) {
       {"explained", d.explained},
       {"indistinguishable", d.indistinguishable},
       {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
+      {"missing_effects", d.missing_effects},
       {"noise_floor", number_or_null(d.noise_floor)},
       {"effective_floor", d.effective_floor},
       {"noise_source", d.noise_source},
@@ -247,10 +274,27 @@ void run(const DiagnoseCliOptions& o) {
       {"remaining_phenomena", phenomena_json(d.remaining_phenomena, in.data)},
       {"remaining_failures", bands_json(d.remaining_failures, in.data, d.baseline)},
       {"candidates", ranked},
+      {"combinations", combinations},
       {"descriptions", descriptions},
       {"delta_bic_threshold", o.delta_bic},
       {"summary", d.summary},
       {"out", o.out}};
+  if (unmet.empty() && !o.report.empty()) outputs.stage(o.report, json_text(summary));
+  outputs.commit();
+
+  std::string text;
+  for (const std::string& line : d.summary) text += line + "\n";
+  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
+  if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
+  if (unmet.empty() && !o.out_effect.empty())
+    text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
+                        o.out_effect, d.descriptions.front().effect.name, o.out_effect);
+  if (unmet.empty() && !o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
+  if (unmet.empty() && !o.report.empty())
+    text += fmt::format("wrote {} (the report as JSON: lpvid model add {} --model ... --from-diagnosis {})\n", o.report,
+                        d.missing_effects.empty() ? std::string("EFFECT")
+                                                  : fmt::format("{}", fmt::join(d.missing_effects, ",")),
+                        o.report);
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
   if (!unmet.empty()) throw NumericalError(unmet);
 }
@@ -274,6 +318,8 @@ Command make_diagnose_command() {
             app->add_option("--out-effect", o->out_effect,
                             "write the user-defined effect describing an unexplained residual (JSON)");
             app->add_option("--png", o->png, "figure: data and model per x_b, the error over the noise band, failing bands in red");
+            app->add_option("--report", o->report,
+                            "also write the report as JSON here (for model add --from-diagnosis)");
             app->add_flag("--json", o->json, "print the report as JSON");
             app->callback([o] { run(*o); });
           }};

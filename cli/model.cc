@@ -14,6 +14,7 @@
 #include "cli/output_set.h"
 #include "cli/registry.h"
 #include "formats/io/atomic_file.h"
+#include "formats/io/diagnosis_json.h"
 #include "formats/io/history.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
@@ -34,6 +35,9 @@ Example:
   lpvid model effects                                (the effect library: parameters, units, bounds)
   lpvid model add input_delay --model fit1.json --out start2.json
                                                      (a new file; its fit history continues fit1's)
+  lpvid diagnose --model fit1.json --datasets data.json --json > report.json
+  lpvid model add com_offset,actuator_lag --model fit1.json --from-diagnosis report.json --out start2.json
+                                                     (what diagnose named, starting from its fitted values)
   lpvid model remove input_delay --model start2.json (in place)
   lpvid model define --model fit1.json --from theta_mount.json [--add]
                                                      (a user-defined effect from building blocks)
@@ -46,7 +50,7 @@ whole lineage.  'model export' writes the state-space JSON at x_b: continuous wi
 sampled with it (delays, fractional ones too, realised as extra states).  See docs/effects.md.)";
 
 struct ModelCliOptions {
-  std::string out, model, effect, base = "platform", from;
+  std::string out, model, effect, base = "platform", from, from_diagnosis;
   std::vector<std::string> sets;
   double xb = 0.0, rate_hz = 0.0;
   bool bare = false, json = false, add_defined = false;
@@ -166,17 +170,54 @@ void run_set(const ModelCliOptions& o) {
   }
 }
 
+// EFFECT or EFFECT,EFFECT (a combination diagnose named); --from-diagnosis: every
+// parameter from the values diagnose fitted for that candidate, so the refit
+// starts where diagnose ended and reaches (at least) the error it reported.
 void run_add(const ModelCliOptions& o) {
   OutputSet outputs;
+  outputs.input(o.from_diagnosis);
   check_changed(o, outputs);
+  const std::vector<std::string> effects = split_names(o.effect, "the effect");
   PhysicalModel m = read_physical_model(o.model);
-  m.add_effect(o.effect);
+  for (const std::string& e : effects) m.add_effect(e);
+  std::string start;
+  if (!o.from_diagnosis.empty()) {
+    const DiagnosisStart d = read_diagnosis_start(o.from_diagnosis, effects);
+    // the report must be of this model with these effects: the same parameters
+    std::vector<std::string> missing, extra;
+    for (const auto& [name, value] : d.values)
+      if (m.index_of(name) < 0) extra.push_back(name);
+    for (const PhysicalParameter& p : m.parameters) {
+      bool found = false;
+      for (const auto& [name, value] : d.values) found = found || name == p.name;
+      if (!found) missing.push_back(p.name);
+    }
+    if (!missing.empty() || !extra.empty())
+      throw InputError(fmt::format(
+          "--from-diagnosis {}: candidate '{}' was fitted on another model ({}{}{}); diagnose {} again and add from "
+          "that report",
+          o.from_diagnosis, d.candidate, missing.empty() ? "" : fmt::format("it lacks {}", fmt::join(missing, ", ")),
+          !missing.empty() && !extra.empty() ? "; " : "",
+          extra.empty() ? "" : fmt::format("it has {} that {} lacks", fmt::join(extra, ", "), o.model), o.model));
+    for (const auto& [name, value] : d.values) {
+      PhysicalParameter& p = m.parameter(name);
+      if (value < p.lower || value > p.upper)
+        throw InputError(fmt::format("--from-diagnosis {}: {} = {} is outside its bounds [{}, {}] {}; the report was "
+                                     "made with other bounds: diagnose again",
+                                     o.from_diagnosis, name, value, p.lower, p.upper, p.unit));
+      p.value = value;
+    }
+    m.validate();
+    start = fmt::format("; every parameter from {}'s fit of '{}' (diagnose reached {:.4g} %{})", o.from_diagnosis,
+                        d.candidate, 100.0 * d.error, d.significant ? "" : "; " + d.verdict);
+  }
   const std::string written = write_changed(o, outputs, m);
   if (!outputs.to_stdout())
-    print_summary(o.json, {{"model", written}, {"added", o.effect}, {"effects", m.effects}},
-                  fmt::format("model add: {} added{} (effects now: {})\n", o.effect,
+    print_summary(o.json,
+                  {{"model", written}, {"added", effects}, {"effects", m.effects}, {"from_diagnosis", o.from_diagnosis}},
+                  fmt::format("model add: {} added{} (effects now: {}){}\n", fmt::join(effects, ", "),
                               written == o.model ? " to " + o.model : fmt::format(" to {} from {}", written, o.model),
-                              fmt::join(m.effects, ", ")));
+                              fmt::join(m.effects, ", "), start));
 }
 
 void run_remove(const ModelCliOptions& o) {
@@ -287,8 +328,12 @@ Command make_model_command() {
             set->add_flag("--json", o->json, "print the summary as JSON");
             set->callback([o] { run_set(*o); });
             auto* add = app->add_subcommand("add", "add an effect (with its defaults) to a model file");
-            add->add_option("effect", o->effect, "effect name (see 'lpvid model effects')")->required();
+            add->add_option("effect", o->effect,
+                            "effect name (see 'lpvid model effects'), or several separated by commas")
+                ->required();
             add->add_option("--model", o->model, "model file to read")->required();
+            add->add_option("--from-diagnosis", o->from_diagnosis,
+                            "start from the values 'lpvid diagnose --json' fitted for this effect (or combination)");
             add->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
             add->add_flag("--json", o->json, "print the summary as JSON");
             add->callback([o] { run_add(*o); });

@@ -8,7 +8,10 @@
 #   2. a hidden theta-sensor resonance no library effect contains: diagnose says so,
 #      describes it, writes it as a user-defined effect; define it, refit;
 #   3. case 1 again from time-domain logs through `lpvid frf` instead of an analyzer;
-#   4. case 1 with a weighed mass given as a prior (model set NAME=VALUE±SIGMA).
+#   4. case 1 with a weighed mass given as a prior (model set NAME=VALUE±SIGMA);
+#   5. two effects missing at once (a centre-of-mass offset with its product of
+#      inertia, and the coil lag): diagnose names the pair, model add takes both from
+#      the diagnosis, the refit reaches what diagnose reported.
 # Writes samples/loop/.  LPVID and INDEP_SIM override the programs' paths.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -79,4 +82,15 @@ run model set --model model.json --set platform_mass_kg=3.83±0.02 --out prior.j
 run fit --model prior.json --datasets data.json --out fitp.json
 run model add actuator_lag --model fitp.json --out startp2.json
 run fit --model startp2.json --datasets data.json --out fitp2.json
+cd ..
+
+# ---- 5. two effects missing at once -----------------------------------------------
+mkdir -p pair && cd pair
+sim --out . --seed 27 --hidden com_offset,coil_lag --no-logs
+manifest data.json '"{p}/S_v1.csv", "{p}/S_v2.csv", "{p}/S_v3.csv"'
+run model init --out model.json --set k_torque_low_Nm_per_rad=55 --set beam_height_m=0.08
+run fit --model model.json --datasets data.json --out fit1.json
+run diagnose --model fit1.json --datasets data.json --report report.json
+run model add com_offset,actuator_lag --model fit1.json --from-diagnosis report.json --out start2.json
+run fit --model start2.json --datasets data.json --out fit2.json --plot fit2.png
 cd ..

@@ -17,39 +17,11 @@
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/diagnose/candidates.h"
 
 namespace lpvid {
 
-namespace {
-
-// Runs f(i) for i in [0, n) on the machine's cores (each call single-threaded;
-// results do not depend on the thread count).  The first exception that is not a
-// NumericalError is rethrown after all threads end.
-void parallel_for(std::size_t n, const std::function<void(std::size_t)>& f) {
-  std::atomic<std::size_t> next{0};
-  std::mutex m;
-  std::exception_ptr first;
-  auto worker = [&]() {
-    for (std::size_t i = next++; i < n; i = next++) {
-      try {
-        f(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(m);
-        if (!first) first = std::current_exception();
-      }
-    }
-  };
-  const std::size_t threads = std::min<std::size_t>(n, std::max(1u, std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
-  if (first) std::rethrow_exception(first);
-}
-
-std::string percent(double x) { return fmt::format("{:.3g} %", 100.0 * x); }
-
-}  // namespace
+using namespace diagnose_detail;
 
 void DiagnoseOptions::validate() const {
   fit.validate();
@@ -70,6 +42,10 @@ void DiagnoseOptions::validate() const {
                                  min_band_share));
   if (candidate_global_starts < 1)
     throw InputError(fmt::format("diagnose: candidate_global_starts must be >= 1, got {}", candidate_global_starts));
+  if (combination_pool < 2)
+    throw InputError(fmt::format("diagnose: combination_pool must be >= 2, got {}", combination_pool));
+  if (max_combination < 1 || max_combination > 3)
+    throw InputError(fmt::format("diagnose: max_combination must be 1, 2 or 3, got {}", max_combination));
   if (refit_max_iterations < 1)
     throw InputError(fmt::format("diagnose: refit_max_iterations must be >= 1, got {}", refit_max_iterations));
   if (!(std::isfinite(explained_ratio) && explained_ratio >= 1.0))
@@ -113,240 +89,6 @@ ModelErrorSet model_errors(const PhysicalModel& model, const std::vector<FitData
 }
 
 namespace {
-
-// The plant-domain residual P_data − P_model at the data's frequency index k of set d.
-Eigen::MatrixXcd plant_residual(const PhysicalModel& model, const FitDataset& ds, Index k, const FitOptions& fit) {
-  const double w = ds.response.omega_rad_s(k);
-  Eigen::MatrixXcd H = ds.response.response[static_cast<std::size_t>(k)];
-  Eigen::MatrixXcd Pd = H;
-  if (fit.target != FitTarget::kPlant) {
-    const Eigen::MatrixXcd C = controller_response_at(fit, Eigen::VectorXd::Constant(1, w)).front();
-    if (fit.target == FitTarget::kClosedLoopOutput) {
-      Pd = H * (Eigen::MatrixXcd::Identity(H.cols(), H.cols()) - C * H).inverse();
-    } else {
-      Pd = C.fullPivLu().solve(H.inverse() - Eigen::MatrixXcd::Identity(H.rows(), H.cols()));
-    }
-  }
-  const Eigen::MatrixXcd Pm =
-      physical_response(model, ds.beam_position_m, Eigen::VectorXd::Constant(1, w), fit.sample_period_s).front();
-  return Pd - Pm;
-}
-
-// Starting points of the global start for an effect, read off the baseline's
-// failing phenomena (a resonance frequency and a mode shape) or spread over the
-// range a phenomenon of that kind lives in (delays, lags).
-std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectInfo& effect,
-                                                                   const PhysicalModel& baseline,
-                                                                   const std::vector<Phenomenon>& phenomena,
-                                                                   const std::vector<FitDataset>& data,
-                                                                   const FitOptions& fit) {
-  std::vector<std::vector<std::pair<std::string, double>>> out;
-  auto bounds = [&](const std::string& name) {
-    for (const PhysicalParameter& q : effect.parameters)
-      if (q.name == name) return std::pair<double, double>{q.lower, q.upper};
-    return std::pair<double, double>{-INFINITY, INFINITY};
-  };
-  constexpr std::size_t kPhenomenaSeeded = 3;  // the strongest few phenomena
-  constexpr double kSeedDamping = 0.02;       // a lightly damped start
-  // the strongest few phenomena whose frequency the parameter's bounds admit
-  auto strongest_within = [&](const std::string& frequency_parameter) {
-    const auto [lo, hi] = bounds(frequency_parameter);
-    std::vector<const Phenomenon*> chosen;
-    for (const Phenomenon& ph : phenomena)
-      if (chosen.size() < kPhenomenaSeeded && ph.omega_rad_s >= lo && ph.omega_rad_s <= hi) chosen.push_back(&ph);
-    return chosen;
-  };
-  for (const Block& b : effect.blocks) {
-    if (b.kind == BlockKind::kMode) {
-      for (const Phenomenon* p : strongest_within(b.parameters[0])) {
-        const Phenomenon& ph = *p;
-        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
-                                                         {b.parameters[1], kSeedDamping}};
-        // shape: φφᵀ ≈ Re(ΔP · 2jζω²) at the peak (a collocated mode at resonance)
-        try {
-          const FailingBand& rep = ph.bands.front();
-          const FitDataset& ds = data[static_cast<std::size_t>(rep.data_index)];
-          Index k = 0;
-          for (Index f = 0; f < ds.response.num_frequencies(); ++f)
-            if (std::abs(ds.response.omega_rad_s(f) - rep.omega_at_max_rad_s) <
-                std::abs(ds.response.omega_rad_s(k) - rep.omega_at_max_rad_s))
-              k = f;
-          const double w = ds.response.omega_rad_s(k);
-          const Eigen::MatrixXcd dP = plant_residual(baseline, ds, k, fit);
-          const Index n = static_cast<Index>(b.parameters.size()) - 2;
-          if (dP.rows() == n && dP.cols() == n) {
-            Eigen::MatrixXd M = (dP * Complex(0.0, 2.0 * kSeedDamping * w * w)).real();
-            M = 0.5 * (M + M.transpose()).eval();
-            const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
-            Index best = 0;
-            for (Index i = 1; i < n; ++i)
-              if (std::abs(es.eigenvalues()(i)) > std::abs(es.eigenvalues()(best))) best = i;
-            const Eigen::VectorXd phi = std::sqrt(std::abs(es.eigenvalues()(best))) * es.eigenvectors().col(best);
-            for (Index i = 0; i < n; ++i) {
-              const auto [slo, shi] = bounds(b.parameters[static_cast<std::size_t>(2 + i)]);
-              seed.emplace_back(b.parameters[static_cast<std::size_t>(2 + i)], std::clamp(phi(i), slo, shi));
-            }
-          }
-        } catch (const std::exception&) {
-          // no shape estimate (a singular controller or data): frequency and damping only
-        }
-        out.push_back(std::move(seed));
-      }
-    } else if (b.kind == BlockKind::kResonance || b.kind == BlockKind::kSecondOrder) {
-      for (const Phenomenon* ph : strongest_within(b.parameters[0])) {
-        std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph->omega_rad_s},
-                                                         {b.parameters[1], 0.05}};
-        if (b.kind == BlockKind::kResonance) {
-          seed.emplace_back(b.parameters[2], ph->omega_rad_s * 1.15);
-          seed.emplace_back(b.parameters[3], 0.1);
-        }
-        out.push_back(std::move(seed));
-      }
-    } else if (b.kind == BlockKind::kDelay) {
-      // a computation delay is a few samples (or a few ms in continuous time)
-      const double unit = fit.sample_period_s > 0 ? fit.sample_period_s : 1e-3;
-      for (double s : {0.5, 1.5, 2.5, 3.5}) out.push_back({{b.parameters[0], s * unit}});
-    } else if (b.kind == BlockKind::kFirstOrder) {
-      for (double t : {3e-4, 1e-3, 3e-3}) out.push_back({{b.parameters[0], t}});
-    }
-  }
-  return out;
-}
-
-struct CandidateContext {
-  const Diagnosis& d;
-  const std::vector<FitDataset>& data;
-  const DiagnoseOptions& options;
-  const FitOptions& refit;
-  const PhysicalModel& given;  // the model as the user gave it
-  bool baseline_distorted;     // the baseline has parameters on bounds
-  double floor;                // effective floor
-  double excess2;              // e0² − f² (> 0 when the error as a whole is beyond the floor)
-  bool global_excess;          // e0 > explained_ratio × floor
-  bool something;              // global excess or failing bands: there is something to explain
-};
-
-// Every FREE parameter's library default (the base's and each effect's; fixed ones
-// keep the user's design values).  A model fitted while it lacked an effect can sit,
-// bent out of shape, in a basin the effect cannot pull it out of (a rod twist that
-// makes the tilts 4x stiffer than the design: the fit without it ran the inertia and
-// the bending scales to their bounds); a second refit from the defaults finds it
-// (tests/idlib/diagnose, FromTheFittedModel).
-std::vector<std::pair<std::string, double>> library_defaults(const PhysicalModel& m) {
-  std::vector<std::pair<std::string, double>> out;
-  auto add_from = [&](const std::vector<PhysicalParameter>& defaults) {
-    for (const PhysicalParameter& d : defaults) {
-      const Index i = m.index_of(d.name);
-      if (i >= 0 && m.parameters[static_cast<std::size_t>(i)].free) out.emplace_back(d.name, d.value);
-    }
-  };
-  add_from(base_info(m.base).parameters);
-  for (const std::string& e : m.effects)
-    if (const EffectInfo* info = m.effect_info(e)) add_from(info->parameters);
-  return out;
-}
-
-void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& baseline_model, const CandidateContext& ctx) {
-  // From the fitted baseline, searching globally over the effect's own parameters
-  // (the base is fitted already).  A baseline with parameters on bounds is a base
-  // bent out of shape by what it lacks: then from the model as given, searching
-  // over everything, and once more from the library defaults (the better wins).
-  PhysicalModel start = ctx.baseline_distorted ? ctx.given : baseline_model;
-  start.add_effect(c.effect);
-  FitOptions fo = ctx.refit;
-  fo.extra_starts = seeds_for(*start.effect_info(c.effect), baseline_model, ctx.d.phenomena, ctx.data, fo);
-  if (!ctx.baseline_distorted) {
-    for (const PhysicalParameter& q : start.effect_info(c.effect)->parameters) fo.global_parameters.push_back(q.name);
-    fo.global_starts = std::min(fo.global_starts, ctx.options.candidate_global_starts);
-  }
-  const bool physics = start.effect_info(c.effect)->blocks.empty();
-  std::string failure;
-  try {
-    c.fit = fit_physical_model(start, ctx.data, fo);
-    c.fitted = true;
-  } catch (const NumericalError& e) {
-    failure = e.what();
-  }
-  if (!ctx.baseline_distorted && physics) {
-    // A physics effect of the base (no blocks: its terms enter M, K, B_w) moves the
-    // base's own parameters with it (the stage's gap stiffness ∝ m g gamma trades
-    // against kappa and the inertias): also search over everything, as `fit` does,
-    // and keep the better.  Measured on the independent stage simulator: the search
-    // over gamma alone settled at 50 1/m for a true 199 (error 26 %), the whole
-    // search reached 6.6 %; on lpvid's own simulator the search over gamma alone is
-    // the better one (seed 501: 4.0 % against 6.7 %).
-    // With as many global starts as `fit` (the capped count missed the basin on the
-    // independent stage's gap seed 102: 23.2 % where `fit` after `model add` reached
-    // 5.0 %).  And with fit's restarts (FitOptions::restarts): the gap spring is
-    // undamped, its cost ripples in gamma, and one round can stop in a ripple (the
-    // stage walkthrough: 4.69 % at gamma 237.5 after one round, 3.21 % at 244.9 with
-    // the second, as `fit` after `model add` reaches; docs/math.md, "Restarts").
-    FitOptions all = fo;
-    all.global_parameters.clear();
-    all.global_starts = ctx.refit.global_starts;
-    all.restarts = 2;
-    try {
-      FitResult again = fit_physical_model(start, ctx.data, all);
-      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
-      c.fitted = true;
-    } catch (const NumericalError& e) {
-      if (!c.fitted) failure = e.what();
-    }
-  }
-  if (ctx.baseline_distorted) {
-    PhysicalModel fresh = start;
-    for (const auto& [name, value] : library_defaults(start)) fresh.parameter(name).value = value;
-    try {
-      FitResult again = fit_physical_model(fresh, ctx.data, fo);
-      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
-      c.fitted = true;
-    } catch (const NumericalError& e) {
-      if (!c.fitted) failure = e.what();
-    }
-  }
-  if (!c.fitted) {
-    c.failure = failure;
-    c.verdict = "refit failed";
-    return;
-  }
-  c.error = c.fit.error;
-  c.delta_bic = c.fit.bic - ctx.d.baseline.bic;
-  c.delta_aic = c.fit.aic - ctx.d.baseline.aic;
-  const ModelErrorSet mes = model_errors(c.fit.model, ctx.data, fo, ctx.options.model_error);
-  c.band_points = mes.band_points;
-  const double e0 = ctx.d.baseline_error;
-  c.excess_share = ctx.excess2 > 0 ? (e0 * e0 - c.error * c.error) / ctx.excess2 : 0.0;
-  c.band_share = ctx.d.baseline_band_points > 0
-                     ? static_cast<double>(ctx.d.baseline_band_points - c.band_points) /
-                           static_cast<double>(ctx.d.baseline_band_points)
-                     : 0.0;
-  const EffectInfo* info = start.effect_info(c.effect);
-  std::vector<std::string> pinned;
-  for (const ParameterEstimate& p : c.fit.parameters)
-    for (const PhysicalParameter& q : info->parameters)
-      if (p.name == q.name) {
-        c.effect_parameters.push_back(p);
-        if (p.at_bound) {
-          c.own_parameter_at_bound = true;
-          const bool lower = std::abs(p.estimate - p.lower) <= std::abs(p.upper - p.estimate);
-          pinned.push_back(fmt::format("{} = {:.4g} at its {} bound", p.name, p.estimate, lower ? "lower" : "upper"));
-        }
-      }
-  CandidateEvidence ev;
-  ev.something = ctx.something;
-  ev.global_excess = ctx.global_excess;
-  ev.has_band_points = ctx.d.baseline_band_points > 0;
-  ev.floor = ctx.floor;
-  ev.baseline_error = e0;
-  ev.error = c.error;
-  ev.delta_bic = c.delta_bic;
-  ev.excess_share = c.excess_share;
-  ev.band_share = c.band_share;
-  ev.pinned = std::move(pinned);
-  CandidateJudgement j = judge_candidate(ev, ctx.options);
-  c.significant = j.significant;
-  c.verdict = std::move(j.verdict);
-}
 
 std::string channel_label(const std::vector<std::string>& names, Index i, const char* fallback) {
   return i < static_cast<Index>(names.size()) ? names[static_cast<std::size_t>(i)] : fmt::format("{} {}", fallback, i + 1);
@@ -546,35 +288,12 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
 
 }  // namespace
 
-CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOptions& options) {
-  const bool raises = e.error > e.baseline_error;
-  const bool bic = e.delta_bic < -options.significance_delta_bic;
-  // a localized phenomenon (failing bands, the error as a whole within the floor)
-  // is judged by the bands it removes
-  const bool excess = !e.global_excess || e.excess_share >= options.min_excess_share;
-  const bool to_floor = e.global_excess && e.error <= options.explained_ratio * e.floor;
-  const bool bands = !e.has_band_points || to_floor || e.band_share >= options.min_band_share;
-  CandidateJudgement j;
-  j.significant = e.something && e.pinned.empty() && !raises && bic && excess && bands;
-  if (j.significant) {
-    j.verdict = "significant";
-  } else if (!e.something) {
-    j.verdict = "not significant: nothing beyond the noise to explain";
-  } else if (!e.pinned.empty()) {
-    j.verdict = fmt::format("not significant: {} (used as a patch)", fmt::join(e.pinned, ", "));
-  } else if (raises) {
-    j.verdict = fmt::format("not significant: it raises the error figure from {} to {} (ΔBIC {:.1f})",
-                            percent(e.baseline_error), percent(e.error), e.delta_bic);
-  } else if (!bic) {
-    j.verdict = fmt::format("not significant: ΔBIC {:.1f} above −{:g}", e.delta_bic, options.significance_delta_bic);
-  } else if (!excess) {
-    j.verdict = fmt::format("not significant: explains {:.0f} % of the excess (needs {:.0f} %)", 100.0 * e.excess_share,
-                            100.0 * options.min_excess_share);
-  } else {
-    j.verdict = fmt::format("not significant: removes {:.0f} % of the failing-band points (needs {:.0f} %)",
-                            100.0 * e.band_share, 100.0 * options.min_band_share);
-  }
-  return j;
+const CandidateOutcome* Diagnosis::winner() const {
+  if (missing.empty()) return nullptr;
+  for (const auto* list : {&ranked, &combinations})
+    for (const CandidateOutcome& c : *list)
+      if (c.effect == missing) return &c;
+  return nullptr;
 }
 
 Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& data, const DiagnoseOptions& options) {
@@ -637,14 +356,19 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   for (const ParameterEstimate& p : out.baseline.parameters) distorted = distorted || p.at_bound;
 
   std::vector<CandidateOutcome> outcomes(candidates.size());
-  for (std::size_t i = 0; i < candidates.size(); ++i) outcomes[i].effect = candidates[i];
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    outcomes[i].effect = candidates[i];
+    outcomes[i].members = {candidates[i]};
+  }
   const CandidateContext ctx{out, data, options, refit, model, distorted, f, excess2, global_excess, something};
-  ParallelSteps steps(options.progress, "diagnose", "candidate", static_cast<Index>(outcomes.size()));
-  parallel_for(outcomes.size(), [&](std::size_t i) {
-    steps.start(outcomes[i].effect);
-    evaluate_candidate(outcomes[i], out.baseline.model, ctx);
-    steps.finish(outcomes[i].effect);
-  });
+  {
+    ParallelSteps steps(options.progress, "diagnose", "candidate", static_cast<Index>(outcomes.size()));
+    parallel_for(outcomes.size(), [&](std::size_t i) {
+      steps.start(outcomes[i].effect);
+      evaluate_candidate(outcomes[i], out.baseline.model, out.phenomena, ctx);
+      steps.finish(outcomes[i].effect);
+    });
+  }
 
   std::vector<CandidateOutcome> failed;
   for (CandidateOutcome& c : outcomes) {
@@ -665,21 +389,32 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   for (CandidateOutcome& c : failed) out.ranked.push_back(std::move(c));
 
   const CandidateOutcome* winner = !out.ranked.empty() && out.ranked.front().significant ? &out.ranked.front() : nullptr;
+  // More than one effect missing (issue 25): pairs and triples when no single
+  // candidate is significant or the best leaves an excess; the greedy order is kept
+  // when one effect suffices (a combination must beat the single winner by the
+  // significance margin, and need every member).
+  if (something && (winner == nullptr || !leaves_only_noise(*winner, ctx))) {
+    out.combinations = evaluate_combinations(out.ranked, ctx);
+    const CandidateOutcome* best = !out.combinations.empty() && out.combinations.front().significant
+                                       ? &out.combinations.front()
+                                       : nullptr;
+    if (best != nullptr &&
+        (winner == nullptr || (best->error < winner->error &&
+                               best->delta_bic - winner->delta_bic < -options.significance_delta_bic)))
+      winner = best;
+  }
   if (winner != nullptr) {
     out.missing = winner->effect;
-    // within the noise, and (nearly) no failing band left: at most kLeftBandShare
-    // of the baseline's failing-band points (chance exceedances of the noise)
-    constexpr double kLeftBandShare = 0.1;
-    out.explained = winner->error <= options.explained_ratio * f &&
-                    static_cast<double>(winner->band_points) <=
-                        kLeftBandShare * static_cast<double>(out.baseline_band_points);
+    out.missing_effects = winner->members;
+    out.explained = leaves_only_noise(*winner, ctx);
     // Another significant candidate the data do not separate from the winner: with
     // the winner explained, one that explains too; otherwise one whose ΔBIC is within
     // the significance margin of the winner's (a gain and a uniform scaling of M, D
-    // and K are the same plant: rod_twist against gain_error, issue 25).
-    for (std::size_t i = 1; i < out.ranked.size(); ++i) {
-      const CandidateOutcome& c = out.ranked[i];
-      if (!c.significant) continue;
+    // and K are the same plant: rod_twist against gain_error, issue 25).  Among the
+    // combinations when the winner is one.
+    const bool combination = winner->members.size() > 1;
+    for (const CandidateOutcome& c : combination ? out.combinations : out.ranked) {
+      if (&c == winner || !c.significant) continue;
       const bool same = out.explained ? c.error <= options.explained_ratio * f
                                       : c.delta_bic - winner->delta_bic < options.significance_delta_bic;
       if (same) out.indistinguishable.push_back(c.effect);
@@ -732,20 +467,55 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
                             "band); no candidate is significant",
                             percent(e0), options.explained_ratio, percent(f)));
   } else if (winner != nullptr) {
-    const EffectInfo* info = model.effect_info(winner->effect);
-    s.push_back(fmt::format("missing: {} — {}", winner->effect, info->description));
-    s.push_back(fmt::format("  it explains: {}", info->signature));
+    const bool combination = winner->members.size() > 1;
+    // what each member does alone (combinations)
+    auto single = [&](const std::string& name) -> const CandidateOutcome* {
+      for (const CandidateOutcome& c : out.ranked)
+        if (c.effect == name && c.fitted) return &c;
+      return nullptr;
+    };
+    if (!combination) {
+      const EffectInfo* info = model.effect_info(winner->effect);
+      s.push_back(fmt::format("missing: {} — {}", winner->effect, info->description));
+      s.push_back(fmt::format("  it explains: {}", info->signature));
+    } else {
+      const bool none_alone = out.ranked.empty() || !out.ranked.front().significant;
+      s.push_back(fmt::format("missing: {} effects together — {}", winner->members.size(),
+                              none_alone ? "no single one is significant alone"
+                                         : fmt::format("{} alone leaves {}", out.ranked.front().effect,
+                                                       percent(out.ranked.front().error))));
+      for (std::size_t k = 0; k < winner->members.size(); ++k) {
+        const EffectInfo* info = model.effect_info(winner->members[k]);
+        const CandidateOutcome* alone = single(winner->members[k]);
+        const double ew = winner->member_without_error[k];
+        s.push_back(fmt::format("  {} — {}", winner->members[k], info->description));
+        s.push_back(fmt::format("    without it: error {} ({:.3g}x higher), ΔBIC {:+.1f}{}", percent(ew),
+                                winner->error > 0 ? ew / winner->error : INFINITY,
+                                winner->member_without_delta_bic[k] - winner->delta_bic,
+                                alone != nullptr ? fmt::format("; alone: error {}, {:.0f} % of the excess ({})",
+                                                               percent(alone->error), 100.0 * alone->excess_share,
+                                                               alone->verdict)
+                                                 : std::string()));
+      }
+    }
     s.push_back(fmt::format("  error {} -> {} ({:.1f}x lower): {:.0f} % of the excess above the noise floor, {:.0f} % of "
                             "the failing-band points; ΔBIC {:.1f}",
                             percent(e0), percent(winner->error), winner->error > 0 ? e0 / winner->error : INFINITY,
                             100.0 * winner->excess_share, 100.0 * winner->band_share, winner->delta_bic));
     for (const ParameterEstimate& p : winner->effect_parameters)
       s.push_back(fmt::format("  {} = {:.6g} ± {:.2g} {}", p.name, p.estimate, p.std_error, p.unit));
-    if (out.ranked.size() > 1 && out.ranked[1].fitted)
-      s.push_back(fmt::format("  runner-up: {} (error {}, {:.0f} % of the excess; {})", out.ranked[1].effect,
-                              percent(out.ranked[1].error), 100.0 * out.ranked[1].excess_share, out.ranked[1].verdict));
-    if (!out.indistinguishable.empty()) {
-      const CandidateOutcome& second = out.ranked[1];
+    if (combination)
+      s.push_back(fmt::format("  to add them: lpvid model add {} --model MODEL --from-diagnosis REPORT.json (the values "
+                              "above as the start), then lpvid fit",
+                              fmt::join(winner->members, ",")));
+    const std::vector<CandidateOutcome>& list = combination ? out.combinations : out.ranked;
+    const CandidateOutcome* second = nullptr;
+    for (const CandidateOutcome& c : list)
+      if (&c != winner && c.fitted && second == nullptr) second = &c;
+    if (second != nullptr)
+      s.push_back(fmt::format("  runner-up: {} (error {}, {:.0f} % of the excess; {})", second->effect,
+                              percent(second->error), 100.0 * second->excess_share, second->verdict));
+    if (!out.indistinguishable.empty() && second != nullptr) {
       s.push_back(fmt::format(
           "  indistinguishable on these data from {}: {} {}; {} has the better likelihood (ΔBIC {:.1f} against {:.1f}, "
           "within {:g}). What would separate them: a prior on a parameter one of them moves (lpvid model set --set "
@@ -753,8 +523,8 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
           "operating point, a static test, a longer or less noisy measurement, a wider band)",
           fmt::join(out.indistinguishable, ", "), out.indistinguishable.size() == 1 ? "it leaves" : "they leave",
           out.explained ? "the error within the noise too"
-                        : fmt::format("the error at {} against {}", percent(second.error), percent(winner->error)),
-          winner->effect, winner->delta_bic, second.delta_bic, options.significance_delta_bic));
+                        : fmt::format("the error at {} against {}", percent(second->error), percent(winner->error)),
+          winner->effect, winner->delta_bic, second->delta_bic, options.significance_delta_bic));
     }
     if (out.explained) {
       s.push_back(fmt::format("  explained: with it the error is within the noise ({} <= {:g} x {})",
@@ -766,11 +536,19 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
       describe_phenomena(out.remaining_phenomena, data, s, 3);
     }
   } else {
-    s.push_back("not explained: no effect the model could add explains the excess error");
+    s.push_back(out.combinations.empty()
+                    ? "not explained: no effect the model could add explains the excess error"
+                    : fmt::format("not explained: no effect the model could add, nor a pair{} of them, explains the "
+                                  "excess error",
+                                  options.max_combination >= 3 ? " or triple" : ""));
     if (!out.ranked.empty() && out.ranked.front().fitted)
       s.push_back(fmt::format("  closest candidate: {} (error {}, {:.0f} % of the excess; {})", out.ranked.front().effect,
                               percent(out.ranked.front().error), 100.0 * out.ranked.front().excess_share,
                               out.ranked.front().verdict));
+    if (!out.combinations.empty() && out.combinations.front().fitted)
+      s.push_back(fmt::format("  closest combination: {} (error {}, {:.0f} % of the excess; {})",
+                              out.combinations.front().effect, percent(out.combinations.front().error),
+                              100.0 * out.combinations.front().excess_share, out.combinations.front().verdict));
   }
   if (!out.descriptions.empty()) {
     const ResidualDescription& r = out.descriptions.front();

@@ -28,6 +28,11 @@
 // explained_ratio × f: what remains is noise.  Otherwise the winner (if any)
 // explains part ("explains 85 % of the excess; still failing: ...").
 //
+// More than one effect missing: when no single candidate is significant or the best
+// leaves an excess, pairs and triples are tried (DiagnoseOptions::combination_pool;
+// the search and its judgement live in candidates.h/.cc); a combination wins only
+// when it needs every member and beats the single winner by the ΔBIC margin.
+//
 // Where it fails.  The baseline's model-error model against each data set gives
 // the failing bands; they are grouped into PHENOMENA (bands whose largest error sits
 // at nearly the same frequency, in whatever channel and data set), so that distinct
@@ -73,6 +78,21 @@ struct DiagnoseOptions {
   // Global starts of a candidate's refit (its own parameters only, beside the starts
   // read off the failing bands): fewer than a first fit needs, the base is fitted.
   int candidate_global_starts = 4;
+  // Combinations (issue 25): when no single candidate is significant, or the best
+  // leaves more than explained_ratio × the floor, pairs are tried: the single with
+  // the lowest error (the anchor) with every other candidate, and the
+  // combination_pool singles with the best ΔBIC with each other — each pair
+  // refitted from one member's fit (the anchor's, or the better ΔBIC's), the other's
+  // parameters searched globally; then the best significant pair, if it still
+  // leaves an excess, with every other candidate as a third.  A combination is
+  // significant when it passes the single test against the baseline AND every
+  // member is needed: without it (the combination's other members, fitted) ΔBIC is
+  // worse by more than significance_delta_bic and the error higher.  It replaces
+  // the single winner only when it beats it by that margin too (the greedy order is
+  // kept when one effect suffices).  Cost: at most (n − 1) + C(pool, 2) pair and
+  // n − 2 triple refits for n candidates.  max_combination 1: singles only.
+  int combination_pool = 4;   // >= 2
+  int max_combination = 3;    // 1, 2 or 3
   // Reports (idlib/core/progress.h), nullptr: none; fit.progress is not used (the
   // refits run in parallel).  Task "diagnose baseline, fit" (the baseline's global
   // starts and iterations), then "diagnose: candidate K of n: NAMES" (the candidates
@@ -100,7 +120,17 @@ struct CandidateOutcome {
   bool own_parameter_at_bound = false;
   bool significant = false;
   std::string verdict;         // "significant", "not significant: ...", "at bound: ...", "refit failed"
-  std::vector<ParameterEstimate> effect_parameters;  // the effect's own estimates (free ones)
+  std::vector<ParameterEstimate> effect_parameters;  // the effect's own estimates (free ones; every member's)
+  // A combination's members (a single candidate: {effect}); effect is then "A + B".
+  std::vector<std::string> members;
+  // Per member, the share of the baseline's excess it adds beyond the other members
+  // (e_without² − e²) / (e0² − f²) (combinations only; a single's is excess_share).
+  std::vector<double> member_shares;
+  // Per member, true when the combination needs it (combinations only), and the
+  // error and ΔBIC of the combination without it (its other members, fitted).
+  std::vector<bool> member_needed;
+  std::vector<double> member_without_error, member_without_delta_bic;
+  std::vector<Phenomenon> phenomena;  // where it still fails (its failing bands grouped)
 };
 
 // What the significance test of one candidate sees (diagnose's refit of it).
@@ -155,12 +185,19 @@ struct Diagnosis {
   std::vector<std::vector<FailingBand>> baseline_failures;
   std::vector<Phenomenon> phenomena;       // the baseline's, distinct, strongest first
   std::vector<CandidateOutcome> ranked;    // significant first (by ΔBIC), then by error; failed refits last
+  // Pairs and triples tried (DiagnoseOptions::combination_pool), ranked as `ranked`;
+  // empty when one effect explains it or there is nothing to explain.
+  std::vector<CandidateOutcome> combinations;
   bool explained = false;                  // the winner is significant and leaves only noise
-  // When explained: the other significant candidates that leave only noise too (the
-  // data do not separate them from the winner, e.g. a 0.5 ms delay and a 0.5 ms lag
-  // in an frf estimate whose floor is 1 %).
+  // Other significant candidates (or combinations, when the winner is one) the data
+  // do not separate from the winner: when explained, ones that leave only noise too
+  // (a 0.5 ms delay and a 0.5 ms lag in an frf estimate whose floor is 1 %);
+  // otherwise ones whose ΔBIC is within significance_delta_bic of the winner's.
   std::vector<std::string> indistinguishable;
-  std::string missing;                     // the winner when significant, else ""
+  std::string missing;                     // the winner when significant ("A + B" for a combination), else ""
+  std::vector<std::string> missing_effects;  // its members ({missing} for one effect)
+  // The winning outcome (in ranked or combinations), nullptr when none is significant.
+  const CandidateOutcome* winner() const;
   // With a significant winner: its failing bands and phenomena (what is still wrong).
   std::vector<std::vector<FailingBand>> remaining_failures;
   std::vector<Phenomenon> remaining_phenomena;

@@ -3,7 +3,7 @@
 // as a new user would on a plant it was not written against.  A test tool, not
 // part of lpvid.
 //
-//   indep_sim --out DIR [--seed N] [--hidden none|mode|delay|coil_lag|com_offset|rod_twist|sensor_resonance]
+//   indep_sim --out DIR [--seed N] [--hidden none|mode|delay|coil_lag|com_offset|rod_twist|sensor_resonance[,...]]
 //             [--rate-hz 1000] [--duration-s 60] [--noise-scale X] [--no-logs] [--no-analyzer]
 //             [--averages 16] [--no-averages-line] [--integration-s 4] [--points 300] [--f-max-hz 400]
 //             [--ratio-min 0.3] [--ratio-max 3] [--cl-damping-min 0.02] [--noise-min 0.1] [--noise-max 10]
@@ -21,6 +21,8 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
+#include <algorithm>
 
 #include "tests/support/independent_draw.h"
 
@@ -72,21 +74,27 @@ int main(int argc, char** argv) {
     return 2;
   }
   using indep::HiddenEffect;
-  HiddenEffect effect = HiddenEffect::kNone;
-  bool found = false;
-  for (HiddenEffect e : {HiddenEffect::kNone, HiddenEffect::kMode, HiddenEffect::kDelay, HiddenEffect::kCoilLag,
-                         HiddenEffect::kComOffset, HiddenEffect::kRodTwist, HiddenEffect::kSensorResonance})
-    if (hidden == indep::hidden_name(e)) effect = e, found = true;
-  if (!found) {
-    std::fprintf(stderr, "indep_sim: unknown hidden effect %s\n", hidden.c_str());
-    return 2;
+  // one effect, or several separated by commas (drawn together: independent_draw.h)
+  std::vector<HiddenEffect> effects;
+  for (std::size_t at = 0; at <= hidden.size();) {
+    const std::size_t comma = std::min(hidden.find(',', at), hidden.size());
+    const std::string name = hidden.substr(at, comma - at);
+    bool found = false;
+    for (HiddenEffect e : {HiddenEffect::kNone, HiddenEffect::kMode, HiddenEffect::kDelay, HiddenEffect::kCoilLag,
+                           HiddenEffect::kComOffset, HiddenEffect::kRodTwist, HiddenEffect::kSensorResonance})
+      if (name == indep::hidden_name(e)) effects.push_back(e), found = true;
+    if (!found) {
+      std::fprintf(stderr, "indep_sim: unknown hidden effect %s\n", name.c_str());
+      return 2;
+    }
+    at = comma + 1;
   }
   const double Ts = 1.0 / rate;
   const double xb[3] = {-0.1, 0.0, 0.1};
   int redraws = 0;
   indep::Draw d;
   try {
-    d = indep::draw_stable(seed, effect, dopt, Ts, {xb[0], xb[1], xb[2]}, &redraws);
+    d = indep::draw_stable(seed, effects, dopt, Ts, {xb[0], xb[1], xb[2]}, &redraws);
   } catch (const std::runtime_error&) {
     std::fprintf(stderr, "indep_sim: the drawn PID loop of seed %llu is unstable (no experiment exists); use another seed\n",
                  static_cast<unsigned long long>(seed));

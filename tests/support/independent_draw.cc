@@ -165,10 +165,16 @@ void add_hidden_effect(Draw& d, HiddenEffect e, std::uint64_t seed, double Ts) {
 
 Draw draw_stable(std::uint64_t seed, HiddenEffect effect, const DrawOptions& options, double Ts,
                  const std::vector<double>& beam_positions_m, int* redraws) {
+  return draw_stable(seed, std::vector<HiddenEffect>{effect}, options, Ts, beam_positions_m, redraws);
+}
+
+Draw draw_stable(std::uint64_t seed, const std::vector<HiddenEffect>& effects, const DrawOptions& options, double Ts,
+                 const std::vector<double>& beam_positions_m, int* redraws) {
   const Draw clean = draw_plant(seed, options);
   for (int attempt = 0; attempt < 20; ++attempt) {
     Draw d = clean;
-    add_hidden_effect(d, effect, seed + 1000003ULL * static_cast<std::uint64_t>(attempt), Ts);
+    for (std::size_t k = 0; k < effects.size(); ++k)
+      add_hidden_effect(d, effects[k], seed + 7919ULL * k + 1000003ULL * static_cast<std::uint64_t>(attempt), Ts);
     const Discrete C = pid_controller(d.plant, d.pid, Ts);
     bool stable = true;
     for (double xb : beam_positions_m) stable = stable && closed_loop_spectral_radius(sampled_plant(d.plant, xb, Ts), C) < 1.0;

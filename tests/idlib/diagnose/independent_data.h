@@ -116,8 +116,9 @@ inline PhysicalModel truth_as_model(const indep::Plant& p, double k_low, double*
   return m;
 }
 
-inline LoopCase make_loop_case(std::uint64_t seed, indep::HiddenEffect hidden, Route route, int points = 300,
-                               double f_max_hz = 400.0, int averages = 16) {
+// Several hidden effects at once (issue 25); one: make_loop_case below.
+inline LoopCase make_loop_case(std::uint64_t seed, const std::vector<indep::HiddenEffect>& hidden, Route route,
+                               int points = 300, double f_max_hz = 400.0, int averages = 16) {
   LoopCase c;
   const double xb[3] = {-0.1, 0.0, 0.1};
   // the design values the user knows come from the plant without its hidden effect
@@ -162,6 +163,11 @@ inline LoopCase make_loop_case(std::uint64_t seed, indep::HiddenEffect hidden, R
     c.data.push_back(std::move(ds));
   }
   return c;
+}
+
+inline LoopCase make_loop_case(std::uint64_t seed, indep::HiddenEffect hidden, Route route, int points = 300,
+                               double f_max_hz = 400.0, int averages = 16) {
+  return make_loop_case(seed, std::vector<indep::HiddenEffect>{hidden}, route, points, f_max_hz, averages);
 }
 
 inline FitOptions loop_fit_options(const LoopCase& c) {
