@@ -34,4 +34,26 @@ void BM_Diagnose_AllCandidates_3x9x500(benchmark::State& state) {
 }
 BENCHMARK(BM_Diagnose_AllCandidates_3x9x500)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 
+// Two effects hidden at once (issue 25): the same plant with the product of inertia
+// and centre-of-mass offset (com_offset) and a coil lag; neither is significant
+// alone, so diagnose also refits the pairs (the anchor with every other candidate,
+// the best four by ΔBIC with each other) and names the pair.
+void BM_Diagnose_TwoEffects_Pairs_3x9x500(benchmark::State& state) {
+  const testing::LoopCase c = testing::make_loop_case(
+      221, {indep::HiddenEffect::kComOffset, indep::HiddenEffect::kCoilLag}, testing::Route::kAnalyzer, 500);
+  DiagnoseOptions options;
+  options.fit = testing::loop_fit_options(c);
+  bool named = false;
+  std::size_t combinations = 0;
+  for (auto _ : state) {
+    const Diagnosis d = diagnose(c.start, c.data, options);
+    named = d.explained && d.missing_effects.size() == 2;
+    combinations = d.combinations.size();
+    benchmark::DoNotOptimize(d.baseline_error);
+  }
+  state.counters["combinations"] = static_cast<double>(combinations);
+  state.counters["named_the_pair"] = named ? 1.0 : 0.0;
+}
+BENCHMARK(BM_Diagnose_TwoEffects_Pairs_3x9x500)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+
 }  // namespace

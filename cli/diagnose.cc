@@ -258,6 +258,17 @@ void run(const DiagnoseCliOptions& o) {
                             {"excess_share", r.excess_share},
                             {"effect", nlohmann::json::parse(effect_definition_json(r.effect).dump())},
                             {"effect_name", r.effect.name}});
+  nlohmann::json hints = nlohmann::json::array();
+  for (const DesignHint& h : d.design_hints)
+    hints.push_back({{"parameter", h.parameter},
+                     {"bound", h.bound},
+                     {"lower", h.lower},
+                     {"upper", h.upper},
+                     {"wanted", number_or_null(h.wanted)},
+                     {"design", h.design.empty() ? nlohmann::json(nullptr) : nlohmann::json(h.design)},
+                     {"design_value", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.design_value)},
+                     {"suggested", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.suggested)},
+                     {"effects", h.effects}});
   const nlohmann::json summary = {
       {"explained", d.explained},
       {"indistinguishable", d.indistinguishable},
@@ -276,6 +287,8 @@ void run(const DiagnoseCliOptions& o) {
       {"candidates", ranked},
       {"combinations", combinations},
       {"descriptions", descriptions},
+      {"design_hints", hints},
+      {"widened_error", d.design_hints.empty() ? nlohmann::json(nullptr) : number_or_null(d.widened_error)},
       {"delta_bic_threshold", o.delta_bic},
       {"summary", d.summary},
       {"out", o.out}};

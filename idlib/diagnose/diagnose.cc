@@ -286,6 +286,97 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
   return out;
 }
 
+// The base on its bounds: what do the data want?  A scale of a design value
+// (BaseInfo::design_scales) on its bound: the design value is scanned over factors
+// 1/8 … 8 (each a refit with the scales back at 1, free within their tolerance; the
+// best error wins) and the value wanted is factor × the refitted scale.  Any other
+// parameter on a bound: one refit with that bound widened tenfold.  The effects that
+// hold a pinned parameter are named (they carry what lies beyond the design).
+std::vector<DesignHint> design_hints(const FitResult& baseline, const std::vector<FitDataset>& data,
+                                     const FitOptions& refit, double* widened_error) {
+  constexpr double kWiden = 10.0;
+  const BaseInfo& base = base_info(baseline.model.base);
+  std::vector<DesignHint> hints;
+  for (const ParameterEstimate& p : baseline.parameters) {
+    if (!p.at_bound) continue;
+    DesignHint h;
+    h.parameter = p.name;
+    h.lower = p.lower;
+    h.upper = p.upper;
+    h.bound = std::abs(p.estimate - p.upper) <= std::abs(p.estimate - p.lower) ? p.upper : p.lower;
+    h.wanted = std::numeric_limits<double>::quiet_NaN();
+    for (const auto& [scale, design] : base.design_scales)
+      if (scale == p.name && baseline.model.index_of(design) >= 0) {
+        h.design = design;
+        h.design_value = baseline.model.parameter(design).value;
+      }
+    for (const EffectInfo& e : effect_library(baseline.model.base))
+      if (std::find(e.holds.begin(), e.holds.end(), p.name) != e.holds.end() && !baseline.model.has_effect(e.name))
+        h.effects.push_back(e.name);
+    hints.push_back(std::move(h));
+  }
+  *widened_error = std::numeric_limits<double>::quiet_NaN();
+  if (hints.empty()) return hints;
+  // the design values behind pinned scales: a scan
+  std::vector<std::string> designs;
+  for (const DesignHint& h : hints)
+    if (!h.design.empty() && std::find(designs.begin(), designs.end(), h.design) == designs.end())
+      designs.push_back(h.design);
+  const std::vector<double> factors = {0.125, 0.25, 0.5, 2.0, 4.0, 8.0};
+  for (const std::string& design : designs) {
+    std::vector<FitResult> fits(factors.size());
+    std::vector<bool> ok(factors.size(), false);
+    parallel_for(factors.size(), [&](std::size_t i) {
+      PhysicalModel m = baseline.model;
+      PhysicalParameter& d = m.parameter(design);
+      d.value = std::clamp(d.value * factors[i], d.lower, d.upper);
+      for (const auto& [scale, of] : base.design_scales)
+        if (of == design && m.index_of(scale) >= 0) m.parameter(scale).value = 1.0;
+      try {
+        fits[i] = fit_physical_model(m, data, refit);
+        ok[i] = true;
+      } catch (const NumericalError&) {
+      }
+    });
+    std::size_t best = factors.size();
+    for (std::size_t i = 0; i < factors.size(); ++i)
+      if (ok[i] && fits[i].error < baseline.error && (best == factors.size() || fits[i].error < fits[best].error))
+        best = i;
+    if (best == factors.size()) continue;  // no design value does better: say nothing
+    const PhysicalModel& m = fits[best].model;
+    const double used = m.parameter(design).value;
+    *widened_error = std::isfinite(*widened_error) ? std::min(*widened_error, fits[best].error) : fits[best].error;
+    for (DesignHint& h : hints)
+      if (h.design == design) {
+        h.suggested = used * m.parameter(h.parameter).value;
+        h.wanted = h.suggested / h.design_value;
+      }
+  }
+  // any other parameter on a bound: its bound widened
+  PhysicalModel wide = baseline.model;
+  bool widened = false;
+  for (const DesignHint& h : hints) {
+    if (!h.design.empty()) continue;
+    PhysicalParameter& q = wide.parameter(h.parameter);
+    const double span = q.upper - q.lower;
+    if (h.bound == q.upper)
+      q.upper = q.upper > 0 ? q.upper * kWiden : q.upper + (kWiden - 1) * span;
+    else
+      q.lower = q.lower > 0 ? q.lower / kWiden : q.lower - (kWiden - 1) * span;
+    widened = true;
+  }
+  if (widened) {
+    try {
+      const FitResult r = fit_physical_model(wide, data, refit);
+      *widened_error = std::isfinite(*widened_error) ? std::min(*widened_error, r.error) : r.error;
+      for (DesignHint& h : hints)
+        if (h.design.empty()) h.wanted = r.model.parameter(h.parameter).value;
+    } catch (const NumericalError&) {
+    }
+  }
+  return hints;
+}
+
 }  // namespace
 
 const CandidateOutcome* Diagnosis::winner() const {
@@ -354,6 +445,10 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   const bool something = global_excess || out.baseline_band_points > 0;
   bool distorted = false;
   for (const ParameterEstimate& p : out.baseline.parameters) distorted = distorted || p.at_bound;
+  if (distorted) {
+    report_progress(options.progress, {"diagnose", "the design values the data want", 0, 0, "", -1.0});
+    out.design_hints = design_hints(out.baseline, data, refit, &out.widened_error);
+  }
 
   std::vector<CandidateOutcome> outcomes(candidates.size());
   for (std::size_t i = 0; i < candidates.size(); ++i) {
@@ -461,6 +556,47 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     s.push_back(fmt::format("the base cannot follow the data within its physical ranges: {} ended on a bound (candidates "
                             "are refitted from the model as given)",
                             fmt::join(pinned, ", ")));
+    // what the data want, and which design value to set
+    std::vector<std::string> sets;
+    for (const DesignHint& h : out.design_hints) {
+      if (!std::isfinite(h.wanted)) continue;
+      std::string line =
+          h.design.empty()
+              ? fmt::format("  with its bounds widened tenfold the data want {} = {:.4g} (bounds [{:g}, {:g}]",
+                            h.parameter, h.wanted, h.lower, h.upper)
+              : fmt::format("  the data want {} × {} = {:.4g} × {:.4g} (the scale's bounds [{:g}, {:g}]", h.design,
+                            h.parameter, h.design_value, h.wanted, h.lower, h.upper);
+      line += std::isfinite(out.widened_error) ? fmt::format("; error {} -> {})", percent(e0), percent(out.widened_error))
+                                               : std::string(")");
+      if (!h.design.empty()) {
+        line += fmt::format(": the design value {} = {:.4g} is off by {:.3g}x; set {} ≈ {:.4g}", h.design, h.design_value,
+                            h.wanted, h.design, h.suggested);
+        sets.push_back(fmt::format("{}={:.4g}", h.design, h.suggested));
+      }
+      if (!h.effects.empty())
+        line += fmt::format("{} add {} (it carries what lies beyond the design)", h.design.empty() ? "; or" : ", or",
+                            fmt::join(h.effects, " or "));
+      s.push_back(line);
+    }
+    if (!sets.empty()) {
+      // several scales of one design value: their geometric mean, the scales take the rest
+      std::vector<std::pair<std::string, std::vector<double>>> by_design;
+      for (const DesignHint& h : out.design_hints) {
+        if (h.design.empty() || !std::isfinite(h.wanted)) continue;
+        auto it = std::find_if(by_design.begin(), by_design.end(), [&](const auto& x) { return x.first == h.design; });
+        if (it == by_design.end()) by_design.push_back({h.design, {h.suggested}});
+        else it->second.push_back(h.suggested);
+      }
+      std::vector<std::string> lines;
+      for (const auto& [design, values] : by_design) {
+        double log_sum = 0;
+        for (double v : values) log_sum += std::log(v);
+        lines.push_back(fmt::format("--set {}={:.4g}", design, std::exp(log_sum / static_cast<double>(values.size()))));
+      }
+      s.push_back(fmt::format("  to start from the design the data ask for: lpvid model init --out model.json {} (or "
+                              "lpvid model set --model MODEL {}), then fit and diagnose again",
+                              fmt::join(lines, " "), fmt::join(lines, " ")));
+    }
   }
   if (!something) {
     s.push_back(fmt::format("nothing to explain: the model fits within the noise (error {} <= {:g} x {}, no failing "

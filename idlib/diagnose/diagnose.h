@@ -83,8 +83,9 @@ struct DiagnoseOptions {
   // the lowest error (the anchor) with every other candidate, and the
   // combination_pool singles with the best ΔBIC with each other — each pair
   // refitted from one member's fit (the anchor's, or the better ΔBIC's), the other's
-  // parameters searched globally; then the best significant pair, if it still
-  // leaves an excess, with every other candidate as a third.  A combination is
+  // parameters searched globally; then the best significant pair (or, with none,
+  // the pair with the lowest error if it explains min_excess_share of the excess),
+  // if it still leaves an excess, with every other candidate as a third.  A combination is
   // significant when it passes the single test against the baseline AND every
   // member is needed: without it (the combination's other members, fitted) ΔBIC is
   // worse by more than significance_delta_bic and the error higher.  It replaces
@@ -174,6 +175,22 @@ struct ResidualDescription {
   EffectInfo effect;       // the user-defined effect that models it, with the fitted values as defaults
 };
 
+// When the base cannot follow the data (a parameter of the baseline on a bound): the
+// value the data want and, for a scale of a design value (BaseInfo::design_scales),
+// the design value it should have — from refits with the design value scanned over
+// 1/8 … 8x (the best error wins); for any other parameter, from a refit with its
+// bound widened tenfold.
+struct DesignHint {
+  std::string parameter;     // on its bound in the baseline, e.g. "bending_scale_psi"
+  double bound = 0.0;        // the bound it sits on
+  double lower = 0.0, upper = 0.0;
+  double wanted = 0.0;       // the value the data want, relative to the design for a scale (NaN: none better found)
+  std::string design;        // the design value it scales ("" when none)
+  double design_value = 0.0;     // as given
+  double suggested = 0.0;        // design_value × wanted
+  std::vector<std::string> effects;  // library effects that hold it (they carry what lies beyond)
+};
+
 struct Diagnosis {
   FitResult baseline;
   double baseline_error = 0.0;
@@ -201,6 +218,8 @@ struct Diagnosis {
   // With a significant winner: its failing bands and phenomena (what is still wrong).
   std::vector<std::vector<FailingBand>> remaining_failures;
   std::vector<Phenomenon> remaining_phenomena;
+  std::vector<DesignHint> design_hints;           // when the baseline is on bounds (empty otherwise)
+  double widened_error = 0.0;                     // the best error of those refits (NaN: none better)
   std::vector<ResidualDescription> descriptions;  // best first (empty: nothing to describe)
   std::vector<std::string> summary;               // plain-words lines
 };

@@ -38,6 +38,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "idlib/core/types.h"
@@ -109,6 +110,11 @@ struct BaseInfo {
   std::string schedule_unit;  // "m"
   std::vector<std::string> default_effects;  // what `model init` adds
   std::vector<EffectInfo> physics_effects;   // this base's physics effects
+  // Dimensionless tolerances on a design value: {scale, design} means the model uses
+  // design × scale, the scale bounded to the build's tolerance (platform: the rods'
+  // bending_scale_psi/theta on k_torque_low_Nm_per_rad, 0.5–2x).  A scale the data
+  // push onto its bound says the design value itself is off (diagnose's guidance).
+  std::vector<std::pair<std::string, std::string>> design_scales;
 };
 
 // The bases there are ("platform").

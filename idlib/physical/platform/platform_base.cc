@@ -53,6 +53,8 @@ BaseInfo make_platform_base() {
       par("bending_scale_theta", "1", 1.0, 0.5, 2.0, true),
       par("bending_coupling", "1", 0.0, -0.5, 0.5, true),
   };
+  b.design_scales = {{"bending_scale_psi", "k_torque_low_Nm_per_rad"},
+                     {"bending_scale_theta", "k_torque_low_Nm_per_rad"}};
   b.input_names = {"T_psi", "T_theta", "F_z"};
   b.input_units = {"N·m", "N·m", "N"};
   b.output_names = {"psi", "theta", "z"};
