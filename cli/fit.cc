@@ -300,6 +300,11 @@ void run(const FitCliOptions& o) {
   for (const auto& w : r.identifiability) text += "identifiability: " + w + "\n";
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
   text += fmt::format("{} in {:.2f} s; wrote {} (history: {})\n", r.report.termination, r.seconds, o.out, history_out);
+  // a fit that stopped on its iteration limit: say exactly how to go on (issue 25)
+  if (r.iterations >= o.in.max_iterations && r.report.termination.rfind("stopped", 0) == 0 && o.out != "-")
+    text += fmt::format("to continue from where it stopped: lpvid fit --model {} ... --out NEXT.json (the same data; "
+                        "it starts at these estimates), or rerun with --max-iterations {}\n",
+                        o.out, 2 * o.in.max_iterations);
   nlohmann::json summary = fit_section;
   summary["out"] = o.out;
   summary["seconds"] = r.seconds;

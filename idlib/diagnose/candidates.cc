@@ -182,12 +182,17 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
   }
   const bool physics = start.effect_info(added)->blocks.empty();
   std::string failure;
-  try {
-    c.fit = fit_physical_model(start, ctx.data, fo);
-    c.fitted = true;
-  } catch (const NumericalError& e) {
-    failure = e.what();
-  }
+  // one more refit; the lower cost is kept (the first failure is what is said)
+  auto keep_better = [&](const PhysicalModel& m, const FitOptions& options) {
+    try {
+      FitResult again = fit_physical_model(m, ctx.data, options);
+      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
+      c.fitted = true;
+    } catch (const NumericalError& e) {
+      if (!c.fitted && failure.empty()) failure = e.what();
+    }
+  };
+  keep_better(start, fo);
   if (!ctx.baseline_distorted && physics) {
     // A physics effect of the base (no blocks: its terms enter M, K, B_w) moves the
     // base's own parameters with it (the stage's gap stiffness ∝ m g gamma trades
@@ -206,24 +211,12 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
     all.global_parameters.clear();
     all.global_starts = ctx.refit.global_starts;
     all.restarts = 2;
-    try {
-      FitResult again = fit_physical_model(start, ctx.data, all);
-      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
-      c.fitted = true;
-    } catch (const NumericalError& e) {
-      if (!c.fitted) failure = e.what();
-    }
+    keep_better(start, all);
   }
   if (ctx.baseline_distorted) {
     PhysicalModel fresh = start;
     for (const auto& [name, value] : library_defaults(start)) fresh.parameter(name).value = value;
-    try {
-      FitResult again = fit_physical_model(fresh, ctx.data, fo);
-      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
-      c.fitted = true;
-    } catch (const NumericalError& e) {
-      if (!c.fitted) failure = e.what();
-    }
+    keep_better(fresh, fo);
   }
   if (ctx.baseline_distorted && c.members.size() > 1) {
     // a combination: also from its member's fit (which the effect that bent the
@@ -236,13 +229,7 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
     FitOptions own = fo;
     for (const PhysicalParameter& q : onward.effect_info(added)->parameters) own.global_parameters.push_back(q.name);
     own.global_starts = std::min(own.global_starts, ctx.options.candidate_global_starts);
-    try {
-      FitResult again = fit_physical_model(onward, ctx.data, own);
-      if (!c.fitted || again.cost_final < c.fit.cost_final) c.fit = std::move(again);
-      c.fitted = true;
-    } catch (const NumericalError& e) {
-      if (!c.fitted) failure = e.what();
-    }
+    keep_better(onward, own);
   }
   if (!c.fitted) {
     c.failure = failure;
