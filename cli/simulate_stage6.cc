@@ -78,8 +78,9 @@ forces) and the plots fig6/fig6a_xyz.png, fig6b_angles.png, fig6c_forces.png,
 fig6d_torques.png.
   lpvid simulate stage6 --experiment --out exp --effects gap,lag --seed 3
 runs a 2 s identification experiment (a z step 250 -> 350 um with white excitation
-added to the allocated wrench) and writes exp/exp_stage6.csv (t, v1..v6, u1..u6,
-q1..q6), exp/truth_plant_continuous.json and exp/truth_plant.json (the stage
+added to the allocated wrench, lowered until the stage stays inside its gap) and
+writes exp/exp_stage6.csv (t, v1..v6, u1..u6, q1..q6),
+exp/truth_plant_continuous.json and exp/truth_plant.json (the stage
 linearised at hover, inputs F_x..tau_z, outputs x..phi).)";
 
 struct Stage6Options {
@@ -201,7 +202,29 @@ void run(const Stage6Options& o) {
     q0 = Vector6d::Zero();
     q0(2) = o.hover ? qr(2) : 250e-6;
   }
-  const StageRun r = simulate_regulation(truth, effects, q0, qr, smc, sim);  // before any output
+  // The experiment at the design level unless the user chose one; lowered until
+  // the stage stays inside its gap (stage6_sim.h). Before any output.
+  const ExperimentRun flown = simulate_experiment_in_gap(
+      truth, effects, q0, qr, smc, sim, o.experiment && !o.excitation_scale_given && !excitation);
+  const StageRun& r = flown.run;
+  const GapExcursion& gaps = flown.gaps;
+  if (o.experiment && gaps.min_gap_m <= 0) {
+    std::string what = "lower the signal's level (lpvid excite --rms or --peak)";
+    if (!excitation) {
+      // The level that flies, found as the default one is: halving from the user's.
+      const ExperimentRun lower = simulate_experiment_in_gap(truth, effects, q0, qr, smc, sim, true);
+      what = lower.gaps.min_gap_m > 0
+                 ? fmt::format("give --excitation-scale {:g} (the gaps then stay within {:.0f} to {:.0f} um)",
+                               o.excitation_scale * lower.scale, 1e6 * lower.gaps.min_gap_m, 1e6 * lower.gaps.max_gap_m)
+                 : "give a much smaller --excitation-scale";
+    }
+    throw InputError(fmt::format(
+        "the stage touches down: array {}'s gap reaches {:.0f} um at t = {:.3f} s (reference {:.0f} um) and the "
+        "simulation has no contact forces, so the log would not be a physical experiment; {}",
+        gaps.min_motor + 1, 1e6 * gaps.min_gap_m, gaps.min_t_s, 1e6 * truth.reference_gap_m, what));
+  }
+  // The white level actually used (1 = the design level), so the comment line reproduces the log.
+  const double level = o.excitation_scale_given ? o.excitation_scale : flown.scale;
   nlohmann::json summary = {{"dir", o.out_dir}, {"duration_s", sim.duration_s}, {"rate_hz", o.rate_hz}};
   std::string text;
   const std::string provenance = fmt::format(
@@ -212,13 +235,33 @@ void run(const Stage6Options& o) {
       1e3 * effects.com_offset_m(0), 1e3 * effects.com_offset_m(1), 1e3 * effects.com_offset_m(2), o.input_delay_ms,
       o.force_constant_scale, truth.inertia_kgm2(0, 0), truth.inertia_kgm2(1, 1), truth.inertia_kgm2(2, 2),
       o.hover ? " hover" : "");
+  // Older logs (design level, default noise) keep their comment line unchanged.
+  const std::string levels =
+      (o.experiment && !excitation && level != 1 ? fmt::format(" excitation_scale={}", level) : std::string()) +
+      (o.experiment && o.noise_scale != 1 ? fmt::format(" noise_scale={}", o.noise_scale) : std::string());
+  std::string gap_text;
+  if (o.experiment) {
+    if (!excitation) summary["excitation_scale"] = level;
+    summary["gap_min_m"] = gaps.min_gap_m;
+    summary["gap_max_m"] = gaps.max_gap_m;
+    gap_text = fmt::format("the motor gaps stayed within {:.0f} to {:.0f} um (reference {:.0f} um; smallest: array {} "
+                           "at t = {:.3f} s)\n",
+                           1e6 * gaps.min_gap_m, 1e6 * gaps.max_gap_m, 1e6 * truth.reference_gap_m, gaps.min_motor + 1,
+                           gaps.min_t_s);
+    if (flown.scale < 1)
+      gap_text += fmt::format(
+          "the design excitation (2 N, 0.1 N m per channel) took the gaps from {:.0f} to {:.0f} um; it was halved to "
+          "{:g}x so they stay within {:g} to {:g}x the reference (give --excitation-scale to choose the level)\n",
+          1e6 * flown.first_gaps.min_gap_m, 1e6 * flown.first_gaps.max_gap_m, flown.scale, kSafeGapFraction.first,
+          kSafeGapFraction.second);
+  }
   if (o.experiment) {
     const StageLog log = experiment_log(r);
     const StateSpace plant_c = linearize_hover(truth, qr(2));
     const StateSpace plant_d = discretize_zoh(plant_c, 1.0 / o.rate_hz);
     const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", qr(2)},
                                  {"seed", o.seed}};
-    std::vector<std::string> comments = {provenance};
+    std::vector<std::string> comments = {provenance + levels};
     if (excitation) {
       comments.front() += " excitation=" + o.excitation;
       comments.push_back(excitation_design_comment(excitation->design));
@@ -230,8 +273,8 @@ void run(const Stage6Options& o) {
     out.commit();
     text = fmt::format(
         "wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json (the rigid body at hover), "
-        "truth_model.json (the simulated stage with its effects, base stage6)\n",
-        o.out_dir, log.data.rows());
+        "truth_model.json (the simulated stage with its effects, base stage6)\n{}",
+        o.out_dir, log.data.rows(), gap_text);
     summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
   } else {
     std::vector<std::string> cols = {"t", "x", "y", "z", "psi", "theta", "phi", "xd", "yd", "zd", "psid", "thetad",
@@ -291,7 +334,8 @@ void install_simulate_stage6(CLI::App& simulate) {
   c->add_option("--inertia-scale", opts->inertia_scale, "controller's inertia estimate M0 = scale * M")
       ->check(positive_up_to(kMaxScale, "the inertia scale"));
   auto* excitation_scale = c->add_option("--excitation-scale", opts->excitation_scale,
-                "--experiment: multiplies the white excitation (2 N, 0.1 N m per channel)")
+                "--experiment: multiplies the white excitation (2 N, 0.1 N m per channel); default: halved until "
+                "every motor gap stays within 1/4 to 3x the reference")
       ->check(number_in(0, kMaxScale, "the excitation scale"));
   c->add_option("--noise-scale", opts->noise_scale, "--experiment: multiplies the sensor noise (0 = none)")
       ->check(number_in(0, kMaxScale, "the noise scale"));

@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "idlib/core/error.h"
@@ -229,6 +231,41 @@ StageLog experiment_log(const StageRun& run) {
   log.data.middleCols(7, 6) = run.wrench;
   log.data.middleCols(13, 6) = run.q_measured;
   return log;
+}
+
+GapExcursion gap_excursion(const StageParameters& p, const StageRun& run) {
+  LPVID_ASSERT(run.q.rows() == run.t_s.size() && run.q.rows() > 0 && run.q.cols() == 6);
+  GapExcursion g;
+  g.min_gap_m = std::numeric_limits<double>::infinity();
+  g.max_gap_m = -std::numeric_limits<double>::infinity();
+  for (Eigen::Index k = 0; k < run.q.rows(); ++k) {
+    const Vector6d q = run.q.row(k).transpose();
+    for (int i = 0; i < 4; ++i) {
+      const double gap = motor_gap_m(p, q, i);
+      if (gap < g.min_gap_m) g = {gap, g.max_gap_m, i, run.t_s(k)};
+      g.max_gap_m = std::max(g.max_gap_m, gap);
+    }
+  }
+  return g;
+}
+
+ExperimentRun simulate_experiment_in_gap(const StageParameters& truth, const StageEffects& effects, const Vector6d& q0,
+                                         const Vector6d& q_ref, const SlidingModeOptions& smc, SimulationOptions sim,
+                                         bool back_off) {
+  const double low = kSafeGapFraction.first * truth.reference_gap_m;
+  const double high = kSafeGapFraction.second * truth.reference_gap_m;
+  // Halving does nothing to a designed excitation or to none.
+  back_off = back_off && sim.excitation_samples.size() == 0 && !sim.excitation_std.isZero();
+  ExperimentRun e;
+  for (int halvings = 0;; ++halvings) {
+    e.run = simulate_regulation(truth, effects, q0, q_ref, smc, sim);
+    e.gaps = gap_excursion(truth, e.run);
+    if (halvings == 0) e.first_gaps = e.gaps;
+    const bool inside = e.gaps.min_gap_m >= low && e.gaps.max_gap_m <= high;
+    if (!back_off || inside || halvings == kMaxExcitationHalvings) return e;
+    sim.excitation_std *= 0.5;
+    e.scale *= 0.5;
+  }
 }
 
 StateSpace linearize_hover(const StageParameters& p, double z0_m) {

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,36 @@ struct StageLog {
   Eigen::MatrixXd data;  // N × 19
 };
 StageLog experiment_log(const StageRun& run);
+
+// The air gaps of the four motor arrays over a run (motor_gap_m at the true
+// configuration, every control sample): the smallest and largest, where and
+// when. A gap at or below 0 is a touch-down the simulation does not model (no
+// contact forces): the run is then not a physical experiment.
+struct GapExcursion {
+  double min_gap_m = 0, max_gap_m = 0;
+  int min_motor = 0;   // 0-based array of the smallest gap
+  double min_t_s = 0;  // when it occurred
+};
+GapExcursion gap_excursion(const StageParameters& p, const StageRun& run);
+
+// An identification experiment the stage can fly. An operator starts at the
+// design level and lowers it until the stage stays well inside its gap: with
+// `back_off`, the white excitation (sim.excitation_std) is halved, up to
+// kMaxExcitationHalvings times, until every motor gap stays within
+// [kSafeGapFraction.first, kSafeGapFraction.second] x the reference gap.
+// Without it (a level the user chose, or a designed excitation), the run is
+// returned as it is. `scale` is the factor applied to excitation_std.
+inline constexpr int kMaxExcitationHalvings = 6;
+inline constexpr std::pair<double, double> kSafeGapFraction = {0.25, 3.0};
+struct ExperimentRun {
+  StageRun run;
+  GapExcursion gaps;
+  double scale = 1.0;
+  GapExcursion first_gaps;  // of the design level, when it was lowered
+};
+ExperimentRun simulate_experiment_in_gap(const StageParameters& truth, const StageEffects& effects, const Vector6d& q0,
+                                         const Vector6d& q_ref, const SlidingModeOptions& smc, SimulationOptions sim,
+                                         bool back_off);
 
 // Linearisation about hover at q = (0, 0, z0, 0, 0, 0), q̇ = 0 with the body
 // wrench w = w₀ + δw (w₀ = [0 0 m g 0 0 0]) as input and q as output:
