@@ -141,19 +141,21 @@ void report(const CompareCliOptions& o, ErrorReport& r, OutputSet& outputs) {
                           num(b.gain_db_max, "{:+.2f}"), num(b.phase_deg_mean, "{:+.1f}"), num(b.phase_deg_max, "{:+.1f}"),
                           num(b.relative_percent_mean, "{:.1f}"), num(b.relative_percent_max, "{:.1f}"), b.hint);
     }
-  const std::vector<Phenomenon> phenomena = group_phenomena(r.failures, r.out_names, r.in_names);
+  const std::vector<Phenomenon> phenomena = ranked_by_error_share(group_phenomena(r.failures, r.out_names, r.in_names));
   nlohmann::json jph = nlohmann::json::array();
-  if (!phenomena.empty()) text += fmt::format("  {} distinct phenomena, strongest first:\n", phenomena.size());
+  if (!phenomena.empty()) text += fmt::format("  {} distinct phenomena, largest share of the error first:\n", phenomena.size());
   for (std::size_t k = 0; k < phenomena.size(); ++k) {
     const Phenomenon& p = phenomena[k];
     std::vector<std::string> sets;
     for (Index d : p.data_sets) sets.push_back(r.labels[static_cast<std::size_t>(d)]);
     jph.push_back({{"omega_rad_s", p.omega_rad_s}, {"where", p.where}, {"data", sets}, {"bands", p.bands.size()},
-                   {"max_sigma_ratio", p.max_sigma_ratio}, {"hint", p.bands.front().hint}});
+                   {"max_sigma_ratio", p.max_sigma_ratio}, {"error_share", p.error_share},
+                   {"scaled_percent_max", p.bands.front().scaled_percent_max}, {"hint", p.bands.front().hint}});
     if (k < 8)
-      text += fmt::format("    {}. near {:.4g} rad/s in {} ({}): up to {:.3g} %, {:.0f}x the noise; {}\n", k + 1,
-                          p.omega_rad_s, p.where, fmt::join(sets, ", "), p.bands.front().relative_percent_max,
-                          p.max_sigma_ratio, p.bands.front().hint);
+      text += fmt::format("    {}. near {:.4g} rad/s in {} ({}): {:.2g} % of the error, up to {:.3g} %, {:.0f}x the "
+                          "noise; {}\n",
+                          k + 1, p.omega_rad_s, p.where, fmt::join(sets, ", "), 100.0 * p.error_share,
+                          p.bands.front().scaled_percent_max, p.max_sigma_ratio, p.bands.front().hint);
   }
   nlohmann::json summary = {{"models", r.models},
                             {"data", jdata},

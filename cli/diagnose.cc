@@ -73,6 +73,8 @@ nlohmann::json bands_json(const std::vector<std::vector<FailingBand>>& sets, con
                      {"lo_rad_s", b.lo_rad_s},
                      {"hi_rad_s", b.hi_rad_s},
                      {"relative_percent_max", b.relative_percent_max},
+                     {"scaled_percent_max", b.scaled_percent_max},
+                     {"error_share", b.error_share},
                      {"gain_db_max", number_or_null(b.gain_db_max)},
                      {"phase_deg_max", number_or_null(b.phase_deg_max)},
                      {"max_sigma_ratio", b.max_sigma_ratio},
@@ -92,6 +94,8 @@ nlohmann::json phenomena_json(const std::vector<Phenomenon>& phenomena, const st
                    {"x_b_m", xb},
                    {"bands", p.bands.size()},
                    {"relative_percent_max", b.relative_percent_max},
+                   {"scaled_percent_max", b.scaled_percent_max},
+                   {"error_share", p.error_share},
                    {"max_sigma_ratio", p.max_sigma_ratio},
                    {"signature", b.signature},
                    {"hint", b.hint}});

@@ -96,8 +96,10 @@ std::string channel_label(const std::vector<std::string>& names, Index i, const 
 
 void describe_phenomena(const std::vector<Phenomenon>& phenomena, const std::vector<FitDataset>& data,
                         std::vector<std::string>& lines, std::size_t limit) {
-  for (std::size_t k = 0; k < std::min(limit, phenomena.size()); ++k) {
-    const Phenomenon& ph = phenomena[k];
+  // as the user reads them: the largest share of the error figure first
+  const std::vector<Phenomenon> ranked = ranked_by_error_share(phenomena);
+  for (std::size_t k = 0; k < std::min(limit, ranked.size()); ++k) {
+    const Phenomenon& ph = ranked[k];
     const FailingBand& b = ph.bands.front();
     std::string at;
     if (ph.data_sets.size() == data.size() && data.size() > 1) {
@@ -112,9 +114,11 @@ void describe_phenomena(const std::vector<Phenomenon>& phenomena, const std::vec
     const std::string ratio = std::isfinite(b.gain_db_max) && std::isfinite(b.phase_deg_max)
                                   ? fmt::format("{:+.2f} dB, {:+.1f} deg", b.gain_db_max, b.phase_deg_max)
                                   : std::string("the model is 0 there");
-    lines.push_back(fmt::format("  {}. near {:.4g} rad/s in {}, {}: up to {:.3g} % ({}), {:.0f}x the noise; {}", k + 1,
-                                ph.omega_rad_s, ph.where, at, b.relative_percent_max, ratio, b.max_sigma_ratio,
-                                b.hint));
+    // the size against the error figure's scale, and the share of the figure it holds
+    lines.push_back(fmt::format("  {}. near {:.4g} rad/s in {}, {}: {:.2g} % of the error, up to {:.3g} % ({}), "
+                                "{:.0f}x the noise; {}",
+                                k + 1, ph.omega_rad_s, ph.where, at, 100.0 * ph.error_share, b.scaled_percent_max,
+                                ratio, b.max_sigma_ratio, b.hint));
   }
   if (phenomena.size() > limit) lines.push_back(fmt::format("  ... and {} more", phenomena.size() - limit));
 }
@@ -544,7 +548,7 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   if (nb == 0) {
     s.push_back("where it fails: nowhere beyond the measurement noise (no failing band)");
   } else {
-    s.push_back(fmt::format("where it fails ({} distinct phenomena in {} failing bands, strongest first):",
+    s.push_back(fmt::format("where it fails ({} distinct phenomena in {} failing bands, largest share of the error first):",
                             out.phenomena.size(), nb));
     describe_phenomena(out.phenomena, data, s, 5);
   }

@@ -150,6 +150,10 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   const std::size_t at_rel = static_cast<std::size_t>(std::max_element(rel.begin(), rel.end()) - rel.begin());
   b.relative_percent_max = rel[at_rel];
   b.omega_at_max_rad_s = w[at_rel];
+  for (std::size_t t = 0; t < n; ++t) {
+    const double s = mem.scale[static_cast<std::size_t>(idx[t])](i, j);
+    if (s > 0) b.scaled_percent_max = std::max(b.scaled_percent_max, 100.0 * err[t] / s);
+  }
 
   // --- signature (header comment: the first rule that holds) ---
   if (i != j && sum_model < kCouplingLacking * sum_data) {
@@ -233,6 +237,16 @@ std::vector<FailingBand> failing_bands(const ModelErrorModel& mem, const ModelEr
   std::vector<Index> used;  // unflagged frequencies in order
   for (std::size_t f = 0; f < mem.skipped.size(); ++f)
     if (!mem.skipped[f]) used.push_back(static_cast<Index>(f));
+  // |E/s|² per entry, and its sum over the set: the squared error figure's numerator.
+  auto scaled_squared = [&](Index f, Index i, Index j) {
+    const std::size_t k = static_cast<std::size_t>(f);
+    const double s = mem.scale[k](i, j);
+    return s > 0 ? std::norm(mem.error[k](i, j)) / (s * s) : 0.0;
+  };
+  double total = 0;
+  for (Index f : used)
+    for (Index i = 0; i < p; ++i)
+      for (Index j = 0; j < m; ++j) total += scaled_squared(f, i, j);
   for (Index i = 0; i < p; ++i)
     for (Index j = 0; j < m; ++j) {
       std::vector<Index> run;  // significant frequencies of the current band
@@ -269,6 +283,9 @@ std::vector<FailingBand> failing_bands(const ModelErrorModel& mem, const ModelEr
         b.hi_rad_s = mem.omega_rad_s(b.last);
         b.points = static_cast<Index>(band.size());
         describe(mem, band, b);
+        double sum = 0;
+        for (Index f : band) sum += scaled_squared(f, i, j);
+        b.error_share = total > 0 ? sum / total : 0.0;
         out.push_back(std::move(b));
       }
     }
@@ -282,6 +299,7 @@ std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBan
   for (const auto& set : failures)
     for (const FailingBand& b : set) all.push_back(b);
   // furthest beyond the noise first: each phenomenon is seeded by its strongest band
+  // (where a thing is, is best located by its clearest band)
   std::stable_sort(all.begin(), all.end(),
                    [](const FailingBand& a, const FailingBand& b) { return a.max_sigma_ratio > b.max_sigma_ratio; });
   std::vector<Phenomenon> out;
@@ -304,6 +322,7 @@ std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBan
       home->max_sigma_ratio = b.max_sigma_ratio;
     }
     home->bands.push_back(b);
+    home->error_share += b.error_share / static_cast<double>(std::max<std::size_t>(failures.size(), 1));
     auto add = [](std::vector<Index>& v, Index x) {
       if (std::find(v.begin(), v.end(), x) == v.end()) v.push_back(x);
     };
@@ -343,6 +362,13 @@ std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBan
       ph.where = list;
   }
   return out;
+}
+
+std::vector<Phenomenon> ranked_by_error_share(std::vector<Phenomenon> phenomena) {
+  std::stable_sort(phenomena.begin(), phenomena.end(), [](const Phenomenon& a, const Phenomenon& b) {
+    return a.error_share > b.error_share;
+  });
+  return phenomena;
 }
 
 void mark_differences_between_data(std::vector<std::vector<FailingBand>>& failures) {

@@ -39,7 +39,10 @@
 // Size of a band (over its significant frequencies):
 //   gain_db   = 20 log10 |P_data / P_model|   (mean, and the value of largest size)
 //   phase_deg = arg(P_data / P_model) in deg (mean, and the value of largest size)
-//   relative  = 100 |E| / |P_data| percent   (mean and max)
+//   relative  = 100 |E| / |P_data| percent   (mean and max; meaningless near a zero
+//               of the entry: an off-diagonal at the lowest lines read 2-3e5 %)
+//   scaled    = 100 |E| / s_ij percent       (max; the error figure's scale, shown)
+//   share     = the band's share of the set's squared error figure (ranks phenomena)
 // gain and phase are NaN when P_model is zero somewhere in the band (below 1e-6 of
 // |P_data|, i.e. −120 dB: a coupling that cancels only up to rounding).
 //
@@ -119,7 +122,14 @@ struct FailingBand {
   Index points = 0;                  // significant frequencies in the band
   double gain_db_mean = 0, gain_db_max = 0;    // max = the value of largest size
   double phase_deg_mean = 0, phase_deg_max = 0;
-  double relative_percent_mean = 0, relative_percent_max = 0;
+  double relative_percent_mean = 0, relative_percent_max = 0;  // against |P_data_ij| (huge near a zero)
+  // 100 max |E_ij| / s_ij: the size against the error figure's scale (unit-consistent;
+  // an off-diagonal entry near zero is measured against its diagonals, not itself).
+  double scaled_percent_max = 0;
+  // Σ |E_ij / s_ij|² over the band's significant frequencies over the same sum over
+  // every channel and unflagged frequency of the set: the band's share of the set's
+  // squared error figure (docs/math.md, "Error figure"), what it matters.
+  double error_share = 0;
   double omega_at_max_rad_s = 0;     // where |E| / |P_data| is largest
   double max_sigma_ratio = 0;        // max |E| / σ_c (how far beyond the noise)
   std::string signature;             // key, see the header comment
@@ -153,18 +163,30 @@ struct Phenomenon {
   std::vector<FailingBand> bands;  // members, furthest beyond the noise first
   double omega_rad_s = 0;          // where the representative's error is largest
   double max_sigma_ratio = 0;      // of the representative (bands.front())
+  // Its bands' error_share summed over the data sets, over the number of data sets:
+  // its share of the pooled squared error figure (exact when the sets' figures are
+  // equal).  ranked_by_error_share orders by it.
+  double error_share = 0;
   std::vector<Index> outputs, inputs;  // distinct channels involved (0-based)
   std::vector<Index> data_sets;        // distinct data sets involved
   std::string where;               // e.g. "the theta output row only (theta <- T_psi, theta <- F_z)"
 };
 
 // Groups the failing bands of every data set into phenomena, the furthest beyond
-// the noise first.  output_names / input_names label the channels (empty: 1-based
+// the noise first (each located by its clearest band: diagnose seeds resonances from
+// the first few, so a large mismatch in one place does not bury the narrow bands of a
+// missing mode).  output_names / input_names label the channels (empty: 1-based
 // numbers).
 std::vector<Phenomenon> group_phenomena(const std::vector<std::vector<FailingBand>>& failures,
                                         const std::vector<std::string>& output_names,
                                         const std::vector<std::string>& input_names,
                                         double phenomenon_decades = 0.1);
+
+// The same phenomena, the largest share of the error figure first (stable: ties keep
+// their order).  What the user reads: a band far beyond a tiny noise at an entry near
+// zero (issue 25: an off-diagonal at the lowest lines, "2-3e5 %, 400x the noise") holds
+// little of the figure and is listed after the error that does.
+std::vector<Phenomenon> ranked_by_error_share(std::vector<Phenomenon> phenomena);
 
 // failures[d] are the bands of data set d.  A band whose channel has no
 // overlapping band in some other data set gets differs_between_data = true and

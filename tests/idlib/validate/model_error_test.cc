@@ -250,5 +250,54 @@ TEST(ModelError, BadOptionsAndShapesAreInputErrors) {
   EXPECT_THROW(model_error(d, short_model, sigma(d), options()), InputError);
 }
 
+// Issue 25: an off-diagonal entry near zero read "up to 2-3e5 %, 400x the noise" and
+// was listed first, above the error that held the figure.  Its size against the error
+// figure's scale s_ij (the diagonals' geometric mean) is what matters, and the
+// phenomena are ranked by their share of the squared figure.  Hand-made 2 x 2 case:
+// the diagonal 1, the (0, 1) entry 1e-4 in the data and 1e-3 in the model over 5 of
+// 20 lines (relative error 900 %, 9e-4 of the scale, 9x its noise 1e-4 = the
+// resolution); the (1, 1) entry 5 % off over 5 other lines with a noise of 1 % (5x).
+TEST(ModelError, ANearZeroEntryIsMeasuredAgainstTheChannelScaleAndRankedByItsShare) {
+  const Index F = 20;
+  FrequencyResponse d;
+  d.omega_rad_s = Eigen::VectorXd::LinSpaced(F, 1, 20);
+  std::vector<Eigen::MatrixXcd> model;
+  std::vector<Eigen::MatrixXd> noise;
+  for (Index f = 0; f < F; ++f) {
+    Eigen::MatrixXcd data(2, 2), mod(2, 2);
+    data << 1.0, 1e-4, 1e-4, 1.0;
+    mod = data;
+    if (f < 5) mod(0, 1) = 1e-3;
+    if (f >= 10 && f < 15) mod(1, 1) = 1.05;
+    d.response.push_back(data);
+    model.push_back(mod);
+    Eigen::MatrixXd s(2, 2);
+    s << 1e-9, 1e-9, 1e-9, 1e-2;
+    noise.push_back(s);
+  }
+  const ModelErrorModel mem = model_error(d, model, noise, options());
+  const auto bands = failing_bands(mem, options());
+  ASSERT_EQ(bands.size(), 2u);
+  const FailingBand& off = bands[0];  // ordered by channel: (0, 1) first
+  const FailingBand& diag = bands[1];
+  ASSERT_EQ(off.input, 1);
+  EXPECT_NEAR(off.relative_percent_max, 900.0, 1e-6);  // against |P_data| = 1e-4
+  EXPECT_NEAR(off.scaled_percent_max, 0.09, 1e-9);     // against s = 1: 9e-4
+  EXPECT_NEAR(off.max_sigma_ratio, 9.0, 1e-6);         // σ_eff = resolution x s = 1e-4
+  EXPECT_NEAR(diag.scaled_percent_max, 5.0, 1e-9);
+  EXPECT_NEAR(diag.max_sigma_ratio, 5.0, 1e-6);
+  // Shares of Σ|E/s|² = 5 (9e-4)² + 5 (0.05)²: 3.2e-4 and 0.99968.
+  const double total = 5 * 8.1e-7 + 5 * 2.5e-3;
+  EXPECT_NEAR(off.error_share, 5 * 8.1e-7 / total, 1e-12);
+  EXPECT_NEAR(diag.error_share, 5 * 2.5e-3 / total, 1e-12);
+  const auto located = group_phenomena({bands}, {"a", "b"}, {"A", "B"}, 0.01);
+  ASSERT_EQ(located.size(), 2u);
+  EXPECT_EQ(located[0].where, "a <- B");  // located by the clearest band: 9x the noise
+  const auto ph = ranked_by_error_share(located);
+  EXPECT_EQ(ph[0].where, "b <- B");  // what the user reads first: the figure's error
+  EXPECT_NEAR(ph[0].error_share, diag.error_share, 1e-12);
+  EXPECT_EQ(ph[1].where, "a <- B");
+}
+
 }  // namespace
 }  // namespace lpvid
