@@ -237,8 +237,12 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
     return;
   }
   c.error = c.fit.error;
-  c.delta_bic = c.fit.bic - ctx.d.baseline.bic;
-  c.delta_aic = c.fit.aic - ctx.d.baseline.aic;
+  // The posterior's criterion: the data's BIC plus the priors' −2 log (0 without
+  // priors).  A gain and a uniform scaling of M, D and K fit the data equally; a
+  // weighed mass is what tells them apart (docs/math.md §10a, "Priors").
+  const double base_prior = ctx.d.baseline.prior_cost;
+  c.delta_bic = (c.fit.bic + c.fit.prior_cost) - (ctx.d.baseline.bic + base_prior);
+  c.delta_aic = (c.fit.aic + c.fit.prior_cost) - (ctx.d.baseline.aic + base_prior);
   const ModelErrorSet mes = model_errors(c.fit.model, ctx.data, fo, ctx.options.model_error);
   c.band_points = mes.band_points;
   c.phenomena = group_phenomena(mes.failures, c.fit.output_names, c.fit.input_names);
@@ -442,7 +446,10 @@ std::vector<CandidateOutcome> evaluate_combinations(const std::vector<CandidateO
 using diagnose_detail::percent;
 
 CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOptions& options) {
-  const bool raises = e.error > e.baseline_error;
+  // Equal within 0.1 % of the figure counts as equal (the figure's own precision: an
+  // effect that trades exactly against the base's parameters ends 1e-5 above or below).
+  constexpr double kSameError = 1e-3;
+  const bool raises = e.error > e.baseline_error * (1.0 + kSameError);
   const bool bic = e.delta_bic < -options.significance_delta_bic;
   // a localized phenomenon (failing bands, the error as a whole within the floor)
   // is judged by the bands it removes

@@ -446,7 +446,9 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   const double f = out.effective_floor, e0 = out.baseline_error;
   const double excess2 = std::max(e0 * e0 - f * f, 0.0);
   const bool global_excess = e0 > options.explained_ratio * f;
-  const bool something = global_excess || out.baseline_band_points > 0;
+  // Estimates beyond 3 sigma of their priors are something to explain too: the data
+  // pull a known value away, so the model lacks what that parameter stands in for.
+  const bool something = global_excess || out.baseline_band_points > 0 || out.baseline.priors_contradicted > 0;
   bool distorted = false;
   for (const ParameterEstimate& p : out.baseline.parameters) distorted = distorted || p.at_bound;
   if (distorted) {
@@ -606,6 +608,16 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
     s.push_back(fmt::format("nothing to explain: the model fits within the noise (error {} <= {:g} x {}, no failing "
                             "band); no candidate is significant",
                             percent(e0), options.explained_ratio, percent(f)));
+    // What these data cannot see (a frequency response alone): an input gain is a
+    // scaling of M, D and K; only a known value tells them apart.
+    bool any_prior = false;
+    for (const PhysicalParameter& q : out.baseline.model.parameters) any_prior = any_prior || q.has_prior();
+    bool gain_candidate = false;
+    for (const CandidateOutcome& c : out.ranked) gain_candidate = gain_candidate || c.effect == "gain_error";
+    if (!any_prior && gain_candidate)
+      s.push_back("  note: these data cannot tell an input gain from a scaling of the masses, damping and stiffness "
+                  "(the fit takes the scaling); to test for one, give a known value as a prior (a weighed mass: lpvid "
+                  "model set --model MODEL --set NAME=VALUE±SIGMA) and diagnose again");
   } else if (winner != nullptr) {
     const bool combination = winner->members.size() > 1;
     // what each member does alone (combinations)
@@ -642,6 +654,21 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
                             "the failing-band points; ΔBIC {:.1f}",
                             percent(e0), percent(winner->error), winner->error > 0 ? e0 / winner->error : INFINITY,
                             100.0 * winner->excess_share, 100.0 * winner->band_share, winner->delta_bic));
+    // what the priors say (a tie the data alone cannot break)
+    if (out.baseline.priors_contradicted > 0) {
+      std::vector<std::string> pulls;
+      for (const ParameterEstimate& b : out.baseline.parameters)
+        if (b.prior_sigma > 0 && std::abs(b.estimate - b.prior_mean) > kPriorPullFlag * b.prior_sigma)
+          for (const ParameterEstimate& w : winner->fit.parameters)
+            if (w.name == b.name)
+              pulls.push_back(fmt::format("{} {:.4g} -> {:.4g} ({:+.1f} -> {:+.1f} sigma)", b.name, b.estimate,
+                                          w.estimate, (b.estimate - b.prior_mean) / b.prior_sigma,
+                                          (w.estimate - w.prior_mean) / w.prior_sigma));
+      s.push_back(fmt::format("  with it the estimates return to their priors ({}; the priors' chi-square {:.1f} -> "
+                              "{:.1f}){}",
+                              fmt::join(pulls, ", "), out.baseline.prior_cost, winner->fit.prior_cost,
+                              winner->error > e0 * 0.99 ? ": the data alone fit both equally; the priors decide" : ""));
+    }
     for (const ParameterEstimate& p : winner->effect_parameters)
       s.push_back(fmt::format("  {} = {:.6g} ± {:.2g} {}", p.name, p.estimate, p.std_error, p.unit));
     if (combination)

@@ -1154,6 +1154,7 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   double ssr = 0.0, cost = 0.0;
   for (Index i = 0; i < N; ++i) (i < data_residuals ? ssr : cost) += r[static_cast<std::size_t>(i)] * r[static_cast<std::size_t>(i)];
   result.cost_final = ssr + cost;
+  result.prior_cost = cost;
   result.residual_count = data_residuals;
   for (const auto& d : sets) result.frequencies_used += static_cast<Index>(d.omega.size());
   result.sigma2 = ssr / static_cast<double>(data_residuals - p);
@@ -1212,6 +1213,7 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
       e.prior_sigma = par.prior_sigma;
       const double pull = (e.estimate - par.prior_mean) / par.prior_sigma;
       if (std::abs(pull) > kPriorPullFlag) {
+        ++result.priors_contradicted;
         e.flags.push_back(fmt::format("{:+.1f} sigma from its prior {:g} ± {:g}", pull, par.prior_mean, par.prior_sigma));
         result.report.warnings.push_back(
             fmt::format("the data pull {} to {:.4g}, {:.1f} standard deviations from its prior {:g} ± {:g}: the design "

@@ -183,7 +183,13 @@ struct FitResult {
   double cost_start = 0.0, cost_global = 0.0, cost_final = 0.0;  // Σ r²
   Index residual_count = 0;                   // N (real residuals)
   Index frequencies_used = 0;                 // over all data sets
-  double sigma2 = 0.0, aic = 0.0, bic = 0.0;
+  double sigma2 = 0.0, aic = 0.0, bic = 0.0;  // the data's alone
+  // Σ ((θ − mean) / sigma)² over the free parameters with a prior (0 without): the
+  // priors' part of cost_final, −2 log prior up to a constant.  diagnose compares
+  // models by bic + prior_cost (the posterior's), so that a prior can break a tie.
+  double prior_cost = 0.0;
+  // The free parameters further than kPriorPullFlag prior sigmas from their prior.
+  Index priors_contradicted = 0;
   int iterations = 0;          // Levenberg–Marquardt's, summed over the rounds kept
   int restarts = 0;            // rounds after the first that lowered the cost (FitOptions::restarts)
   double cost_first_round = 0.0;  // cost_final of the first round (= cost_final without restarts)

@@ -3,7 +3,7 @@
 // as a new user would on a plant it was not written against.  A test tool, not
 // part of lpvid.
 //
-//   indep_sim --out DIR [--seed N] [--hidden none|mode|delay|coil_lag|com_offset|rod_twist|sensor_resonance[,...]]
+//   indep_sim --out DIR [--seed N] [--hidden none|mode|delay|coil_lag|com_offset|rod_twist|sensor_resonance|gain[,...]]
 //             [--rate-hz 1000] [--duration-s 60] [--noise-scale X] [--no-logs] [--no-analyzer]
 //             [--averages 16] [--no-averages-line] [--integration-s 4] [--points 300] [--f-max-hz 400]
 //             [--ratio-min 0.3] [--ratio-max 3] [--cl-damping-min 0.02] [--noise-min 0.1] [--noise-max 10]
@@ -81,7 +81,8 @@ int main(int argc, char** argv) {
     const std::string name = hidden.substr(at, comma - at);
     bool found = false;
     for (HiddenEffect e : {HiddenEffect::kNone, HiddenEffect::kMode, HiddenEffect::kDelay, HiddenEffect::kCoilLag,
-                           HiddenEffect::kComOffset, HiddenEffect::kRodTwist, HiddenEffect::kSensorResonance})
+                           HiddenEffect::kComOffset, HiddenEffect::kRodTwist, HiddenEffect::kSensorResonance,
+                           HiddenEffect::kGain})
       if (name == indep::hidden_name(e)) effects.push_back(e), found = true;
     if (!found) {
       std::fprintf(stderr, "indep_sim: unknown hidden effect %s\n", name.c_str());

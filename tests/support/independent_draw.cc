@@ -33,6 +33,7 @@ const char* hidden_name(HiddenEffect e) {
     case HiddenEffect::kComOffset: return "com_offset";
     case HiddenEffect::kRodTwist: return "rod_twist";
     case HiddenEffect::kSensorResonance: return "sensor_resonance";
+    case HiddenEffect::kGain: return "gain";
   }
   return "?";
 }
@@ -137,6 +138,14 @@ void add_hidden_effect(Draw& d, HiddenEffect e, std::uint64_t seed, double Ts) {
       d.description += fmt_line("twist_factor_psi", fpsi) + fmt_line("twist_factor_theta", fth) +
                        fmt_line("K_psipsi_clean", K0(0, 0)) + fmt_line("K_psipsi_with_twist", K1(0, 0)) +
                        fmt_line("K_thth_clean", K0(1, 1)) + fmt_line("K_thth_with_twist", K1(1, 1));
+      break;
+    }
+    case HiddenEffect::kGain: {
+      // the amplifiers' or coils' force constant off the datasheet, the same on every
+      // coil (one batch): 0.75-0.88 or 1.14-1.33 x.  On S alone this is exactly a
+      // uniform scaling of M, D and K: only a known mass or force constant separates them.
+      p.input_gain = r.sign() > 0 ? r.uniform(1.14, 1.33) : r.uniform(0.75, 0.88);
+      d.description += fmt_line("input_gain", p.input_gain);
       break;
     }
     case HiddenEffect::kSensorResonance: {

@@ -32,7 +32,7 @@
 
 namespace indep {
 
-enum class HiddenEffect { kNone, kMode, kDelay, kCoilLag, kComOffset, kRodTwist, kSensorResonance };
+enum class HiddenEffect { kNone, kMode, kDelay, kCoilLag, kComOffset, kRodTwist, kSensorResonance, kGain };
 const char* hidden_name(HiddenEffect e);
 
 struct Draw {

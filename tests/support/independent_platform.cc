@@ -223,7 +223,7 @@ Continuous continuous_plant(const Plant& p, double x_b) {
     body.C.col(i) = m.shape;
   }
   Sys chain = channel_filters(p.filters, ChannelFilter::kInput);
-  chain = series(chain, static_gain(T.transpose()));  // wrench command -> coil commands
+  chain = series(chain, static_gain(p.input_gain * T.transpose()));  // wrench command -> coil forces
   if (p.coil_lag_s > 0) {
     Sys lag;
     lag.A = -MatrixXd::Identity(9, 9) / p.coil_lag_s;

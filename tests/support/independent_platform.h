@@ -78,6 +78,7 @@ struct Plant {
   std::vector<Mode> modes;
   double input_delay_s = 0;
   double coil_lag_s = 0;  // 0: none
+  double input_gain = 1;  // every coil's force per command (1: as designed)
   std::vector<ChannelFilter> filters;
 
   // Three rods 120 degrees apart at radius 0.12 m, each along its tangent, with
