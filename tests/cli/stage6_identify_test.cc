@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -229,6 +230,42 @@ TEST(Stage6LoopCli, TheSharedCommandsNameTheHiddenGapDependenceAndTheErrorFallsT
   r = run_lpvid("compare --model " + (d / "rig/truth_model.json") + data);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("no failing band"));
+}
+
+// Issue 25: the stage's noise floor from Welch is driven by its lowest lines
+// (leakage near the closed-loop poles) and hides model errors of a few percent. On
+// the walkthrough's rig (samples/stage6-loop.sh: 60 s, gap hidden) the Local
+// Polynomial Method on the whole record estimates the same plant with a floor 5.8x
+// lower (measured 3.43 % Welch, 0.591 % LPM, both over 3-3142 rad/s), and the stage
+// with its gap dependence, fitted from the simulator's truth, sits within the LPM
+// floor (0.606 %: 1.03x).  Asserted: the LPM floor below 1 % and at least 3x below
+// Welch's (room for the noise draw), the fit within 1.5x the LPM floor (the
+// project's "within the noise").
+TEST(Stage6LoopCli, TheLocalPolynomialMethodGivesAFloorThatHidesNothingAtTheLowestLines) {
+  TempDir d("stage6lpm");
+  auto r = run_lpvid("simulate stage6 --experiment --hover --duration-s 60 --effects gap --inertia-kgm2 "
+                     "0.034,0.025,0.061 --force-constant-scale 1.04 --seed 3 --out " + (d / "rig"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string channels = " --excitation v1,v2,v3,v6,v5,v4 --input u1,u2,u3,u6,u5,u4 "
+                               "--output q1,q2,q3,q4,q5,q6 --quantity P ";
+  r = run_lpvid("frf" + channels + "--segment 2048 --out " + (d / "P.csv") + " " + (d / "rig/exp_stage6.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("frf --method lpm --lpm-stride 8" + channels + "--out " + (d / "P_lpm.csv") + " " +
+                (d / "rig/exp_stage6.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto fit = [&](const std::string& data) {
+    const auto f = run_lpvid("fit --model " + (d / "rig/truth_model.json") + " --data " + (d / data) +
+                             "@0 --rate-hz 1000 --band-min 3 --out " + (d / ("fit_" + data + ".json")) + " --json");
+    EXPECT_EQ(f.exit_code, 0) << f.err;
+    return nlohmann::json::parse(f.out);
+  };
+  const auto welch = fit("P.csv"), lpm = fit("P_lpm.csv");
+  const double fw = welch["noise_floor"].get<double>(), fl = lpm["noise_floor"].get<double>();
+  std::printf("floor: Welch %.3f %%, LPM %.3f %%; fitted error on LPM %.3f %%\n", 100 * fw, 100 * fl,
+              100 * lpm["error"].get<double>());
+  EXPECT_LT(fl, 0.01);
+  EXPECT_LT(3 * fl, fw);
+  EXPECT_LT(lpm["error"].get<double>(), 1.5 * fl) << lpm.dump().substr(0, 2000);
 }
 
 }  // namespace
