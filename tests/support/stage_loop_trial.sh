@@ -57,7 +57,8 @@ for effect in $effects; do
     "$lpvid" model init --base stage6 --out model.json $sets > init.txt 2>&1
     "$lpvid" fit --model model.json --data P.csv@0 --rate-hz 1000 --out fit1.json > fit1.txt 2>&1 || true
     "$lpvid" diagnose --model fit1.json --data P.csv@0 --rate-hz 1000 --json > diagnose.json 2> diagnose.err || true
-    named=$(python3 -c "import json; d = json.load(open('diagnose.json')); print(d['missing'] or '')" 2>/dev/null || true)
+    # a single effect, or a combination's members joined by commas (model add A,B)
+    named=$(python3 -c "import json; d = json.load(open('diagnose.json')); print(','.join(d.get('missing_effects') or ([d['missing']] if d['missing'] else [])))" 2>/dev/null || true)
     refit="-"
     if [ -n "$named" ]; then
       "$lpvid" model add "$named" --model fit1.json --out start2.json > add.txt 2>&1 || true
@@ -89,7 +90,10 @@ except Exception:
     sys.exit(0)
 e0 = d["baseline"]["error"]; f = d["effective_floor"]
 missing = d["missing"]
-after = d["candidates"][0]["error"] if missing else e0
+# the winner: a single candidate or a combination ("A + B"); its members
+members = d.get("missing_effects") or ([missing] if missing else [])
+winner = next((c for c in d["candidates"] + d.get("combinations", []) if c["effect"] == missing), None)
+after = winner["error"] if winner else e0
 falls = missing is not None and (e0 / after >= 10 or after <= 1.5 * f)
 r = float(refit) if refit not in ("-", "") else None
 refit_falls = r is not None and (e0 / r >= 10 or r <= 1.5 * f)
@@ -97,8 +101,9 @@ if effect == "none":
     ok = missing is None
     verdict = "ok (nothing significant)" if ok else f"FALSE ALARM: {missing}"
 else:
-    ok = missing == want and falls
-    verdict = ("ok" if ok else "FAIL") + f" named {missing} ({'first' if missing == want else 'wrong'}), {'falls' if falls else 'does not fall'}"
+    ok = want in members and falls
+    how = "first" if missing == want else ("in a combination" if want in members else "wrong")
+    verdict = ("ok" if ok else "FAIL") + f" named {missing} ({how}), {'falls' if falls else 'does not fall'}"
 rtxt = f", refit {100*r:.3g} %{' (falls)' if refit_falls else ' (does not fall)'}" if r is not None else ""
 print(f"{effect:6s} {seed}: error {100*e0:.3g} % -> {100*after:.3g} % (floor {100*f:.3g} %{rtxt}; {t1-t0:.0f} s)  {verdict}; {s6_text}")
 EOF
