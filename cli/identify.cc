@@ -36,7 +36,10 @@ writes result/closed_loop.json, result/plant.json, result/markov.csv, result/han
 result/hankel_sv.png, result/bode.png and result/report.json (order chosen and why,
 singular values, fit figures).  Open-loop data (the excitation IS the plant's input):
   lpvid identify --open-loop --excitation u --output y --out result robot_arm.csv
-(no closed_loop.json then: the plant is the model of the logs themselves).  With --truth PLANT.json the report and the plot also
+(no closed_loop.json then: the plant is the model of the logs themselves).  Excited through
+the setpoint (e = r - q, one reference per output):
+  lpvid identify --controller C.json --excitation r --excitation-at reference --output q --out result axis.csv
+(the references enter as the plant-input excitation v = C r: closed_loop.json is v -> q).  With --truth PLANT.json the report and the plot also
 compare the identified plant with a known one (weighted matrix error, 1-400 rad/s).
 Nothing is written unless every step succeeds.)";
 
@@ -49,6 +52,8 @@ struct IdentifyCliOptions {
   double band_min = 1.0, band_max = 400.0;
   bool json = false;
   bool open_loop = false;
+  std::string excitation_at = "input";
+  bool band_given = false;  // --band-min or --band-max on the command line
 };
 
 nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
@@ -121,6 +126,22 @@ nlohmann::json simulation_fit_json(const StateSpace& model, const ExperimentSet&
   return std::vector<double>(fit.data(), fit.data() + fit.size());
 }
 
+// The band's relative width above which the plant counts as not pinned down by the data.
+constexpr double kSupportThreshold = 0.1;
+
+std::string support_sentence(const BandSupport& b, double band_min, double band_max, bool open_loop) {
+  const std::string what = fmt::format("the {} band is within +-{:.0f} % of the plant", kBandLevel, 100 * b.threshold);
+  if (b.supported == b.points) return fmt::format("supported: {} over {:.3g}-{:.3g} rad/s", what, band_min, band_max);
+  const std::string why =
+      fmt::format("it widens to +-{:.0f} % at {:.3g} rad/s: there the logs hold too little of the plant{} to pin it down "
+                  "(the model extrapolates); a longer record or more excitation at those frequencies would",
+                  100 * b.worst_relative, b.omega_at_worst_rad_s, open_loop ? "" : " (the loop's gain hides it)");
+  if (b.supported == 0)
+    return fmt::format("NOT supported: nowhere in {:.3g}-{:.3g} rad/s is {}; {}", band_min, band_max, what, why);
+  return fmt::format("partly supported: {} at {} of {} frequencies in {:.3g}-{:.3g} rad/s ({:.3g}-{:.3g} rad/s); {}", what, b.supported,
+                     b.points, band_min, band_max, b.lowest_supported_rad_s, b.highest_supported_rad_s, why);
+}
+
 void run(const IdentifyCliOptions& o) {
   IdentifyOptions options;
   if (o.method == "structured")
@@ -149,6 +170,17 @@ void run(const IdentifyCliOptions& o) {
                                    "logs) or --open-loop (the excitation is the plant's input)");
   const auto excitation = split_names(o.excitation, "--excitation");
   const auto output = split_names(o.output, "--output");
+  const bool at_reference = o.excitation_at == "reference";
+  if (!at_reference && o.excitation_at != "input")
+    throw InputError(fmt::format("--excitation-at {}: use 'input' (default: v is added to the plant's input, u = u_c + "
+                                 "v) or 'reference' (r is the setpoint, e = r - q)",
+                                 o.excitation_at));
+  if (at_reference && o.open_loop)
+    throw InputError("--excitation-at reference needs the loop's controller: give --controller C.json, not --open-loop");
+  if (at_reference && excitation.size() != output.size())
+    throw InputError(fmt::format("--excitation-at reference: {} reference column(s) for {} output(s); give one "
+                                 "reference per --output, in the same order (e = r - q)",
+                                 excitation.size(), output.size()));
   // Every output is checked before anything is read; the directory is created
   // only when the files are published.
   OutputSet outputs;
@@ -174,10 +206,23 @@ void run(const IdentifyCliOptions& o) {
                                    w.size(), output.size()));
     for (std::size_t i = 0; i < w.size(); ++i) weights(static_cast<Index>(i)) = w[i];
   }
-  const ExperimentSet set = read_experiments(o.logs, excitation, output);
+  ExperimentSet set = read_experiments(o.logs, excitation, output);
   if (!o.open_loop)
     check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
-                             static_cast<Index>(excitation.size()), options.sample_period_tolerance);
+                             at_reference ? controller.num_outputs() : static_cast<Index>(excitation.size()),
+                             options.sample_period_tolerance);
+  // The references act as the plant-input excitation v = C r (identify.h): from here on
+  // the logs' excitation is v, and everything downstream (closed loop, simulation fit)
+  // is v -> q.
+  std::vector<std::string> loop_inputs = excitation;
+  if (at_reference) {
+    for (auto& x : set.excitations) x = reference_as_input_excitation(controller, x);
+    loop_inputs.clear();
+    for (Index j = 0; j < controller.num_outputs(); ++j)
+      loop_inputs.push_back(controller.output_names.size() == static_cast<std::size_t>(controller.num_outputs())
+                                ? "C*r->" + controller.output_names[static_cast<std::size_t>(j)]
+                                : fmt::format("v{}", j + 1));
+  }
 
   TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
   options.progress = progress.get();
@@ -185,9 +230,11 @@ void run(const IdentifyCliOptions& o) {
   IdentifyResult r = o.open_loop ? identify_open_loop(set.views(), set.sample_period_s, options)
                                  : identify_closed_loop(set.views(), set.sample_period_s, controller, options);
   progress.finish();
-  r.closed_loop.input_names = excitation;
+  r.closed_loop.input_names = loop_inputs;
   r.closed_loop.output_names = output;
-  r.plant.input_names = controller.output_names.empty() ? excitation : controller.output_names;
+  r.plant.input_names = !controller.output_names.empty() ? controller.output_names
+                        : at_reference                 ? loop_inputs
+                                                       : excitation;
   r.plant.output_names = output;
   if (era) {
     r.era.model.input_names = r.closed_loop.input_names;
@@ -199,8 +246,11 @@ void run(const IdentifyCliOptions& o) {
   nlohmann::json report = {
       {"logs", set.paths},
       {"controller", o.open_loop ? nlohmann::json(nullptr) : nlohmann::json(o.controller)},
-      {"route", o.open_loop ? "open loop: the excitation is the plant's input (C = 0, G = P)"
-                            : "closed loop with the known controller"},
+      {"route", o.open_loop      ? "open loop: the excitation is the plant's input (C = 0, G = P)"
+                : at_reference ? "closed loop with the known controller, excited at the reference (v = C r)"
+                               : "closed loop with the known controller"},
+      {"excitation_at", o.open_loop ? "input" : o.excitation_at},
+      {"loop_inputs", loop_inputs},
       {"sample_period_s", Ts},
       {"excitation", excitation},
       {"output", output},
@@ -267,6 +317,7 @@ void run(const IdentifyCliOptions& o) {
   const Eigen::VectorXd omega =
       log_frequency_grid(std::min({1.0, o.band_min, 1e-3 * nyquist}), 0.999 * nyquist, 400);
   FrequencyResponse plant_frd = frequency_response(r.plant, omega);
+  std::optional<BandSupport> support;
   std::vector<BodeSeries> series;
   series.push_back({"identified plant", plant_frd, BodeSeries::Style::kLine});
   if (!era) {
@@ -286,6 +337,34 @@ void run(const IdentifyCliOptions& o) {
           // Where the band reaches zero its lower edge has no magnitude: a gap, not a plunge.
           lower.response[k](i, j) = a > d ? unit * (a - d) : std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0);
         }
+    }
+    // What the data support: within --band-min..--band-max when given; otherwise over the
+    // plotted grid up to the top of the fitted band (beyond it the logs hold no signal
+    // by construction; the default error band 1-400 rad/s may lie beyond the Nyquist
+    // frequency of a log whose sample time is unknown).
+    const double s_lo = o.band_given ? o.band_min : omega(0);
+    const double s_hi = o.band_given ? o.band_max : std::min(0.999 * nyquist, r.choices.fit_band_max_rad_s);
+    std::vector<Eigen::MatrixXcd> in_band;
+    std::vector<Eigen::MatrixXd> var_in_band;
+    std::vector<double> w_in_band;
+    for (Index k = 0; k < omega.size(); ++k)
+      if (omega(k) >= s_lo && omega(k) <= s_hi) {
+        in_band.push_back(plant_frd.response[static_cast<std::size_t>(k)]);
+        var_in_band.push_back(plant_frd.variance[static_cast<std::size_t>(k)]);
+        w_in_band.push_back(omega(k));
+      }
+    if (!w_in_band.empty()) {
+      support = band_support(in_band, var_in_band,
+                             Eigen::Map<const Eigen::VectorXd>(w_in_band.data(), static_cast<Index>(w_in_band.size())),
+                             kSupportThreshold);
+      report["plant"]["support"] = {{"threshold", support->threshold},
+                                    {"band_rad_s", {s_lo, s_hi}},
+                                    {"points", support->points},
+                                    {"supported", support->supported},
+                                    {"lowest_supported_rad_s", support->lowest_supported_rad_s},
+                                    {"highest_supported_rad_s", support->highest_supported_rad_s},
+                                    {"worst_relative_band", support->worst_relative},
+                                    {"omega_at_worst_rad_s", support->omega_at_worst_rad_s}};
     }
     series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed, false});
     series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed, false});
@@ -355,6 +434,10 @@ void run(const IdentifyCliOptions& o) {
                         r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
   } else {
     const IdentifyChoices& ch = r.choices;
+    if (at_reference)
+      text += fmt::format("  excitation at the reference: v = C (r - mean r), the controller's response to {} from "
+                          "rest, is the plant-input excitation (e = r - q)\n",
+                          fmt::join(excitation, ","));
     text += fmt::format("  excitation: {}\n", ch.excitation_reason);
     text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "
                         "{}\n",
@@ -362,6 +445,10 @@ void run(const IdentifyCliOptions& o) {
                         ch.tail_reason, ch.bands_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)",
                         o.open_loop ? "open loop" : "closed loop stable");
     if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
+    if (support)
+      text += "  " + support_sentence(*support, report["plant"]["support"]["band_rad_s"][0].get<double>(),
+                                      report["plant"]["support"]["band_rad_s"][1].get<double>(), o.open_loop) +
+              "\n";
   }
   {
     const nlohmann::json& sim = report["closed_loop"]["simulation_fit_percent"];
@@ -396,6 +483,9 @@ Command make_identify_command() {
                           "open-loop logs: the excitation is the plant's input (no controller; the plant is fitted "
                           "to the logs directly)");
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
+            app->add_option("--excitation-at", o->excitation_at,
+                            "input (default: v added to the plant's input, u = u_c + v) or reference (the excitation "
+                            "columns are setpoints r, one per output, e = r - q)");
             app->add_option("--output", o->output, "measured output columns q (comma separated)")->required();
             app->add_option("--out", o->out, "output directory")->required();
             app->add_option("--method", o->method,
@@ -421,7 +511,10 @@ Command make_identify_command() {
             app->add_option("--band-max", o->band_max, "upper end of the error band, rad/s")
                 ->check(positive_up_to(kMaxFrequency, "the upper end of the band in rad/s"));
             app->add_flag("--json", o->json, "print the report as JSON");
-            app->callback([o] { run(*o); });
+            app->callback([o, app] {
+              o->band_given = app->count("--band-min") + app->count("--band-max") > 0;
+              run(*o);
+            });
           }};
 }
 

@@ -1,28 +1,37 @@
 // lpvid — Markov parameters of the plant from those of the closed loop and the known
 // controller: P = G (I − C G)⁻¹ (DESIGN.md item 3) applied to the FIR estimate ĝ.
 //
-// In the time domain this is the causal recursion p = g + (g ∗ c) ∗ p (G has no
-// feedthrough, so (g ∗ c)[0] = 0); it is evaluated per frequency on the half-bin-shifted
-// grid z_f = e^{jπ(2f+1)/M}, f = 0..M−1, which never meets a controller pole at z = ±1
-// (an integrator), and transformed back:
+// Evaluated in the time domain as the causal response of the loop to an impulse at
+// the plant's input u (e = −q, u = u_c + v, so v = u − u_c): for each input j,
 //
-//   p̂[k] = (1/M) Σ_f P̂(z_f) z_f^k,   P̂(z_f) = Ĝ(z_f) (I − C(z_f) Ĝ(z_f))⁻¹,
-//   Ĝ(z) = Σ_{k=0}^{L} ĝ[k] z^{−k},
+//   q[k] = Σ_{i=0}^{L} ĝ[i] v[k − i],   v[k] = δ_j[k] − (C_K x_K[k] + D_K e[k]),  e = −q,
+//   x_K[k + 1] = A_K x_K[k] + B_K e[k],
 //
-// exact up to time aliasing p̂[k] − p̂[k + M] + …, negligible when p̂ has decayed within
-// M (M ≥ 4 (L + 1) here, rounded up to a power of two).  Noise in ĝ is amplified by
-// |I + C P| on both sides, i.e. strongly where the loop gain is high (low frequencies):
-// p̂ is meant as a starting point for a realisation, not as a final estimate.
+// and p̂[k](:, j) = q[k].  The lag-0 term ĝ[0] (an estimate, not exactly 0) closes an
+// algebraic loop at each step, solved with (I − D_K ĝ[0]).  This is exact for the FIR
+// model ĝ at every lag, whatever the plant: it has no transform length and so no
+// time aliasing.  (Before issue 24 it was evaluated on the unit circle and transformed
+// back, which is exact only for a plant whose response decays within the transform:
+// for a levitated platform — a free rigid body, the beam's gravity making the tilts
+// unstable — or a positioning axis with an integrator, p̂ was the stable, two-sided
+// sequence with the same spectrum, 60–170 % off the true response at every lag, and
+// no starting model closed the loop.)
+//
+// Cost O(num_lags² p m²) (one (p × m k) · (m k × m) product per lag k): 0.1 s for
+// 4096 lags of a 3 × 3 loop.  Noise in ĝ is amplified by |I + C P| on both sides, i.e.
+// strongly where the loop gain is high (low frequencies), and grows with an unstable
+// plant's modes along the lags: p̂ is meant as a starting point for a realisation, not
+// as a final estimate.
 //
 // | argument / result | shape |
 // |-------------------|-------|
 // | g                 | L + 1 matrices p × m (closed loop v → q) |
 // | controller        | discrete, p inputs (e = −q), m outputs (u_c) |
-// | result            | num_lags + 1 matrices p × m (plant u → q) |
+// | result            | num_lags + 1 matrices p × m (plant u → q); ĝ[i] = 0 for i > L |
 //
 // @throws InputError  g empty or of mixed shapes; controller invalid, continuous or of
-//                     the wrong shape; num_lags < 1.  A frequency where I − C Ĝ is
-//                     singular gives NumericalError.
+//                     the wrong shape; num_lags < 1.  A singular I − D_K ĝ[0] gives
+//                     NumericalError.
 #pragma once
 
 #include "idlib/core/types.h"

@@ -496,6 +496,8 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   for (Index d : {32, 16, 8, 4})
     if (L / d >= 2 * kStartBlocks + 4) start_lags.push_back(L / d);
   if (start_lags.empty()) start_lags.push_back(L);
+  // p̂ is needed only as far as the longest start horizon (its cost grows as its length²).
+  const Index start_lags_max = *std::max_element(start_lags.begin(), start_lags.end());
   struct Realised {
     Index lags = 0;
     std::vector<StateSpace> models;  // [n − 1], order 0 where the Hankel matrix cannot hold n
@@ -593,7 +595,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   };
 
   report_progress(options.progress, {"identify", "starting models", 0, 0, "ERA on the plant's impulse response"});
-  const MarkovSequence phat0 = plant_markov_from_closed_loop(g0, controller, L);
+  const MarkovSequence phat0 = plant_markov_from_closed_loop(g0, controller, start_lags_max);
   const std::vector<Realised> pool0 = realise_all(phat0);
   const bool select_order = options.plant_order == 0;
   PlantFitResult fit;
@@ -774,7 +776,7 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       }
     }
     const MarkovBins small = bins_at(g_final, spectrum, K0);
-    const std::vector<Realised> pool = realise_all(plant_markov_from_closed_loop(g_final, controller, L));
+    const std::vector<Realised> pool = realise_all(plant_markov_from_closed_loop(g_final, controller, start_lags_max));
     PlantFitResult top_small = fit_plant_closed_loop(small, controller, fit.plant, fo);
     const Index top = fit.plant.order();
     std::string tried;
@@ -1011,6 +1013,45 @@ Eigen::MatrixXd markov_fit_percent(const StateSpace& model, const MarkovSequence
     for (Index j = 0; j < m; ++j)
       fit(i, j) = ref(i, j) > 0 ? 100.0 * (1.0 - std::sqrt(err(i, j) / ref(i, j))) : 0.0;
   return fit;
+}
+
+Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
+                                              const Eigen::Ref<const Eigen::MatrixXd>& reference) {
+  controller.validate();
+  if (reference.cols() != controller.num_inputs())
+    throw InputError(fmt::format("reference excitation: {} reference column(s) for a controller with {} input(s) (one "
+                                 "reference per measured output, e = r - q)",
+                                 reference.cols(), controller.num_inputs()));
+  if (!reference.allFinite()) throw InputError("reference excitation: a reference value is not finite");
+  const Eigen::MatrixXd centred = reference.rowwise() - reference.colwise().mean();
+  return simulate_discrete(controller, centred);
+}
+
+BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const std::vector<Eigen::MatrixXd>& variance,
+                         const Eigen::VectorXd& omega_rad_s, double threshold) {
+  const auto F = static_cast<std::size_t>(omega_rad_s.size());
+  if (response.size() != F || variance.size() != F)
+    throw InputError(fmt::format("band support: {} responses and {} variances for {} frequencies", response.size(),
+                                 variance.size(), F));
+  if (!(threshold > 0)) throw InputError(fmt::format("band support: threshold {} must be > 0", threshold));
+  BandSupport b;
+  b.threshold = threshold;
+  b.points = omega_rad_s.size();
+  for (std::size_t k = 0; k < F; ++k) {
+    if (variance[k].rows() != response[k].rows() || variance[k].cols() != response[k].cols())
+      throw InputError("band support: a variance's shape differs from its response's");
+    const double norm = response[k].norm();
+    const double r = norm > 0 ? kBandRadiusPerSigma * std::sqrt(std::max(0.0, variance[k].sum())) / norm
+                              : std::numeric_limits<double>::infinity();
+    const double w = omega_rad_s(static_cast<Index>(k));
+    if (r > b.worst_relative) b.worst_relative = r, b.omega_at_worst_rad_s = w;
+    if (r <= threshold) {
+      if (b.supported == 0) b.lowest_supported_rad_s = w;
+      b.highest_supported_rad_s = w;
+      ++b.supported;
+    }
+  }
+  return b;
 }
 
 }  // namespace lpvid

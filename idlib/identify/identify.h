@@ -153,6 +153,38 @@ inline constexpr double kFeedthroughSigmas = 4.0;
 IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
                                   const IdentifyOptions& options);
 
+// Reference excitation (issue 24: a positioning axis excited through its setpoint).
+// With e = r − q the loop applies u = C(r − q) = C(−q) + C r: the references act as the
+// plant-input excitation v = C r of identify_closed_loop's loop (u = u_c + v), exactly
+// and for any controller.  Returns v = C (r − r̄) from the controller's zero state, r̄ each
+// reference's mean: the experiment is taken as deviations about an operating point at
+// which the loop stood still before the log (a log that starts from rest at r = 0 with
+// a zero-mean excitation is the same case).  A controller state at the first sample
+// that differs from this (a move in progress) leaves its decaying response in the
+// output as an unmodelled disturbance.
+// | controller: p inputs (e) -> m outputs | reference: N x p | result: N x m |
+// @throws InputError  reference's columns differ from the controller's inputs; a
+//                     non-finite reference.
+Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
+                                              const Eigen::Ref<const Eigen::MatrixXd>& reference);
+
+// Where the data pin the plant down (issue 24: "say what the data cannot support"): the
+// relative width of the 95 % band, r(ω) = kBandRadiusPerSigma √(Σ_ij var_ij) / ‖P̂‖_F,
+// against `threshold` at each frequency.  In a closed loop the plant reaches the logs
+// through the sensitivity, so where the loop gain is high (a PID's low frequencies,
+// most of all on a levitated plant) r grows: the plant there is extrapolated by the
+// model, not measured.
+struct BandSupport {
+  double threshold = 0.1;
+  Index points = 0, supported = 0;  // frequencies given; those with r ≤ threshold
+  double lowest_supported_rad_s = 0, highest_supported_rad_s = 0;  // 0 when none
+  double worst_relative = 0, omega_at_worst_rad_s = 0;             // the largest r and where
+};
+// | response, variance: F of p × m | omega: F, rad/s |
+// @throws InputError  counts or shapes that differ; threshold ≤ 0.
+BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const std::vector<Eigen::MatrixXd>& variance,
+                         const Eigen::VectorXd& omega_rad_s, double threshold);
+
 // The number of lags for records of `shortest_record` samples when the horizon is
 // given (num_lags or markov_horizon_s > 0; kEra also with both 0: 2 s).
 Index choose_num_lags(const IdentifyOptions& options, double sample_period_s, Index shortest_record);

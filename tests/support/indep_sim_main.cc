@@ -8,6 +8,8 @@
 //             [--averages 16] [--no-averages-line] [--integration-s 4] [--points 300] [--f-max-hz 400]
 //             [--ratio-min 0.3] [--ratio-max 3] [--cl-damping-min 0.02] [--noise-min 0.1] [--noise-max 10]
 //             [--no-zero-noise]   (the draw's ranges, DrawOptions)
+//             [--levitated]       (no rods: zero spring stiffness, tilts open-loop unstable)
+//             [--bandwidth-scale X] (every drawn closed-loop bandwidth times X)
 //
 // Writes DIR/{left,middle,right}/ (x_b = -0.1, 0, +0.1 m): controller.json,
 // exp_v1.csv exp_v2.csv exp_v3.csv (white noise on one input each), S_v1..3.csv
@@ -30,6 +32,8 @@ int main(int argc, char** argv) {
   std::string out, hidden = "none";
   std::uint64_t seed = 1;
   double rate = 1000, duration = 60, noise_override = -1, integration_s = 4;
+  double bandwidth_scale = 1;  // --bandwidth-scale: every drawn closed-loop bandwidth times this
+  bool levitated = false;  // --levitated: no rods (zero spring stiffness), the beam's gravity left
   unsigned long long noise_seed = 0;  // --noise-seed: another noise (and excitation) realisation of the same plant
   bool logs = true, analyzer = true, averages_line = true;
   int averages = 16, points = 300;
@@ -64,6 +68,8 @@ int main(int argc, char** argv) {
     else if (a == "--noise-min") dopt.min_noise_scale = std::stod(next());
     else if (a == "--noise-max") dopt.max_noise_scale = std::stod(next());
     else if (a == "--no-zero-noise") dopt.allow_zero_noise = false;
+    else if (a == "--levitated") levitated = true;
+    else if (a == "--bandwidth-scale") bandwidth_scale = std::stod(next());
     else {
       std::fprintf(stderr, "indep_sim: unknown option %s\n", a.c_str());
       return 2;
@@ -103,6 +109,23 @@ int main(int argc, char** argv) {
   }
   if (redraws > 0) d.description += "hidden_effect_redraws = " + std::to_string(redraws) + "  # earlier draws destabilised the loop\n";
   if (noise_override >= 0) d.noise_scale = noise_override;
+  if (bandwidth_scale != 1) {
+    for (double& w : d.pid.bandwidth_rad_s) w *= bandwidth_scale;
+    d.description += "bandwidth_scale = " + std::to_string(bandwidth_scale) + "\n";
+    const indep::Discrete Cb = indep::pid_controller(d.plant, d.pid, Ts);
+    for (double x : xb)
+      if (!levitated && indep::closed_loop_spectral_radius(indep::sampled_plant(d.plant, x, Ts), Cb) >= 1) {
+        std::fprintf(stderr, "indep_sim: with --bandwidth-scale %g the loop of seed %llu is unstable; use another\n",
+                     bandwidth_scale, static_cast<unsigned long long>(seed));
+        return 1;
+      }
+  }
+  if (levitated && !indep::levitate(d, Ts, {xb[0], xb[1], xb[2]})) {
+    std::fprintf(stderr, "indep_sim: the levitated loop of seed %llu is unstable; use another seed\n",
+                 static_cast<unsigned long long>(seed));
+    return 1;
+  }
+
   indep::Noise noise;
   noise.sensor_std_m = 0.3e-6 * d.noise_scale;
   std::filesystem::create_directories(out);

@@ -195,4 +195,14 @@ Draw draw_stable(std::uint64_t seed, const std::vector<HiddenEffect>& effects, c
   throw std::runtime_error("indep::draw_stable: the loop is unstable in 20 draws of the hidden effect");
 }
 
+bool levitate(Draw& draw, double Ts, const std::vector<double>& beam_positions_m) {
+  for (Rod& r : draw.plant.rods) r.k_vert_N_per_m = r.k_bend_Nm_per_rad = r.k_twist_Nm_per_rad = 0;
+  draw.plant.extra_k_psi_Nm_per_rad = draw.plant.extra_k_theta_Nm_per_rad = 0;
+  draw.description += "levitated = true  # rods' stiffness and the extra tilt stiffness set to 0\n";
+  const Discrete C = pid_controller(draw.plant, draw.pid, Ts);
+  for (const double x : beam_positions_m)
+    if (closed_loop_spectral_radius(sampled_plant(draw.plant, x, Ts), C) >= 1) return false;
+  return true;
+}
+
 }  // namespace indep

@@ -66,6 +66,14 @@ Draw draw_stable(std::uint64_t seed, HiddenEffect effect, const DrawOptions& opt
 
 // Several hidden effects at once (issue 25's "two effects of similar size"): the
 // k-th effect's draws use seed + 7919·k in place of seed.
+// The prototype seed 000 builds towards (issue 24): magnetically levitated, no spring
+// stiffness (every rod's and the extra tilt stiffness set to 0); the raised beam's
+// gravity makes the tilts open-loop unstable, the heave is a free mass with air
+// damping.  The draw's PID is designed on this plant by pid_controller (it cancels the
+// stiffness it sees, here the negative gravity term).  Returns false when that loop is
+// unstable at one of the beam positions (no experiment exists).
+bool levitate(Draw& draw, double Ts, const std::vector<double>& beam_positions_m);
+
 Draw draw_stable(std::uint64_t seed, const std::vector<HiddenEffect>& effects, const DrawOptions& options, double Ts,
                  const std::vector<double>& beam_positions_m, int* redraws = nullptr);
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <stdexcept>
 #include <vector>
 
 #include "idlib/identify/identify.h"
@@ -36,6 +37,7 @@ struct IndependentCase {
   double duration_s = 60;    // per experiment (3 experiments, one excited input each)
   std::uint64_t realisation = 0;  // 0: indep_sim's noise and excitation; k > 0: another draw of both
   bool identify = true;           // false: only the logs (and truth, controller)
+  bool levitated = false;         // indep::levitate: no spring stiffness (indep_sim --levitated)
 };
 
 struct IndependentOutcome {
@@ -50,8 +52,10 @@ struct IndependentOutcome {
 // The logs reproduce `indep_sim --seed S [--noise-scale X]` (same draw, same noise seeds).
 inline IndependentOutcome run_independent(const IndependentCase& c, const IdentifyOptions& options = {}) {
   const double xb[3] = {-0.1, 0.0, 0.1};
-  const indep::Draw d = indep::draw_stable(c.seed, indep::HiddenEffect::kNone, indep::DrawOptions{}, c.sample_period_s,
-                                           {xb[0], xb[1], xb[2]});
+  indep::Draw d = indep::draw_stable(c.seed, indep::HiddenEffect::kNone, indep::DrawOptions{}, c.sample_period_s,
+                                     {xb[0], xb[1], xb[2]});
+  if (c.levitated && !indep::levitate(d, c.sample_period_s, {xb[0], xb[1], xb[2]}))
+    throw std::runtime_error("the levitated loop of this seed is unstable");
   IndependentOutcome o;
   o.description = d.description;
   o.noise_scale = c.noise_scale < 0 ? d.noise_scale : c.noise_scale;

@@ -1,0 +1,168 @@
+// identify --excitation-at reference (issue 24): a positioning axis — a motor driving a
+// ball screw, force → position with a pure integrator — under a PD-type controller with
+// a filtered derivative, excited through its setpoint r (e = r − q) about an operating
+// point, the experiment a user of such an axis runs.  The truth is the axis written here
+// (exact ZOH sampling of K / (s (τ s + 1)), derived by hand), simulated here by its own
+// recursion with the controller in the loop on the MEASURED position; lpvid sees only the
+// CSV log and the controller file.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include <Eigen/Dense>
+#include <nlohmann/json.hpp>
+
+#include "formats/io/frd_csv.h"
+#include "tests/support/run_lpvid.h"
+
+namespace lpvid {
+namespace {
+
+using ::testing::HasSubstr;
+using lpvid::testing::run_lpvid;
+using lpvid::testing::TempDir;
+
+constexpr double kTs = 1e-3;
+constexpr int kSamples = 30000;  // 30 s at 1 kHz
+// The axis: velocity v' = (K u − v) / τ, position q' = v (mm, V).  ZOH over Ts with
+// a = e^(−Ts/τ):  v+ = a v + K (1 − a) u,  q+ = q + τ (1 − a) v + K (Ts − τ (1 − a)) u.
+constexpr double kGain = 50.0, kTau = 0.02;
+// The controller on e = r − q: u = k_p e + k_d ω_f (e − x_f), x_f+ = a_f x_f + (1 − a_f) e
+// (a derivative filtered at ω_f): crossover near 100 rad/s.
+constexpr double kKp = 3.0, kKd = 0.04, kWf = 1000.0;
+constexpr double kSetpoint = 5.0;       // mm: the operating point before and during the log
+constexpr double kReferenceStd = 1.0;   // mm, white noise low-passed at 300 rad/s
+constexpr double kSensorNoise = 0.002;  // mm, white, on the measured position
+
+struct Axis {
+  Eigen::Matrix2d A;
+  Eigen::Vector2d B;
+  Eigen::RowVector2d C{1.0, 0.0};
+  Axis() {
+    const double a = std::exp(-kTs / kTau);
+    A << 1.0, kTau * (1 - a), 0.0, a;
+    B << kGain * (kTs - kTau * (1 - a)), kGain * (1 - a);
+  }
+  std::complex<double> response(double omega) const {
+    const std::complex<double> z = std::polar(1.0, omega * kTs);
+    const Eigen::Matrix2cd M = z * Eigen::Matrix2cd::Identity() - A.cast<std::complex<double>>();
+    return (C.cast<std::complex<double>>() * M.inverse() * B.cast<std::complex<double>>())(0);
+  }
+};
+
+double filter_pole() { return std::exp(-kWf * kTs); }
+
+void write_files(const std::filesystem::path& dir) {
+  const Axis ax;
+  const double af = filter_pole();
+  const auto json_matrix = [](std::initializer_list<std::initializer_list<double>> rows) {
+    nlohmann::json m = nlohmann::json::array();
+    for (const auto& r : rows) m.push_back(std::vector<double>(r));
+    return m;
+  };
+  std::ofstream(dir / "controller.json")
+      << nlohmann::json{{"type", "state_space"}, {"ts", kTs},
+                        {"A", json_matrix({{af}})}, {"B", json_matrix({{1 - af}})},
+                        {"C", json_matrix({{-kKd * kWf}})}, {"D", json_matrix({{kKp + kKd * kWf}})},
+                        {"inputs", {"e"}}, {"outputs", {"u"}}}
+             .dump();
+  std::ofstream(dir / "truth.json")
+      << nlohmann::json{{"type", "state_space"}, {"ts", kTs},
+                        {"A", json_matrix({{ax.A(0, 0), ax.A(0, 1)}, {ax.A(1, 0), ax.A(1, 1)}})},
+                        {"B", json_matrix({{ax.B(0)}, {ax.B(1)}})}, {"C", json_matrix({{1.0, 0.0}})},
+                        {"D", json_matrix({{0.0}})}, {"inputs", {"u"}}, {"outputs", {"q"}}}
+             .dump();
+  // The closed loop must be stable for the experiment to exist.
+  Eigen::Matrix3d Acl;
+  const double d = kKp + kKd * kWf;
+  Acl.topLeftCorner<2, 2>() = ax.A - d * ax.B * ax.C;
+  Acl.topRightCorner<2, 1>() = -kKd * kWf * ax.B;
+  Acl.bottomLeftCorner<1, 2>() = -(1 - af) * ax.C;
+  Acl(2, 2) = af;
+  ASSERT_LT(Acl.eigenvalues().cwiseAbs().maxCoeff(), 1.0);
+  std::mt19937_64 rng(20261129);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double alp = std::exp(-300.0 * kTs), gain = kReferenceStd * std::sqrt((1 + alp) / (1 - alp));
+  Eigen::Vector2d x(kSetpoint, 0.0);  // at rest at the setpoint: the PD holds it with u = 0
+  double xf = 0.0, lp = 0.0;
+  std::ofstream f(dir / "axis.csv");
+  f << "t,r,u,q\n";
+  f.precision(17);
+  for (int k = 0; k < kSamples; ++k) {
+    lp = alp * lp + (1 - alp) * gain * normal(rng);
+    const double r = kSetpoint + lp;
+    const double q = (ax.C * x)(0) + kSensorNoise * normal(rng);
+    const double e = r - q;
+    const double u = d * e - kKd * kWf * xf;
+    f << k * kTs << ',' << r << ',' << u << ',' << q << '\n';
+    xf = af * xf + (1 - af) * e;
+    x = ax.A * x + ax.B * u;
+  }
+}
+
+TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpointIsRecovered) {
+  TempDir dir("reference_axis");
+  write_files(dir.path());
+  const auto r = run_lpvid("identify --controller " + (dir / "controller.json") +
+                           " --excitation r --excitation-at reference --output q --json --band-min 1 --band-max 1000"
+                           " --truth " + (dir / "truth.json") + " --out " + (dir / "out") + " " + (dir / "axis.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["excitation_at"], "reference");
+  EXPECT_EQ(report["plant"]["order"], 2) << report["fit"]["order_reason"];
+  const double mean = report["truth"]["weighted_error_mean"].get<double>();
+  std::printf("axis: order %d, mean error %.4f %%, max %.4f %% at %.4g rad/s\n", report["plant"]["order"].get<int>(),
+              100 * mean, 100 * report["truth"]["weighted_error_max"].get<double>(),
+              report["truth"]["omega_at_max_rad_s"].get<double>());
+  // Sensor noise 0.2 % of the excursion: measured 0.0166 % mean (max 0.085 % at 1 rad/s, where the
+  // loop gain is highest); the bound is 3x that.
+  EXPECT_LE(mean, 0.0005);
+  // Every frequency of the error band is pinned down by the data (a reference excites
+  // the whole loop; identify.h band_support).
+  EXPECT_EQ(report["plant"]["support"]["supported"], report["plant"]["support"]["points"]);
+  // The integrator is identified as one: a pole at z = 1 within the bands' resolution.
+  const FrequencyResponse frd = read_frd_csv(dir / "out/plant_frd.csv");
+  const Axis ax;
+  int inside = 0, total = 0;
+  for (Index k = 0; k < frd.num_frequencies(); ++k) {
+    const double w = frd.omega_rad_s(k);
+    if (w < 1.0 || w > 1000.0) continue;
+    ++total;
+    inside += std::abs(frd.response[static_cast<std::size_t>(k)](0, 0) - ax.response(w)) <=
+              2.0 * std::sqrt(frd.variance[static_cast<std::size_t>(k)](0, 0));
+  }
+  ASSERT_GT(total, 50);
+  std::printf("bands cover the truth at %d of %d frequencies\n", inside, total);
+  EXPECT_GE(inside, 0.85 * total);
+}
+
+TEST(ReferenceIdentifyUsage, ReferencesThatDoNotFitTheLoopAreRefusedInOneLine) {
+  TempDir dir("reference_usage");
+  write_files(dir.path());
+  const std::string tail = " --out " + (dir / "out") + " " + (dir / "axis.csv");
+  auto r = run_lpvid("identify --controller " + (dir / "controller.json") +
+                     " --excitation r,u --excitation-at reference --output q" + tail);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--excitation-at reference: 2 reference column(s) for 1 output(s); give one reference "
+                               "per --output"));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  r = run_lpvid("identify --controller " + (dir / "controller.json") + " --excitation r --excitation-at setpoint --output q" +
+                tail);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--excitation-at setpoint: use 'input'"));
+  r = run_lpvid("identify --open-loop --excitation r --excitation-at reference --output q" + tail);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--excitation-at reference needs the loop's controller"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+}
+
+}  // namespace
+}  // namespace lpvid
