@@ -23,6 +23,7 @@
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/frequency_error.h"
+#include "idlib/identify/output_error.h"
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {
@@ -54,6 +55,7 @@ struct IdentifyCliOptions {
   bool open_loop = false;
   std::string excitation_at = "input";
   bool band_given = false;  // --band-min or --band-max on the command line
+  bool no_refine = false;
 };
 
 nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
@@ -105,24 +107,12 @@ nlohmann::json structured_report(const IdentifyResult& r) {
           {"noise_scale", r.fit.noise_scale}};
 }
 
-// MATLAB compare's figure on the logs: the model (excitation -> output) simulated from
-// zero state on each log's excitation, means removed from both (as the Markov estimate
-// removes them), 100 (1 - ||y - y^|| / ||y - mean y||) per output over all logs.  Null
-// when the simulation diverges (an unstable model).
-nlohmann::json simulation_fit_json(const StateSpace& model, const ExperimentSet& set) {
-  Index total = 0;
-  for (const auto& e : set.excitations) total += e.rows();
-  Eigen::MatrixXd y(total, model.num_outputs()), yhat(total, model.num_outputs());
-  Index row = 0;
-  for (std::size_t e = 0; e < set.excitations.size(); ++e) {
-    const Eigen::MatrixXd u = set.excitations[e].rowwise() - set.excitations[e].colwise().mean();
-    const Index n = u.rows();
-    y.middleRows(row, n) = set.outputs[e].rowwise() - set.outputs[e].colwise().mean();
-    yhat.middleRows(row, n) = simulate_discrete(model, u);
-    row += n;
-  }
-  if (!yhat.allFinite()) return nullptr;
-  const Eigen::VectorXd fit = nrmse_fit_percent(y, yhat);
+// MATLAB compare's figure on the logs (output_error.h simulation_fit_percent): from zero
+// state (compare's 'z') or with each record's initial state fitted (compare's default
+// 'e').  Null when the simulation diverges (an unstable model).
+nlohmann::json simulation_fit_json(const StateSpace& model, const ExperimentSet& set, bool fit_initial_states) {
+  const Eigen::VectorXd fit = simulation_fit_percent(model, set.views(), fit_initial_states);
+  if (fit.size() == 0) return nullptr;
   return std::vector<double>(fit.data(), fit.data() + fit.size());
 }
 
@@ -156,6 +146,7 @@ void run(const IdentifyCliOptions& o) {
   options.closed_loop_order = o.order;
   options.plant_order = o.plant_order;
   options.fit_band_max_rad_s = o.fit_band_max;
+  options.refine_output_error = !o.no_refine;
   if (!era && o.order > 0)
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
   options.validate();
@@ -268,7 +259,8 @@ void run(const IdentifyCliOptions& o) {
         {"stable", is_stable(r.closed_loop)},
         {"poles", poles_json(r.closed_loop)},
         {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))},
-        {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set)}}},
+        {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set, false)},
+        {"simulation_fit_initial_state_percent", simulation_fit_json(r.closed_loop, set, true)}}},
       {"plant",
        {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
       {"warnings", r.warnings},
@@ -289,7 +281,10 @@ void run(const IdentifyCliOptions& o) {
                             {"termination", r.unloop.report.termination}});
   } else {
     report["fit"] = structured_report(r);
-    if (o.open_loop) report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
+    if (o.open_loop) {
+      report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
+      report["fit"]["refinement_reason"] = r.choices.refinement_reason;
+    }
     report["plant"]["termination"] = r.fit.report.termination;
   }
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
@@ -445,6 +440,7 @@ void run(const IdentifyCliOptions& o) {
                         ch.tail_reason, ch.bands_reason, is_stable(r.plant) ? "stable" : "unstable (as the logs say)",
                         o.open_loop ? "open loop" : "closed loop stable");
     if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
+    if (o.open_loop) text += "  refinement: " + ch.refinement_reason + "\n";
     if (support)
       text += "  " + support_sentence(*support, report["plant"]["support"]["band_rad_s"][0].get<double>(),
                                       report["plant"]["support"]["band_rad_s"][1].get<double>(), o.open_loop) +
@@ -452,12 +448,18 @@ void run(const IdentifyCliOptions& o) {
   }
   {
     const nlohmann::json& sim = report["closed_loop"]["simulation_fit_percent"];
+    const nlohmann::json& sim_e = report["closed_loop"]["simulation_fit_initial_state_percent"];
     std::vector<std::string> figures;
     for (std::size_t i = 0; i < output.size() && !sim.is_null(); ++i)
       figures.push_back(fmt::format("{} {:.1f} %", output[i], sim[i].get<double>()));
+    std::vector<std::string> figures_e;
+    for (std::size_t i = 0; i < output.size() && !sim_e.is_null(); ++i)
+      figures_e.push_back(fmt::format("{} {:.1f} %", output[i], sim_e[i].get<double>()));
     text += sim.is_null() ? std::string("  simulation fit on the logs: the model's response diverges\n")
-                          : fmt::format("  simulation fit on the logs ({}, from zero state): {}\n",
-                                        o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "));
+                          : fmt::format("  simulation fit on the logs ({}, from zero state): {}; with each log's "
+                                        "initial state fitted: {}\n",
+                                        o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "),
+                                        fmt::join(figures_e, ", "));
   }
   if (truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
@@ -511,6 +513,8 @@ Command make_identify_command() {
             app->add_option("--band-max", o->band_max, "upper end of the error band, rad/s")
                 ->check(positive_up_to(kMaxFrequency, "the upper end of the band in rad/s"));
             app->add_flag("--json", o->json, "print the report as JSON");
+            app->add_flag("--no-refine", o->no_refine,
+                          "open loop, structured: keep the structured fit (no output-error refinement on the logs)");
             app->callback([o, app] {
               o->band_given = app->count("--band-min") + app->count("--band-max") > 0;
               run(*o);

@@ -1,4 +1,5 @@
 #include "idlib/identify/identify.h"
+#include "idlib/identify/output_error.h"
 #include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
@@ -985,6 +986,49 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
                  : fmt::format("no feedthrough: the lag-0 Markov parameter is within {:g} standard errors of zero "
                                "(largest {:.3g}), D = 0",
                                kFeedthroughSigmas, largest);
+    if (options.refine_output_error) {
+      report_progress(options.progress, {"identify", "output-error refinement", 0, 0, ""});
+      // From rest (x(0) = 0) first; then with each record's initial state fitted, kept
+      // only when Akaike's criterion says the n E extra values earn their place
+      // (N p ln(V_rest / V_free) > 2 n E): a record that starts from rest is fitted
+      // without them.
+      OutputErrorOptions rest;
+      rest.estimate_initial_states = false;
+      const OutputErrorResult at_rest = refine_output_error(experiments, r.plant, rest);
+      const OutputErrorResult free = refine_output_error(experiments, at_rest.accepted ? at_rest.model : r.plant);
+      const double extra = 2.0 * static_cast<double>(r.plant.order() * static_cast<Index>(experiments.size()));
+      const bool use_free = free.accepted && (!at_rest.accepted || static_cast<double>(free.residuals) *
+                                                                          std::log(at_rest.cost / free.cost) >
+                                                                      extra);
+      OutputErrorResult oe = use_free ? free : at_rest;
+      if (oe.accepted)
+        oe.reason = fmt::format(
+            "output error on the logs (Levenberg-Marquardt, Ceres): the outputs' normalised squared simulation error "
+            "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; stable{}",
+            at_rest.start_cost, at_rest.accepted ? at_rest.cost : at_rest.start_cost,
+            use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
+                                   "factor {:.4g} for {:g} more values)",
+                                   free.cost, at_rest.accepted ? at_rest.cost / free.cost : 0.0, extra / 2)
+                     : fmt::format(" (fitting the initial states too{} does not pay by Akaike's criterion)",
+                                   free.accepted ? fmt::format(" lowers it by a factor {:.4g} only",
+                                                               at_rest.cost / free.cost)
+                                                 : std::string("")),
+            oe.iterations >= 200 ? "; stopped at the iteration limit" : "");
+      r.choices.refinement_reason = oe.reason;
+      if (oe.accepted) {
+        r.plant = oe.model;
+        r.fit.plant = oe.model;
+        r.fit.plant.D.setZero();
+        r.fit.covariance = oe.covariance;
+        r.fit.replicates = oe.replicates;
+        if (!r.plant.D.isZero(0.0)) r.feedthrough_variance = oe.feedthrough_variance;
+        r.choices.bands_reason = fmt::format("covariance of the output-error refinement: a sandwich over {} record "
+                                             "segments",
+                                             oe.replicates);
+      }
+    } else {
+      r.choices.refinement_reason = "not refined (switched off)";
+    }
   }
   r.closed_loop = r.plant;
   return r;

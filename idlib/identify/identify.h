@@ -62,6 +62,9 @@ struct IdentifyOptions {
   double fit_band_max_rad_s = 0.0;
   // kStructured: most tail rounds after the first fit.
   int max_tail_rounds = 6;
+  // identify_open_loop, kStructured: refine the fitted plant by output error on the logs
+  // (output_error.h); the refinement is kept only when stable and better.
+  bool refine_output_error = true;
   // Relative tolerance on |Ts_log - Ts_controller| / Ts_controller.
   double sample_period_tolerance = 1e-6;
   // Reports (idlib/core/progress.h), nullptr: none.  Task "identify", one step per
@@ -107,6 +110,7 @@ struct IdentifyChoices {
   std::string bands_reason;  // where the covariance of the bands comes from
   std::string feedthrough_reason;  // identify_open_loop only: how D was chosen
   std::string excitation_reason;   // white (R₀ at every bin) or coloured (its spectrum per bin), and why
+  std::string refinement_reason;   // identify_open_loop: the output-error refinement, and whether it was kept
 };
 
 struct IdentifyResult {
@@ -147,7 +151,9 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
 // route, defaults, order selection and bands with C = 0, where G(P) = P.  The plant
 // may have a direct feedthrough: structured takes D from the lag-0 Markov parameter
 // where it stands above kFeedthroughSigmas standard errors (the fit itself uses lags
-// 1..L); era keeps ERA's D.  closed_loop is the plant.
+// 1..L); era keeps ERA's D.  Structured then refines the plant by output error on the
+// logs themselves (output_error.h; options.refine_output_error), kept when stable and
+// better, with its own sandwich covariance for the bands.  closed_loop is the plant.
 // @throws as identify_closed_loop.
 inline constexpr double kFeedthroughSigmas = 4.0;
 IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,

@@ -179,12 +179,16 @@ TEST(RealData, F16WingTorsionModeSoftensAndDampsFromLevel1ToLevel7) {
 }
 
 // identify --open-loop on the robot arm with the defaults: a stable plant of order <= 6
-// and MATLAB compare's simulation fit on the record.  Reference: SLICOT n4sid (s = 20,
-// n = 4) reaches 89.3 % on this file (measured with Octave, ../shared/real-data/
-// daisy_robot_arm/README.md); markov + realize reached 79.9 % (order 4, 200 lags).
-// lpvid's structured route: 87.3 % at order 4 (measured; with R_0 weighting, i.e.
-// before the fit weighed bins by the sweep's own spectrum: -91 %).  The bound 85 % is
-// below n4sid's: the goal (>= 90 %) is not met yet.
+// and MATLAB compare's simulation fit on the record, from zero state (compare's 'z') and
+// with the record's initial state fitted (compare's default 'e').  Reference: SLICOT
+// n4sid (s = 20, n = 4) reaches 89.3 % on this file (the figure, Octave; its
+// initial-state convention is not stated); markov + realize reached 79.9 % (order 4, 200
+// lags).  Measured: the structured fit alone (--no-refine) 87.3 % / 89.1 %; with the
+// output-error refinement (default; the record does not start from rest: fitting its
+// initial state lowers the simulation error 7.5x, so Akaike keeps it) 88.9 % / 96.6 %;
+// refined from rest only (x(0) = 0) it is 90.7 % from zero state.  The bounds: the
+// refinement must beat the structured fit in compare's default figure, and stay above
+// n4sid's 89.3 % there (96.6 % measured, 95 % asserted); from zero state above 88 %.
 TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) {
   LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
   TempDir dir("arm_identify");
@@ -194,9 +198,21 @@ TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) 
   EXPECT_EQ(report["plant"]["stable"], true);
   EXPECT_LE(report["plant"]["order"].get<int>(), 6);
   const double fit = report["closed_loop"]["simulation_fit_percent"][0].get<double>();
-  std::printf("robot arm: order %d, simulation fit %.1f %%\n", report["plant"]["order"].get<int>(), fit);
-  EXPECT_GE(fit, 85.0);
+  const double fit_e = report["closed_loop"]["simulation_fit_initial_state_percent"][0].get<double>();
+  const auto s = run_lpvid("identify --open-loop --no-refine --excitation u --output y --json --out " + (dir / "plain") +
+                           " " + log);
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto plain = nlohmann::json::parse(s.out);
+  const double plain_e = plain["closed_loop"]["simulation_fit_initial_state_percent"][0].get<double>();
+  std::printf("robot arm: order %d, simulation fit %.1f %% from zero state, %.1f %% with its initial state (structured "
+              "alone %.1f %%); %s\n",
+              report["plant"]["order"].get<int>(), fit, fit_e, plain_e,
+              report["fit"]["refinement_reason"].get<std::string>().c_str());
+  EXPECT_GE(fit, 88.0);
+  EXPECT_GE(fit_e, 95.0);
+  EXPECT_GT(fit_e, plain_e + 3.0);
   EXPECT_THAT(report["fit"]["excitation_reason"].get<std::string>(), HasSubstr("coloured"));
+  EXPECT_THAT(report["fit"]["bands_reason"].get<std::string>(), HasSubstr("output-error refinement"));
 }
 
 }  // namespace

@@ -1,0 +1,362 @@
+#include "idlib/identify/output_error.h"
+
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "idlib/core/error.h"
+#include "idlib/lti/analysis.h"
+
+namespace lpvid {
+
+void OutputErrorOptions::validate() const {
+  if (max_iterations < 1) throw InputError(fmt::format("output error: max_iterations {} must be >= 1", max_iterations));
+  if (min_segment_samples < 1)
+    throw InputError(fmt::format("output error: min_segment_samples {} must be >= 1", min_segment_samples));
+}
+
+namespace {
+
+using RowJac = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// θ's layout (column-major blocks), in the scaled channels ũ = u / s_u, ỹ = y / s_y.
+struct Layout {
+  Index n = 0, m = 0, p = 0, E = 0;
+  bool free_d = false;
+  Index oA = 0, oB = 0, oC = 0, oD = 0, oX = 0, oO = 0, P = 0;
+  bool free_x0 = true;
+  Layout(Index n_, Index m_, Index p_, Index E_, bool d, bool x0) : n(n_), m(m_), p(p_), E(E_), free_d(d), free_x0(x0) {
+    oB = n * n;
+    oC = oB + n * m;
+    oD = oC + p * n;
+    oX = oD + (free_d ? p * m : 0);
+    oO = oX + (free_x0 ? n * E : 0);
+    P = oO + p * E;  // an output offset per experiment
+  }
+};
+
+struct Data {
+  std::vector<Eigen::MatrixXd> u, y;  // scaled, as logged: N_e × m, N_e × p
+  Index rows = 0;                     // Σ N_e
+};
+
+class OeProblem {
+ public:
+  OeProblem(const Layout& l, const Data& d, const Eigen::MatrixXd& D_fixed) : l_(l), d_(d), D_fixed_(D_fixed) {}
+  Index residuals() const { return d_.rows * l_.p; }
+
+  // residuals (N p) and, when jac != nullptr, the row-major N p × P Jacobian.
+  bool evaluate(const double* theta, double* out, double* jac) const {
+    const Index n = l_.n, m = l_.m, p = l_.p, P = l_.P;
+    const Eigen::Map<const Eigen::MatrixXd> A(theta + l_.oA, n, n), B(theta + l_.oB, n, m), C(theta + l_.oC, p, n);
+    const Eigen::MatrixXd D = l_.free_d ? Eigen::Map<const Eigen::MatrixXd>(theta + l_.oD, p, m).eval() : D_fixed_;
+    Eigen::Map<Eigen::VectorXd> r(out, residuals());
+    std::optional<Eigen::Map<RowJac>> J;
+    if (jac != nullptr) J.emplace(jac, residuals(), P);
+    Eigen::VectorXd x(n), xn(n);
+    Eigen::MatrixXd dX, dXn;
+    Index row = 0;
+    for (Index e = 0; e < l_.E; ++e) {
+      const Eigen::MatrixXd& u = d_.u[static_cast<std::size_t>(e)];
+      const Eigen::MatrixXd& y = d_.y[static_cast<std::size_t>(e)];
+      if (l_.free_x0)
+        x = Eigen::Map<const Eigen::VectorXd>(theta + l_.oX + n * e, n);
+      else
+        x.setZero();
+      if (J) {
+        dX = Eigen::MatrixXd::Zero(n, P);
+        if (l_.free_x0) dX.block(0, l_.oX + n * e, n, n).setIdentity();
+      }
+      for (Index t = 0; t < u.rows(); ++t, row += p) {
+        const Eigen::VectorXd ut = u.row(t).transpose();
+        r.segment(row, p) = C * x + D * ut + Eigen::Map<const Eigen::VectorXd>(theta + l_.oO + p * e, p) -
+                            y.row(t).transpose();
+        if (J) {
+          auto Jt = J->middleRows(row, p);
+          Jt.noalias() = C * dX;
+          for (Index i = 0; i < p; ++i) Jt(i, l_.oO + p * e + i) += 1.0;
+          for (Index j = 0; j < n; ++j)
+            for (Index i = 0; i < p; ++i) Jt(i, l_.oC + i + p * j) += x(j);
+          if (l_.free_d)
+            for (Index j = 0; j < m; ++j)
+              for (Index i = 0; i < p; ++i) Jt(i, l_.oD + i + p * j) += ut(j);
+          dXn.noalias() = A * dX;
+          for (Index j = 0; j < n; ++j)
+            for (Index i = 0; i < n; ++i) dXn(i, l_.oA + i + n * j) += x(j);
+          for (Index j = 0; j < m; ++j)
+            for (Index i = 0; i < n; ++i) dXn(i, l_.oB + i + n * j) += ut(j);
+          dX.swap(dXn);
+        }
+        xn.noalias() = A * x + B * ut;
+        x.swap(xn);
+      }
+      if (!x.allFinite()) return false;  // the model diverged on this record: not a usable point
+    }
+    return r.allFinite();
+  }
+
+ private:
+  const Layout& l_;
+  const Data& d_;
+  const Eigen::MatrixXd& D_fixed_;
+};
+
+class CeresOe final : public ceres::CostFunction {
+ public:
+  explicit CeresOe(const OeProblem& problem, Index parameters) : problem_(problem) {
+    set_num_residuals(static_cast<int>(problem.residuals()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int32_t>(parameters));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    return problem_.evaluate(parameters[0], residuals, jacobians != nullptr ? jacobians[0] : nullptr);
+  }
+
+ private:
+  const OeProblem& problem_;
+};
+
+// Orthonormal basis of the complement of the similarity directions at θ:
+// T ↦ (T A − A T, T B, −C T, 0, T x_e(0)) for the n² elementary T.
+Eigen::MatrixXd gauge_complement(const Layout& l, const Eigen::VectorXd& theta) {
+  const Index n = l.n, m = l.m, p = l.p;
+  const Eigen::Map<const Eigen::MatrixXd> A(theta.data() + l.oA, n, n), B(theta.data() + l.oB, n, m),
+      C(theta.data() + l.oC, p, n);
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(l.P, n * n);
+  for (Index a = 0; a < n; ++a)
+    for (Index b = 0; b < n; ++b) {
+      Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n, n);
+      T(a, b) = 1.0;
+      const Eigen::MatrixXd dA = T * A - A * T, dB = T * B, dC = -C * T;
+      auto g = G.col(a + n * b);
+      g.segment(l.oA, n * n) = Eigen::Map<const Eigen::VectorXd>(dA.data(), n * n);
+      g.segment(l.oB, n * m) = Eigen::Map<const Eigen::VectorXd>(dB.data(), n * m);
+      g.segment(l.oC, p * n) = Eigen::Map<const Eigen::VectorXd>(dC.data(), p * n);
+      if (l.free_x0)
+        for (Index e = 0; e < l.E; ++e) g.segment(l.oX + n * e, n) = T * theta.segment(l.oX + n * e, n);
+    }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(G);
+  const Index rank = qr.rank();
+  const Eigen::MatrixXd Q = qr.householderQ();
+  return Q.rightCols(l.P - rank);
+}
+
+}  // namespace
+
+OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                                      const OutputErrorOptions& options) {
+  options.validate();
+  start.validate();
+  if (!start.is_discrete()) throw InputError("output error: the start model must be discrete");
+  if (experiments.empty()) throw InputError("output error: no experiments");
+  const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
+  const auto E = static_cast<Index>(experiments.size());
+  for (const auto& e : experiments)
+    if (e.excitation.cols() != m || e.output.cols() != p || e.excitation.rows() != e.output.rows())
+      throw InputError(fmt::format("output error: a log is {} x {} / {} x {} but the model is {} -> {}",
+                                   e.excitation.rows(), e.excitation.cols(), e.output.rows(), e.output.cols(), m, p));
+  OutputErrorResult res;
+  res.model = start;
+  const bool free_d = !start.D.isZero(0.0);
+  const Layout l(n, m, p, E, free_d, options.estimate_initial_states);
+  Data d;
+  for (const auto& e : experiments) d.rows += e.excitation.rows();
+  res.parameters = l.P;
+  res.residuals = d.rows * p;
+  if (n == 0) {
+    res.reason = "not refined: the model has no states";
+    return res;
+  }
+  if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
+    res.reason = fmt::format("not refined: the output-error Jacobian would hold {:.3g} entries ({} residuals x {} "
+                             "parameters), above the {:.3g} this refinement allows",
+                             static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
+                             kMaxOutputErrorJacobianEntries);
+    return res;
+  }
+  // Channel scales: the RMS of the centred signals over all experiments.
+  Eigen::VectorXd su = Eigen::VectorXd::Zero(m), sy = Eigen::VectorXd::Zero(p);
+  for (const auto& e : experiments) {
+    su += (e.excitation.rowwise() - e.excitation.colwise().mean()).colwise().squaredNorm().transpose();
+    sy += (e.output.rowwise() - e.output.colwise().mean()).colwise().squaredNorm().transpose();
+  }
+  su = (su / static_cast<double>(d.rows)).cwiseSqrt();
+  sy = (sy / static_cast<double>(d.rows)).cwiseSqrt();
+  for (Index j = 0; j < m; ++j)
+    if (!(su(j) > 0)) su(j) = 1;
+  for (Index i = 0; i < p; ++i)
+    if (!(sy(i) > 0)) sy(i) = 1;
+  // u as logged (zero before the record, as the Markov estimate takes it); the output's
+  // offset is a parameter per experiment (its intercept), started at the mean.
+  for (const auto& e : experiments) {
+    d.u.push_back(e.excitation * su.cwiseInverse().asDiagonal());
+    d.y.push_back(e.output * sy.cwiseInverse().asDiagonal());
+  }
+  const Eigen::MatrixXd Bs = start.B * su.asDiagonal(), Cs = sy.cwiseInverse().asDiagonal() * start.C,
+                        Ds = sy.cwiseInverse().asDiagonal() * start.D * su.asDiagonal();
+  Eigen::VectorXd theta = Eigen::VectorXd::Zero(l.P);
+  theta.segment(l.oA, n * n) = Eigen::Map<const Eigen::VectorXd>(start.A.data(), n * n);
+  theta.segment(l.oB, n * m) = Eigen::Map<const Eigen::VectorXd>(Bs.data(), n * m);
+  theta.segment(l.oC, p * n) = Eigen::Map<const Eigen::VectorXd>(Cs.data(), p * n);
+  if (free_d) theta.segment(l.oD, p * m) = Eigen::Map<const Eigen::VectorXd>(Ds.data(), p * m);
+  for (Index e = 0; e < E; ++e) theta.segment(l.oO + p * e, p) = d.y[static_cast<std::size_t>(e)].colwise().mean().transpose();
+  const OeProblem problem(l, d, Ds);
+  Eigen::VectorXd r(res.residuals);
+  if (!problem.evaluate(theta.data(), r.data(), nullptr)) {
+    res.reason = "not refined: the start model diverges on the logs";
+    return res;
+  }
+  res.start_cost = r.squaredNorm();
+  // Initial states first (linear least squares with the model fixed), so that LM starts
+  // from the model's best transient and not from rest.
+  {
+    RowJac J(res.residuals, l.P);
+    problem.evaluate(theta.data(), r.data(), J.data());
+    const Index first = l.free_x0 ? l.oX : l.oO;
+    const Eigen::MatrixXd Jx = J.rightCols(l.P - first);
+    theta.tail(l.P - first) -= Jx.colPivHouseholderQr().solve(r);
+    problem.evaluate(theta.data(), r.data(), nullptr);
+    res.start_cost = r.squaredNorm();  // the start with its best offsets (and initial states)
+  }
+
+  ceres::Problem::Options po;
+  po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem cp(po);
+  cp.AddResidualBlock(new CeresOe(problem, l.P), nullptr, theta.data());
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = 1e-10;
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &cp, &summary);
+  res.iterations = static_cast<int>(summary.iterations.size());
+  if (!summary.IsSolutionUsable() || !problem.evaluate(theta.data(), r.data(), nullptr)) {
+    res.reason = fmt::format("not refined: the solver found no usable point ({})", summary.message);
+    return res;
+  }
+  res.cost = r.squaredNorm();
+  StateSpace refined = start;
+  refined.A = Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oA, n, n);
+  refined.B = Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oB, n, m) * su.cwiseInverse().asDiagonal();
+  refined.C = sy.asDiagonal() * Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oC, p, n);
+  if (free_d)
+    refined.D = sy.asDiagonal() * Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oD, p, m) * su.cwiseInverse().asDiagonal();
+  const bool converged = summary.termination_type == ceres::CONVERGENCE;
+  if (!is_stable(refined)) {
+    res.reason = fmt::format("not refined: the output-error optimum is unstable (spectral radius {:.6g}) and the "
+                             "logs ran a stable plant; the start is kept",
+                             poles(refined).cwiseAbs().maxCoeff());
+    return res;
+  }
+  if (!(res.cost < res.start_cost)) {
+    res.reason = "not refined: output error did not lower the simulation error";
+    return res;
+  }
+  // Sandwich covariance on the gauge complement, over record segments.
+  RowJac J(res.residuals, l.P);
+  problem.evaluate(theta.data(), r.data(), J.data());
+  const Eigen::MatrixXd Q = gauge_complement(l, theta);
+  const Eigen::MatrixXd JQ = J * Q;
+  const Eigen::MatrixXd H = JQ.transpose() * JQ;
+  const Eigen::MatrixXd Hinv = H.completeOrthogonalDecomposition().pseudoInverse();
+  const Index seg = std::max(options.min_segment_samples, d.rows / 8);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Q.cols(), Q.cols());
+  Index segments = 0;
+  for (Index start_row = 0; start_row < d.rows; start_row += seg) {
+    const Index len = std::min(seg, d.rows - start_row);
+    const Eigen::VectorXd g = JQ.middleRows(start_row * p, len * p).transpose() * r.segment(start_row * p, len * p);
+    S += g * g.transpose();
+    ++segments;
+  }
+  Eigen::MatrixXd cov_z;
+  if (segments >= 2) {
+    cov_z = Hinv * S * Hinv * (static_cast<double>(segments) / static_cast<double>(segments - 1));
+    res.replicates = segments;
+  } else {
+    const double dof = static_cast<double>(std::max<Index>(1, res.residuals - Q.cols()));
+    cov_z = Hinv * (res.cost / dof);
+  }
+  const Eigen::MatrixXd cov_theta = Q * cov_z * Q.transpose();  // scaled coordinates
+  // Unscale: A as is, B(i,j) / s_u(j), C(i,j) s_y(i), D(i,j) s_y(i) / s_u(j).
+  const Index nabc = n * n + n * m + p * n;
+  Eigen::VectorXd t = Eigen::VectorXd::Ones(nabc);
+  for (Index j = 0; j < m; ++j)
+    for (Index i = 0; i < n; ++i) t(l.oB + i + n * j) = 1.0 / su(j);
+  for (Index j = 0; j < n; ++j)
+    for (Index i = 0; i < p; ++i) t(l.oC + i + p * j) = sy(i);
+  res.covariance = t.asDiagonal() * cov_theta.topLeftCorner(nabc, nabc) * t.asDiagonal();
+  res.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
+  if (free_d)
+    for (Index j = 0; j < m; ++j)
+      for (Index i = 0; i < p; ++i)
+        res.feedthrough_variance(i, j) =
+            cov_theta(l.oD + i + p * j, l.oD + i + p * j) * sy(i) * sy(i) / (su(j) * su(j));
+  res.model = refined;
+  res.accepted = true;
+  res.reason = fmt::format("output error (simulation error on the logs, Levenberg-Marquardt, {} iterations{}): the "
+                           "normalised squared error fell from {:.6g} to {:.6g}; stable",
+                           res.iterations, converged ? "" : ", stopped before convergence", res.start_cost, res.cost);
+  return res;
+}
+
+Eigen::VectorXd simulation_fit_percent(const StateSpace& model, const std::vector<ExperimentView>& experiments,
+                                       bool fit_initial_states) {
+  model.validate();
+  const Index n = model.order(), m = model.num_inputs(), p = model.num_outputs();
+  Eigen::VectorXd err = Eigen::VectorXd::Zero(p), spread = Eigen::VectorXd::Zero(p);
+  for (const auto& e : experiments) {
+    if (e.excitation.cols() != m || e.output.cols() != p || e.excitation.rows() != e.output.rows())
+      throw InputError(fmt::format("simulation fit: a log is {} x {} / {} x {} but the model is {} -> {}",
+                                   e.excitation.rows(), e.excitation.cols(), e.output.rows(), e.output.cols(), m, p));
+    const Index N = e.excitation.rows();
+    const Eigen::MatrixXd& y = e.output;
+    Eigen::MatrixXd yhat = simulate_discrete(model, e.excitation);
+    if (!yhat.allFinite()) return {};
+    // The misfit's least-squares correction: a constant per output (the Markov estimate's
+    // intercept) and, when asked, the free response F_t x(0), F_t = C A^t — by the normal
+    // equations of the p + n unknowns, accumulated over time (O(N p n²), no N p × (p + n)
+    // matrix held).
+    const Index k = p + (fit_initial_states ? n : 0);
+    Eigen::MatrixXd OtO = Eigen::MatrixXd::Zero(k, k), row(p, k);
+    Eigen::VectorXd Otr = Eigen::VectorXd::Zero(k);
+    Eigen::MatrixXd F = model.C;  // p × n
+    const Eigen::MatrixXd misfit = y - yhat;
+    row.leftCols(p).setIdentity();
+    for (Index t = 0; t < N; ++t) {
+      if (k > p) {
+        row.rightCols(n) = F;
+        F = F * model.A;
+      }
+      OtO.noalias() += row.transpose() * row;
+      Otr.noalias() += row.transpose() * misfit.row(t).transpose();
+    }
+    if (!OtO.allFinite()) return {};
+    const Eigen::VectorXd c = OtO.completeOrthogonalDecomposition().solve(Otr);
+    F = model.C;
+    for (Index t = 0; t < N; ++t) {
+      Eigen::VectorXd corr = c.head(p);
+      if (k > p) {
+        corr += F * c.tail(n);
+        F = F * model.A;
+      }
+      yhat.row(t) += corr.transpose();
+    }
+    err += (y - yhat).colwise().squaredNorm().transpose();
+    spread += (y.rowwise() - y.colwise().mean()).colwise().squaredNorm().transpose();
+  }
+  Eigen::VectorXd fit(p);
+  for (Index i = 0; i < p; ++i) fit(i) = 100.0 * (1.0 - std::sqrt(err(i) / spread(i)));
+  return fit;
+}
+
+}  // namespace lpvid

@@ -1,0 +1,80 @@
+// lpvid — output-error (simulation-error) refinement of an identified open-loop model
+// (issue 24: "a prediction-error or output-error refinement of the subspace/ERA model on
+// the same data, as ssest/pem refine an n4sid start").
+//
+// The structured fit (plant_fit.h) is maximum likelihood on the L-lag Markov estimate:
+// on a short record the FIR estimate itself is noisy (the DaISy robot arm: 256 lags from
+// 1024 samples), and the model inherits that.  This refinement fits the model's
+// simulated output to the logs directly:
+//
+//   V(θ) = Σ_e Σ_t ‖S_y⁻¹ (y_e(t) − ŷ_e(t; θ))‖²,   x_e(t+1) = A x_e(t) + B u_e(t),
+//   ŷ_e(t) = C x_e(t) + D u_e(t) + c_e,  x_e(0) a parameter per experiment (or 0),
+//
+// u as logged and an output offset c_e per experiment (as the Markov estimate's
+// intercept), S_y the outputs' RMS (each output counts alike, MATLAB compare's
+// normalisation).  θ = [vec A; vec B; vec C; (vec D); x_1(0); ...; c_1; ...], column-major;
+// D is free only when the start has a feedthrough.  Levenberg–Marquardt (Ceres, dense QR) with the exact
+// Jacobian from forward sensitivities (dx(t+1) = A dx(t) + dA x(t) + dB u(t)); the
+// similarity directions stay free (they do not change ŷ; LM's damping holds them).
+//
+// The result is used only when it is stable (the logs of an open-loop experiment
+// ran a stable plant) and lowers V; otherwise the start is kept and `reason` says why.
+// The covariance of [vec A; vec B; vec C] is the sandwich B (Σ_s g_s g_sᵀ) B · S/(S − 1),
+// B = (JᵀJ)⁺, g_s = J_sᵀ r_s over S record segments: the residuals of an output-error
+// model are coloured (no noise model), so σ² (JᵀJ)⁻¹ would claim too little.
+//
+// Cost: O(N (n² P)) per Jacobian, P = n² + n m + p n (+ p m) + n E parameters; the
+// Jacobian is N p × P doubles, so the refinement is skipped (reason says so) above
+// kMaxOutputErrorJacobianEntries.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "idlib/core/types.h"
+#include "idlib/signal/markov.h"
+
+namespace lpvid {
+
+inline constexpr double kMaxOutputErrorJacobianEntries = 2.0e7;  // 160 MB of doubles
+
+struct OutputErrorOptions {
+  int max_iterations = 200;
+  // x_e(0) fitted per experiment (true) or 0 (the record starts from rest).
+  bool estimate_initial_states = true;
+  // Segments for the sandwich covariance: records cut into pieces of at least this
+  // many samples (and at least 8 pieces in all when the records allow).
+  Index min_segment_samples = 64;
+  void validate() const;  // @throws InputError
+};
+
+struct OutputErrorResult {
+  bool accepted = false;  // model is the refinement (else the start)
+  std::string reason;     // one sentence: what was done and why it was (not) used
+  StateSpace model;
+  double start_cost = 0, cost = 0;  // V at the start and at `model`
+  int iterations = 0;
+  Index parameters = 0, residuals = 0;
+  // Sandwich covariance of [vec A; vec B; vec C] of `model` (n² + n m + p n square), and
+  // the p × m variances of D's entries (zero when D is fixed); empty when not accepted.
+  Eigen::MatrixXd covariance;
+  Eigen::MatrixXd feedthrough_variance;
+  Index replicates = 0;
+};
+
+// | experiments: excitation N_e × m (u), output N_e × p (y) | start: discrete, m → p |
+// @throws InputError  shapes that differ; a start that is not discrete.
+OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                                      const OutputErrorOptions& options = {});
+
+// MATLAB compare's simulation fit, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) per output over all
+// experiments, ŷ the model's response to u as logged plus a constant per output and
+// experiment (the Markov estimate's intercept: a sensor offset), simulated from
+// x(0) = 0 (fit_initial_states false: compare's 'z') or from the x_e(0) that fits each
+// record best (true: compare's default 'e'); the constants and x_e(0) by linear least
+// squares.  Empty when the model diverges on the logs.
+// @throws InputError  shapes that differ.
+Eigen::VectorXd simulation_fit_percent(const StateSpace& model, const std::vector<ExperimentView>& experiments,
+                                       bool fit_initial_states);
+
+}  // namespace lpvid
