@@ -276,6 +276,7 @@ void run(const DiagnoseCliOptions& o) {
   const nlohmann::json summary = {
       {"explained", d.explained},
       {"indistinguishable", d.indistinguishable},
+      {"separated_by_priors", d.separated_by_priors},
       {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
       {"missing_effects", d.missing_effects},
       {"noise_floor", number_or_null(d.noise_floor)},

@@ -518,6 +518,13 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
       if (&c == winner || !c.significant) continue;
       const bool same = out.explained ? c.error <= options.explained_ratio * f
                                       : c.delta_bic - winner->delta_bic < options.significance_delta_bic;
+      // The priors separate what the data do not: a candidate that fits within the
+      // noise only by pulling estimates far from their priors (rod_twist against a
+      // gain with the masses weighed: 101 sigma) is not a tie.
+      if (same && c.fit.prior_cost - winner->fit.prior_cost > options.significance_delta_bic) {
+        out.separated_by_priors.push_back(c.effect);
+        continue;
+      }
       if (same) out.indistinguishable.push_back(c.effect);
     }
     report_progress(options.progress, {"diagnose", "where the winner fails", 0, 0, winner->effect, -1.0});
@@ -656,19 +663,35 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
                             100.0 * winner->excess_share, 100.0 * winner->band_share, winner->delta_bic));
     // what the priors say (a tie the data alone cannot break)
     if (out.baseline.priors_contradicted > 0) {
+      // The estimates the base pulled beyond kPriorPullFlag sigmas, and where the
+      // winner leaves them: said as it is, returned or not.
       std::vector<std::string> pulls;
+      Index returned = 0;
       for (const ParameterEstimate& b : out.baseline.parameters)
         if (b.prior_sigma > 0 && std::abs(b.estimate - b.prior_mean) > kPriorPullFlag * b.prior_sigma)
           for (const ParameterEstimate& w : winner->fit.parameters)
-            if (w.name == b.name)
+            if (w.name == b.name) {
+              const double pull = w.prior_sigma > 0 ? (w.estimate - w.prior_mean) / w.prior_sigma : 0.0;
+              if (std::abs(pull) <= kPriorPullFlag) ++returned;
               pulls.push_back(fmt::format("{} {:.4g} -> {:.4g} ({:+.1f} -> {:+.1f} sigma)", b.name, b.estimate,
-                                          w.estimate, (b.estimate - b.prior_mean) / b.prior_sigma,
-                                          (w.estimate - w.prior_mean) / w.prior_sigma));
-      s.push_back(fmt::format("  with it the estimates return to their priors ({}; the priors' chi-square {:.1f} -> "
-                              "{:.1f}){}",
-                              fmt::join(pulls, ", "), out.baseline.prior_cost, winner->fit.prior_cost,
+                                          w.estimate, (b.estimate - b.prior_mean) / b.prior_sigma, pull));
+            }
+      const std::string said =
+          returned == static_cast<Index>(pulls.size())
+              ? std::string("with it the estimates return to their priors")
+              : returned == 0 ? fmt::format("with it the estimates stay beyond {:g} sigma of their priors", kPriorPullFlag)
+                              : fmt::format("with it {} of the {} estimates beyond {:g} sigma return to their priors",
+                                            returned, pulls.size(), kPriorPullFlag);
+      s.push_back(fmt::format("  {} ({}; the priors' chi-square {:.1f} -> {:.1f}){}", said, fmt::join(pulls, ", "),
+                              out.baseline.prior_cost, winner->fit.prior_cost,
                               winner->error > e0 * 0.99 ? ": the data alone fit both equally; the priors decide" : ""));
     }
+    if (!out.separated_by_priors.empty())
+      s.push_back(fmt::format("  {} {} the data as well but not the priors (the priors' chi-square more than {:g} above "
+                              "the winner's): the priors separate {} from {}",
+                              fmt::join(out.separated_by_priors, ", "),
+                              out.separated_by_priors.size() == 1 ? "fits" : "fit", options.significance_delta_bic,
+                              out.separated_by_priors.size() == 1 ? "it" : "them", winner->effect));
     for (const ParameterEstimate& p : winner->effect_parameters)
       s.push_back(fmt::format("  {} = {:.6g} ± {:.2g} {}", p.name, p.estimate, p.std_error, p.unit));
     if (combination)

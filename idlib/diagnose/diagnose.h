@@ -211,6 +211,10 @@ struct Diagnosis {
   // (a 0.5 ms delay and a 0.5 ms lag in an frf estimate whose floor is 1 %);
   // otherwise ones whose ΔBIC is within significance_delta_bic of the winner's.
   std::vector<std::string> indistinguishable;
+  // Candidates that would be indistinguishable on the data alone but whose fit pulls
+  // the estimates further from their priors (prior chi-square higher by more than
+  // significance_delta_bic than the winner's): the priors separate them.
+  std::vector<std::string> separated_by_priors;
   std::string missing;                     // the winner when significant ("A + B" for a combination), else ""
   std::vector<std::string> missing_effects;  // its members ({missing} for one effect)
   // The winning outcome (in ranked or combinations), nullptr when none is significant.
