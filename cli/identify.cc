@@ -284,8 +284,24 @@ void run(const IdentifyCliOptions& o) {
     if (o.open_loop) {
       report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
       report["fit"]["refinement_reason"] = r.choices.refinement_reason;
+      // `fit` above is the structured fit; when the refinement is kept, the plant and
+      // its bands are the refinement's, described here.
+      const IdentifyChoices::Refinement& rf = r.choices.refinement;
+      report["refinement"] =
+          rf.ran ? nlohmann::json{{"kept", rf.kept},
+                                  {"initial_states_fitted", rf.initial_states_fitted},
+                                  {"start_cost", rf.start_cost},
+                                  {"cost", rf.cost},
+                                  {"iterations", rf.iterations},
+                                  {"parameters", rf.parameters},
+                                  {"residuals", rf.residuals},
+                                  {"replicates", rf.replicates},
+                                  {"reason", r.choices.refinement_reason}}
+                 : nlohmann::json(nullptr);
+      report["plant"]["source"] = rf.kept ? "output-error refinement (report.refinement)" : "structured fit (report.fit)";
     }
     report["plant"]["termination"] = r.fit.report.termination;
+    if (!report["plant"].contains("source")) report["plant"]["source"] = "structured fit (report.fit)";
   }
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
   if (truth) {
@@ -373,7 +389,9 @@ void run(const IdentifyCliOptions& o) {
   MarkovFile mf;
   mf.g = r.markov.g;
   mf.sample_period_s = Ts;
-  mf.inputs = excitation;
+  // The Markov parameters are of v -> q: under --excitation-at reference v = C r, so
+  // the inputs are loop_inputs, not the reference columns.
+  mf.inputs = loop_inputs;
   mf.outputs = output;
   mf.noise_std = r.markov.noise_std;
   mf.input_rms = r.markov.excitation_rms;

@@ -448,8 +448,12 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
   const FrequencyResponse& first = series.front().response;
 
   if (!options.title.empty()) {
-    plot::put_text(image, fit_text(options.title, plot::title_text(), image.cols - 2 * kMargin),
-                   {image.cols / 2.0, kMargin + kTitleHeight / 2.0 - 4}, plot::title_text(),
+    // A narrow figure (one panel) gets a smaller title before it is cut short.
+    plot::TextStyle ts = plot::title_text();
+    const int room = image.cols - 2 * kMargin;
+    const int wide = plot::text_size(options.title, ts).width;
+    if (wide > room) ts.scale = std::max(plot::label_text().scale, ts.scale * room / wide);
+    plot::put_text(image, fit_text(options.title, ts, room), {image.cols / 2.0, kMargin + kTitleHeight / 2.0 - 4}, ts,
                    HAlign::kCenter, VAlign::kCenter);
   }
 

@@ -1015,6 +1015,16 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
                                                  : std::string("")),
             oe.iterations >= 200 ? "; stopped at the iteration limit" : "");
       r.choices.refinement_reason = oe.reason;
+      IdentifyChoices::Refinement& rf = r.choices.refinement;
+      rf.ran = true;
+      rf.kept = oe.accepted;
+      rf.initial_states_fitted = use_free;
+      rf.start_cost = at_rest.start_cost;
+      rf.cost = oe.accepted ? oe.cost : at_rest.start_cost;
+      rf.iterations = use_free ? at_rest.iterations + free.iterations : at_rest.iterations;
+      rf.parameters = oe.parameters;
+      rf.residuals = oe.residuals;
+      rf.replicates = oe.accepted ? oe.replicates : 0;
       if (oe.accepted) {
         r.plant = oe.model;
         r.fit.plant = oe.model;

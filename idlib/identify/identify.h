@@ -111,6 +111,17 @@ struct IdentifyChoices {
   std::string feedthrough_reason;  // identify_open_loop only: how D was chosen
   std::string excitation_reason;   // white (R₀ at every bin) or coloured (its spectrum per bin), and why
   std::string refinement_reason;   // identify_open_loop: the output-error refinement, and whether it was kept
+  // identify_open_loop with refine_output_error: the run whose result was kept (or, when
+  // neither was, the run from rest).  `ran` false when it was switched off.  When
+  // `kept`, the plant and the bands are this refinement's, not the structured fit's
+  // (IdentifyResult::fit keeps the structured fit's cost, residuals and parameters).
+  struct Refinement {
+    bool ran = false, kept = false;
+    bool initial_states_fitted = false;
+    double start_cost = 0, cost = 0;  // V at the structured fit and at the result
+    int iterations = 0;
+    Index parameters = 0, residuals = 0, replicates = 0;
+  } refinement;
 };
 
 struct IdentifyResult {

@@ -23,7 +23,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace open_loop_identify_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -142,6 +142,15 @@ TEST_P(OpenLoopIdentify, RecoversTheTruePlantWithItsOrderAndBands) {
   EXPECT_TRUE(report["controller"].is_null());
   EXPECT_EQ(report["plant"]["order"], 5) << report["fit"]["order_reason"];
   EXPECT_EQ(report["plant"]["stable"], true);
+  // `fit` is the structured fit; the written plant is the refinement's when it was kept,
+  // and the report says which (formats.md, identify's report).
+  ASSERT_TRUE(report["refinement"].is_object());
+  EXPECT_EQ(report["plant"]["source"], report["refinement"]["kept"].get<bool>()
+                                           ? "output-error refinement (report.refinement)"
+                                           : "structured fit (report.fit)");
+  if (report["refinement"]["kept"].get<bool>()) {
+    EXPECT_LT(report["refinement"]["cost"].get<double>(), report["refinement"]["start_cost"].get<double>());
+  }
   // 1 % output noise on 20 s.  White input: measured 0.030 % mean (max 0.14 %); the
   // bound 0.1 % is 3x that.  Coloured: the input's spectral density falls by a factor
   // ~280 from DC to Nyquist while the low-frequency modes, excited 8x harder, set the
@@ -197,5 +206,5 @@ TEST(OpenLoopIdentifyUsage, NeitherOrBothOfControllerAndOpenLoopIsRefusedInOneLi
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 
-}  // namespace
+}  // namespace open_loop_identify_test
 }  // namespace lpvid

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 
@@ -24,7 +25,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace reference_identify_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -117,6 +118,14 @@ TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpoin
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto report = nlohmann::json::parse(r.out);
   EXPECT_EQ(report["excitation_at"], "reference");
+  // The Markov parameters are of v = C r -> q: markov.csv names its input so (after
+  // the controller's output u), not after the reference column r.
+  ASSERT_EQ(report["loop_inputs"], nlohmann::json::array({"C*r->u"}));
+  {
+    std::ifstream in(dir / "out/markov.csv");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\n# inputs: C*r->u\n"), std::string::npos) << text.substr(0, 200);
+  }
   EXPECT_EQ(report["plant"]["order"], 2) << report["fit"]["order_reason"];
   const double mean = report["truth"]["weighted_error_mean"].get<double>();
   std::printf("axis: order %d, mean error %.4f %%, max %.4f %% at %.4g rad/s\n", report["plant"]["order"].get<int>(),
@@ -164,5 +173,5 @@ TEST(ReferenceIdentifyUsage, ReferencesThatDoNotFitTheLoopAreRefusedInOneLine) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 
-}  // namespace
+}  // namespace reference_identify_test
 }  // namespace lpvid
