@@ -23,7 +23,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace bad_input_test {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
@@ -456,5 +456,5 @@ TEST_F(BadInput, ByteOrderMarkCrlfAndNoFinalNewline_AreRead) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
 }
 
-}  // namespace
+}  // namespace bad_input_test
 }  // namespace lpvid

@@ -12,7 +12,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace compare_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -131,5 +131,5 @@ TEST_F(CompareCli, BadInputIsOneLineExitCode2AndNoOutput) {
               HasSubstr("is a model; give measured frequency-response data (FRD .csv or .mat) to --data"));
 }
 
-}  // namespace
+}  // namespace compare_test
 }  // namespace lpvid

@@ -15,7 +15,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace diagnose_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -160,5 +160,5 @@ TEST_F(DiagnoseLoop, BadInputsGiveOneLineAndExitTwoAndWriteNothing) {
   EXPECT_FALSE(std::filesystem::exists(out));
 }
 
-}  // namespace
+}  // namespace diagnose_test
 }  // namespace lpvid

@@ -17,7 +17,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace excite_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -290,5 +290,5 @@ TEST(SimulateWithExcitation, RateOrChannelMismatchIsRefusedWithNothingWritten) {
   }
 }
 
-}  // namespace
+}  // namespace excite_test
 }  // namespace lpvid

@@ -19,7 +19,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace fit_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -460,5 +460,5 @@ TEST(FitCli, DatasetManifestGivesTheDataOnceAndItsErrorsArePositioned) {
   EXPECT_THAT(both.err, HasSubstr("not both"));
 }
 
-}  // namespace
+}  // namespace fit_test
 }  // namespace lpvid

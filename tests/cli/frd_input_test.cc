@@ -18,7 +18,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace frd_input_test {
 
 using ::testing::HasSubstr;
 using ::testing::MatchesRegex;
@@ -275,5 +275,5 @@ TEST_F(FrdCli, FrfRejectsNaNNonIncreasingTimeMissingColumnAndMismatchedLogs) {
   EXPECT_EQ(slurp(out / "good.csv"), good);
 }
 
-}  // namespace
+}  // namespace frd_input_test
 }  // namespace lpvid

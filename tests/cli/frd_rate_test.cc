@@ -38,7 +38,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace frd_rate_test {
 
 using ::testing::HasSubstr;
 using ::testing::Not;
@@ -297,5 +297,5 @@ TEST_F(FrdRate, MismatchAndMalformedLinesAreExit2) {
   EXPECT_THAT(bm.err, HasSubstr(fmt::format("'{}': 'sample_rate_hz' must be one number > 0", mat)));
 }
 
-}  // namespace
+}  // namespace frd_rate_test
 }  // namespace lpvid

@@ -19,7 +19,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace frf_method_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -207,5 +207,5 @@ TEST(FrfMethod, PeriodicTakesTheLayoutFromTheLogsDesignLine) {
   EXPECT_EQ(ta, tb);
 }
 
-}  // namespace
+}  // namespace frf_method_test
 }  // namespace lpvid

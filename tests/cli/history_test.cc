@@ -9,7 +9,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace history_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -95,5 +95,5 @@ TEST_F(HistoryCli, ModelWithoutHistoryIsExitCode2) {
   EXPECT_THAT(r.err, HasSubstr("fit a model first"));
 }
 
-}  // namespace
+}  // namespace history_test
 }  // namespace lpvid

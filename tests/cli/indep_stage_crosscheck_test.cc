@@ -30,7 +30,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace indep_stage_crosscheck_test {
 
 using testing::run_lpvid;
 using testing::TempDir;
@@ -138,5 +138,5 @@ INSTANTIATE_TEST_SUITE_P(Effects, IndepStageCrossCheck,
                                            Case{"delay", "--input-delay-ms 0.5"}),
                          [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
 
-}  // namespace
+}  // namespace indep_stage_crosscheck_test
 }  // namespace lpvid

@@ -20,7 +20,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace indep_stage_loop_test {
 
 using testing::run_lpvid;
 using testing::slurp;
@@ -126,5 +126,5 @@ INSTANTIATE_TEST_SUITE_P(Draws, IndepStageLoop, ::testing::ValuesIn(cases()),
                                   std::to_string(i.param.seed);
                          });
 
-}  // namespace
+}  // namespace indep_stage_loop_test
 }  // namespace lpvid

@@ -15,7 +15,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace mat_log_cli_test {
 
 using lpvid::testing::count_files;
 using lpvid::testing::run_lpvid;
@@ -203,5 +203,5 @@ TEST(MatLogDesign, PeriodicFrfFromAMatLogReadsItsDesignVariableAsTheCsvsLine) {
   EXPECT_NE(r.err.find("kind"), std::string::npos) << r.err;
 }
 
-}  // namespace
+}  // namespace mat_log_cli_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace moving_beam_cli_test {
 
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
@@ -153,5 +153,5 @@ TEST(MovingBeamCliInput, UnknownProfileIsRejected) {
   EXPECT_EQ(count_files(dir / "out"), 0);
 }
 
-}  // namespace
+}  // namespace moving_beam_cli_test
 }  // namespace lpvid

@@ -13,7 +13,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid::cli {
-namespace {
+namespace output_set_test {
 
 namespace fs = std::filesystem;
 using lpvid::testing::slurp;
@@ -107,5 +107,5 @@ TEST(OutputSet, StdinForTwoInputs_IsRefused) {
   EXPECT_THAT(error_of(outputs), ::testing::HasSubstr("standard input ('-') is given for two inputs"));
 }
 
-}  // namespace
+}  // namespace output_set_test
 }  // namespace lpvid::cli

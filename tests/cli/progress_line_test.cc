@@ -11,7 +11,7 @@
 #include <vector>
 
 namespace lpvid::cli {
-namespace {
+namespace progress_line_test {
 
 using ::testing::HasSubstr;
 
@@ -153,5 +153,5 @@ TEST(ProgressLine, ElapsedTimeInSecondsMinutesAndHours) {
   EXPECT_EQ(ProgressLine::elapsed_text(3725), "1 h 02 min");
 }
 
-}  // namespace
+}  // namespace progress_line_test
 }  // namespace lpvid::cli

@@ -32,7 +32,7 @@
 extern char** environ;
 
 namespace lpvid {
-namespace {
+namespace progress_tty_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -260,5 +260,5 @@ TEST(ProgressOffATerminal, FitWritesNothingToStderr) {
   EXPECT_THAT(r.out, HasSubstr("fit: "));
 }
 
-}  // namespace
+}  // namespace progress_tty_test
 }  // namespace lpvid

@@ -29,7 +29,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace real_data_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -215,5 +215,5 @@ TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) 
   EXPECT_THAT(report["fit"]["bands_reason"].get<std::string>(), HasSubstr("output-error refinement"));
 }
 
-}  // namespace
+}  // namespace real_data_test
 }  // namespace lpvid

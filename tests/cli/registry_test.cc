@@ -6,7 +6,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid::cli {
-namespace {
+namespace registry_test {
 
 using ::testing::HasSubstr;
 
@@ -48,5 +48,5 @@ TEST(Registry, MissingRequiredOptionIsBadUsage) {
   EXPECT_THAT(r.err, HasSubstr("required"));
 }
 
-}  // namespace
+}  // namespace registry_test
 }  // namespace lpvid::cli

@@ -15,7 +15,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid::cli {
-namespace {
+namespace simulate_stage6_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -124,5 +124,5 @@ TEST(SimulateStage6, NonPositiveBoundaryLayerIsBadInputWithNoOutput) {
   EXPECT_FALSE(fs::exists(dir / "x/stage6_run.csv"));
 }
 
-}  // namespace
+}  // namespace simulate_stage6_test
 }  // namespace lpvid::cli

@@ -5,7 +5,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace simulate_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -49,5 +49,5 @@ TEST(SimulatePlatform, BeamOutsideTheStrokeIsRejected) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
 
-}  // namespace
+}  // namespace simulate_test
 }  // namespace lpvid

@@ -22,7 +22,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace snakemake_workflow_test {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
@@ -215,5 +215,5 @@ TEST_F(SnakemakeWorkflow, TheSlurmProfileSubmitsEachDatasetWithItsResources) {
   expect_png(slurp(dir.path() / "out/plants.png"));
 }
 
-}  // namespace
+}  // namespace snakemake_workflow_test
 }  // namespace lpvid

@@ -13,7 +13,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace stage6_identify_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::run_lpvid;
@@ -193,11 +193,11 @@ TEST(Stage6IdentifyCli, BadInputsGiveOneLineAndExitTwo) {
   EXPECT_THAT(r.err, HasSubstr("unknown stage effect 'warp'"));
 }
 
-}  // namespace
+}  // namespace stage6_identify_test
 }  // namespace lpvid
 
 namespace lpvid {
-namespace {
+namespace stage6_identify_test {
 
 // The stage through the SAME commands as the platform (issue 13): the plant from
 // one closed-loop log by `frf --input`, `model init --base stage6`, `diagnose`
@@ -268,5 +268,5 @@ TEST(Stage6LoopCli, TheLocalPolynomialMethodGivesAFloorThatHidesNothingAtTheLowe
   EXPECT_LT(lpm["error"].get<double>(), 1.5 * fl) << lpm.dump().substr(0, 2000);
 }
 
-}  // namespace
+}  // namespace stage6_identify_test
 }  // namespace lpvid

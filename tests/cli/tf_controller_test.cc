@@ -23,7 +23,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace tf_controller_test {
 
 using lpvid::testing::count_files;
 using lpvid::testing::run_lpvid;
@@ -235,5 +235,5 @@ TEST(TfControllerCli, BadTransferFunction_IsOneLineExit2AndNothingWritten) {
   }
 }
 
-}  // namespace
+}  // namespace tf_controller_test
 }  // namespace lpvid

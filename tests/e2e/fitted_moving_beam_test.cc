@@ -10,7 +10,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace fitted_moving_beam_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::slurp;
@@ -57,5 +57,5 @@ TEST(FittedMovingBeam, TheFittedModelPredictsTheMovingBeamRunAbove95PercentOnThe
     EXPECT_NEAR(j["fit_percent"][ch].get<double>(), j["fit_ceiling_percent"][ch].get<double>(), 1.0) << ch;
 }
 
-}  // namespace
+}  // namespace fitted_moving_beam_test
 }  // namespace lpvid

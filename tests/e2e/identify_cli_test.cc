@@ -13,7 +13,7 @@
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {
-namespace {
+namespace identify_cli_test {
 
 using ::testing::HasSubstr;
 using lpvid::testing::count_files;
@@ -268,5 +268,5 @@ TEST_F(CliBadInput, OutputOverInputIsRefused) {
   EXPECT_EQ(slurp(data("controller.json")), before);
 }
 
-}  // namespace
+}  // namespace identify_cli_test
 }  // namespace lpvid

@@ -12,7 +12,7 @@
 #include <string>
 
 namespace lpvid::fuzz {
-namespace {
+namespace readers_test {
 
 namespace fs = std::filesystem;
 
@@ -59,5 +59,5 @@ TEST(FuzzReaders, EmptyAndBinaryInput_IsAOneLineInputErrorForEveryReader) {
   }
 }
 
-}  // namespace
+}  // namespace readers_test
 }  // namespace lpvid::fuzz

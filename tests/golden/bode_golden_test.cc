@@ -8,7 +8,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace bode_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::slurp;
@@ -71,5 +71,5 @@ TEST(BodeGolden, PixelToleranceStillDetectsAWrongCurve) {
   EXPECT_GT(fraction, 10 * kMaxDifferingPixelFraction);
 }
 
-}  // namespace
+}  // namespace bode_golden_test
 }  // namespace lpvid::golden

@@ -6,7 +6,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace golden_support_test {
 
 // A score is a log10, so a tolerance of one hundredth of a digit absorbs the
 // rounding of the differences 1e-9 and 1e-3 themselves.
@@ -39,5 +39,5 @@ TEST(GoldenScore, FrequencyResponseScoreIgnoresAChangeOfStateBasis) {
   EXPECT_LT(compare_frequency_response(c, a).min_digits, 8.0);
 }
 
-}  // namespace
+}  // namespace golden_support_test
 }  // namespace lpvid::golden

@@ -6,7 +6,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace hankel_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::slurp;
@@ -53,5 +53,5 @@ TEST(HankelGolden, SingularValuesAgreeToEightDigitsAndChosenOrderIsUnchanged) {
   EXPECT_GE(score.min_digits, kSingularValueDigits) << score.where;
 }
 
-}  // namespace
+}  // namespace hankel_golden_test
 }  // namespace lpvid::golden

@@ -8,7 +8,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace identify_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::slurp;
@@ -102,5 +102,5 @@ TEST_F(IdentifyGolden, MarkovParametersEqualTheMarkovSubcommandsGolden) {
   EXPECT_GE(g.min_digits, kMarkovDigits) << g.where;
 }
 
-}  // namespace
+}  // namespace identify_golden_test
 }  // namespace lpvid::golden

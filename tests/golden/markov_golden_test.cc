@@ -5,7 +5,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace markov_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::TempDir;
@@ -55,5 +55,5 @@ TEST(MarkovGolden, MarkovParametersAgreeToTenDigitsOfEachChannelsPeak) {
   EXPECT_GE(stats.min_digits, kStatisticsDigits) << stats.where;
 }
 
-}  // namespace
+}  // namespace markov_golden_test
 }  // namespace lpvid::golden

@@ -4,7 +4,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace realize_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::TempDir;
@@ -33,5 +33,5 @@ TEST(RealizeGolden, ClosedLoopHasTheGoldenOrderAndFrequencyResponseToEightDigits
   EXPECT_GE(s.min_digits, kResponseDigits) << s.where;
 }
 
-}  // namespace
+}  // namespace realize_golden_test
 }  // namespace lpvid::golden

@@ -7,7 +7,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace simulate_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::TempDir;
@@ -77,5 +77,5 @@ TEST_F(SimulateGolden, SameSeedReproducesControllerAndTruthModelsByFrequencyResp
   }
 }
 
-}  // namespace
+}  // namespace simulate_golden_test
 }  // namespace lpvid::golden

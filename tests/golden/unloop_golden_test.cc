@@ -5,7 +5,7 @@
 #include "tests/golden/golden_support.h"
 
 namespace lpvid::golden {
-namespace {
+namespace unloop_golden_test {
 
 using lpvid::testing::run_lpvid;
 using lpvid::testing::TempDir;
@@ -35,5 +35,5 @@ TEST(UnloopGolden, PlantHasTheGoldenOrderAndFrequencyResponseToEightDigits) {
   EXPECT_GE(s.min_digits, kResponseDigits) << s.where;
 }
 
-}  // namespace
+}  // namespace unloop_golden_test
 }  // namespace lpvid::golden

@@ -10,7 +10,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace atomic_file_test {
 
 using test::input_error;
 
@@ -127,11 +127,11 @@ TEST_F(AtomicFile, DirectoryTurnedUpBeforeCommit_RenamesNothing) {
   EXPECT_EQ(entries(), std::vector<std::string>{"b"});
 }
 
-}  // namespace
+}  // namespace atomic_file_test
 }  // namespace lpvid
 
 namespace lpvid {
-namespace {
+namespace atomic_file_test {
 
 class AtomicTargets : public test::TempDirTest {};
 
@@ -196,5 +196,5 @@ TEST_F(AtomicTargets, DirectoryUnderAFile_IsRefused) {
             "output directory");
 }
 
-}  // namespace
+}  // namespace atomic_file_test
 }  // namespace lpvid

@@ -18,7 +18,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid::detail {
-namespace {
+namespace csv_detail_test {
 
 using test::input_error;
 
@@ -198,11 +198,11 @@ TEST_F(CsvDetail, PlainDecimals_GiveTheDoublesOfStrtod) {
   }
 }
 
-}  // namespace
+}  // namespace csv_detail_test
 }  // namespace lpvid::detail
 
 namespace lpvid::detail {
-namespace {
+namespace csv_detail_test {
 
 class CsvLimits : public test::TempDirTest {};
 
@@ -237,5 +237,5 @@ TEST_F(CsvLimits, WideHeader_IsLinearAndBounded) {
             std::string::npos);
 }
 
-}  // namespace
+}  // namespace csv_detail_test
 }  // namespace lpvid::detail

@@ -10,7 +10,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace csv_log_test {
 
 using test::input_error;
 
@@ -232,5 +232,5 @@ TEST_F(CsvLog, WriteRejectsNaNBadNamesAndMissingTime_LeavingNoFile) {
   EXPECT_TRUE(entries().empty());
 }
 
-}  // namespace
+}  // namespace csv_log_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace excitation_design_test {
 
 using ::testing::HasSubstr;
 
@@ -196,5 +196,5 @@ TEST_F(ExcitationDesignTest, ALogThatDoesNotMatchItsDesignIsRefused) {
   }
 }
 
-}  // namespace
+}  // namespace excitation_design_test
 }  // namespace lpvid

@@ -11,7 +11,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace frd_csv_test {
 
 using test::input_error;
 
@@ -507,5 +507,5 @@ TEST_F(FrdCsv, MergeWithinTolerance_TakesTheFirstGrid) {
   EXPECT_EQ(merged.response[0](0, 1), Complex(3, 4));
 }
 
-}  // namespace
+}  // namespace frd_csv_test
 }  // namespace lpvid

@@ -8,7 +8,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace frd_dvar_test {
 
 using ::testing::HasSubstr;
 
@@ -69,5 +69,5 @@ TEST_F(FrdDvar, RefusesDvarWithoutVarAboveVarOrForSomePairsOnly) {
   EXPECT_FALSE(std::filesystem::exists(path("y.csv")));
 }
 
-}  // namespace
+}  // namespace frd_dvar_test
 }  // namespace lpvid

@@ -12,7 +12,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace frd_mat_test {
 
 using test::input_error;
 
@@ -310,5 +310,5 @@ TEST_F(FrdMat, PipeInsteadOfAFile_IsRefused) {
             "first");
 }
 
-}  // namespace
+}  // namespace frd_mat_test
 }  // namespace lpvid

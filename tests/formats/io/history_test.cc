@@ -7,7 +7,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace history_test {
 
 using test::input_error;
 
@@ -109,5 +109,5 @@ TEST(HistoryTimestamp, NowIsIsoUtc) {
   EXPECT_NO_THROW(r.validate()) << r.timestamp;
 }
 
-}  // namespace
+}  // namespace history_test
 }  // namespace lpvid

@@ -8,7 +8,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace json_detail_test {
 
 using test::input_error;
 
@@ -73,5 +73,5 @@ TEST_F(JsonLimitsTest, ModelFile_MoreStatesThanTheLimit_IsRefusedBeforeAllocatin
                 "reduce the model first (e.g. realize --order)");
 }
 
-}  // namespace
+}  // namespace json_detail_test
 }  // namespace lpvid

@@ -7,7 +7,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace markov_csv_test {
 
 using test::input_error;
 
@@ -185,5 +185,5 @@ TEST_F(MarkovCsv, WriteWithWrongShape_FailsAndLeavesNoFile) {
   EXPECT_TRUE(entries().empty());
 }
 
-}  // namespace
+}  // namespace markov_csv_test
 }  // namespace lpvid

@@ -17,7 +17,7 @@
 #include "tests/support/real_data.h"
 
 namespace lpvid {
-namespace {
+namespace mat_log_test {
 
 using test::input_error;
 
@@ -392,5 +392,5 @@ TEST_F(MatLog, BadInput_IsAnInputErrorNamingFileAndVariable) {
             "cannot open '" + path("missing.mat") + "': No such file or directory; check the path");
 }
 
-}  // namespace
+}  // namespace mat_log_test
 }  // namespace lpvid

@@ -8,7 +8,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace model_json_test {
 
 using test::input_error;
 
@@ -215,5 +215,5 @@ TEST_F(ModelJson, MissingFile_SaysCannotOpen) {
             "cannot open '" + path("no.json") + "': No such file or directory; check the path");
 }
 
-}  // namespace
+}  // namespace model_json_test
 }  // namespace lpvid

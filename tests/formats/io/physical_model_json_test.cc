@@ -9,7 +9,7 @@
 #include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
-namespace {
+namespace physical_model_json_test {
 
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
@@ -146,5 +146,5 @@ TEST(PhysicalModelJson, AVersionOneFileIsRefusedWithWhatToDo) {
   EXPECT_THAT(e, HasSubstr("write a new one with 'lpvid model init'"));
 }
 
-}  // namespace
+}  // namespace physical_model_json_test
 }  // namespace lpvid

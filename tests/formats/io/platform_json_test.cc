@@ -6,7 +6,7 @@
 #include "tests/formats/io/test_util.h"
 
 namespace lpvid {
-namespace {
+namespace platform_json_test {
 
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
@@ -64,5 +64,5 @@ TEST_F(PlatformJson, OverridesApplyAndUnknownNamesAreListed) {
               HasSubstr("unknown parameter 'mass'"));
 }
 
-}  // namespace
+}  // namespace platform_json_test
 }  // namespace lpvid

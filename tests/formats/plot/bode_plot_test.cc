@@ -9,7 +9,7 @@
 #include "tests/formats/plot/plot_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace bode_plot_test {
 
 using plot_test::count_color;
 using plot_test::input_error;
@@ -256,5 +256,5 @@ TEST(BodeErrors, MessagesNameTheProblem) {
             "bode plot: panel size 10x260 (+ phase 150) px is too small; each side must be >= 60 px");
 }
 
-}  // namespace
+}  // namespace bode_plot_test
 }  // namespace lpvid

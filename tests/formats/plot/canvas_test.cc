@@ -7,7 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 namespace lpvid::plot {
-namespace {
+namespace canvas_test {
 
 std::vector<double> values(const std::vector<Tick>& ticks) {
   std::vector<double> v;
@@ -126,5 +126,5 @@ TEST(EncodePng, RoundTripsThroughImdecode) {
   EXPECT_EQ(back.at<cv::Vec3b>(5, 7), cv::Vec3b(1, 2, 3));
 }
 
-}  // namespace
+}  // namespace canvas_test
 }  // namespace lpvid::plot

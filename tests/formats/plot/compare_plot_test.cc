@@ -9,7 +9,7 @@
 #include "tests/formats/plot/plot_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace compare_plot_test {
 
 using plot_test::input_error;
 
@@ -92,5 +92,5 @@ TEST(RenderHistory, TheNoiseFloorIsAGreenLineAtItsValue) {
   EXPECT_GT(cv::countNonZero(gray), 50);  // the line and its legend entry
 }
 
-}  // namespace
+}  // namespace compare_plot_test
 }  // namespace lpvid

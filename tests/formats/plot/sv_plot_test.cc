@@ -8,7 +8,7 @@
 #include "tests/formats/plot/plot_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace sv_plot_test {
 
 using plot_test::count_color;
 using plot_test::input_error;
@@ -105,5 +105,5 @@ TEST(SingularValueErrors, MessagesNameTheProblem) {
             "singular value plot: noise_floor -0.001 must be finite and >= 0 (0 = no line)");
 }
 
-}  // namespace
+}  // namespace sv_plot_test
 }  // namespace lpvid

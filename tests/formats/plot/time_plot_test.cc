@@ -9,7 +9,7 @@
 #include "tests/formats/plot/plot_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace time_plot_test {
 
 using plot_test::count_color;
 using plot_test::input_error;
@@ -122,5 +122,5 @@ TEST(TimePlotErrors, MessagesNameTheProblem) {
             "panel_height_px >= 60");
 }
 
-}  // namespace
+}  // namespace time_plot_test
 }  // namespace lpvid

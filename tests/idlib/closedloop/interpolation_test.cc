@@ -11,7 +11,7 @@
 #include "tests/idlib/closedloop/stage_fixture.h"
 
 namespace lpvid {
-namespace {
+namespace interpolation_test {
 
 // Relative perturbation of the closed loop's A - I, B and C: 1e-4 moves G's
 // response by ~3e-4, the size of the error of a good identification.
@@ -112,5 +112,5 @@ TEST(ImposeControllerInterpolation, StaticControllerImposesNothing) {
   EXPECT_NE(c.note.find("no states"), std::string::npos);
 }
 
-}  // namespace
+}  // namespace interpolation_test
 }  // namespace lpvid

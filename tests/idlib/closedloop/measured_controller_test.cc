@@ -12,7 +12,7 @@
 #include "idlib/lti/interconnect.h"
 
 namespace lpvid {
-namespace {
+namespace measured_controller_test {
 
 constexpr double kTs = 1e-3;
 
@@ -79,5 +79,5 @@ TEST(MeasuredController, OtherFrequenciesOrCount_AreAnInputErrorNamingTheLine) {
   EXPECT_THROW(plant_from_closed_loop_frd(g, frequency_response(c, w.head(19))), InputError);
 }
 
-}  // namespace
+}  // namespace measured_controller_test
 }  // namespace lpvid

@@ -13,7 +13,7 @@
 #include "tests/idlib/identify/small_loop.h"
 
 namespace lpvid {
-namespace {
+namespace plant_markov_test {
 
 constexpr double kTs = 1e-3;
 
@@ -108,5 +108,5 @@ TEST(PlantMarkov, ShapesThatDoNotFitAreRefused) {
   EXPECT_THROW(plant_markov_from_closed_loop(g2, controller, 0), InputError);
 }
 
-}  // namespace
+}  // namespace plant_markov_test
 }  // namespace lpvid

@@ -16,7 +16,7 @@
 #include "tests/idlib/closedloop/stage_fixture.h"
 
 namespace lpvid {
-namespace {
+namespace sensitivity_test {
 
 using ::testing::AllOf;
 using ::testing::HasSubstr;
@@ -317,5 +317,5 @@ TEST(PlantFromSensitivity, RejectsBadInputWithMessages) {
               HasSubstr("plant_from_closed_loop_frd: G (v → q) at frequency 0 (10 rad/s) is 3x2, the controller needs 3x3"));
 }
 
-}  // namespace
+}  // namespace sensitivity_test
 }  // namespace lpvid

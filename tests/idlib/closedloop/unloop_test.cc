@@ -11,7 +11,7 @@
 #include "tests/idlib/closedloop/stage_fixture.h"
 
 namespace lpvid {
-namespace {
+namespace unloop_test {
 
 constexpr std::uint32_t kSeedPerturbation = 1;
 // Exact closed loop: cancellation exact up to the Schur/Sylvester rounding
@@ -130,5 +130,5 @@ TEST(UnloopOptions, NegativePlantOrderIsRejected) {
   }
 }
 
-}  // namespace
+}  // namespace unloop_test
 }  // namespace lpvid

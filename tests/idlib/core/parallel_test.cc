@@ -8,7 +8,7 @@
 #include <vector>
 
 namespace lpvid {
-namespace {
+namespace parallel_test {
 
 // Enough tasks that every worker of a many-core machine gets some.
 constexpr Index kTasks = 1000;
@@ -59,5 +59,5 @@ TEST(ParallelFor, UsableAgainAfterAnException) {
 
 TEST(ParallelFor, ThreadsIncludeTheCaller) { EXPECT_GE(parallel_threads(), 1); }
 
-}  // namespace
+}  // namespace parallel_test
 }  // namespace lpvid

@@ -10,7 +10,7 @@
 #include "idlib/core/parallel.h"
 
 namespace lpvid {
-namespace {
+namespace progress_test {
 
 // Keeps copies of every report.
 struct Recorded {
@@ -88,5 +88,5 @@ TEST(ParallelSteps, WithoutAnObserverDoesNothing) {
   steps.finish("a");
 }
 
-}  // namespace
+}  // namespace progress_test
 }  // namespace lpvid

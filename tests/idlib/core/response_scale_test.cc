@@ -9,7 +9,7 @@
 #include "idlib/core/types.h"
 
 namespace lpvid {
-namespace {
+namespace response_scale_test {
 
 using C = std::complex<double>;
 
@@ -50,5 +50,5 @@ TEST(ResponseScale, FloorIsRelativeToTheLargestDiagonalScaleOverTheSet) {
   EXPECT_DOUBLE_EQ(s[0](0, 1), 10.0);
 }
 
-}  // namespace
+}  // namespace response_scale_test
 }  // namespace lpvid

@@ -29,7 +29,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace stage6_diagnose_test {
 
 constexpr double kFallFactor = 10.0;
 constexpr double kWithinFloor = 1.5;
@@ -231,5 +231,5 @@ TEST(Stage6Clean, NothingIsSignificantInAtLeastNineOfTenSeeds) {
   EXPECT_LE(alarms, kAllowed) << why;
 }
 
-}  // namespace
+}  // namespace stage6_diagnose_test
 }  // namespace lpvid

@@ -10,7 +10,7 @@
 #include <vector>
 
 namespace lpvid {
-namespace {
+namespace statistics_subset_test {
 
 TEST(StatisticalSubset, ScaledAllowanceIsBelowTheRunsAndNeverALooserRate) {
   // every full criterion "at most `allowed` of `total`" that can fail, every subset size
@@ -41,5 +41,5 @@ TEST(StatisticalSubsetDeathTest, AnEmptySubsetOrACaseOutsideTheFullSetIsABug) {
   EXPECT_DEATH(testing::statistical_cases<std::uint64_t>(full, {401, 999}), "std::find");
 }
 
-}  // namespace
+}  // namespace statistics_subset_test
 }  // namespace lpvid

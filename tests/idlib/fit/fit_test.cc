@@ -14,7 +14,7 @@
 #include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
-namespace {
+namespace fit_test {
 
 using ::testing::HasSubstr;
 
@@ -470,5 +470,5 @@ TEST(PhysicalFit, WrongDataShapeAndBeamOutsideStrokeAreInputErrors) {
   EXPECT_THROW(fit_physical_model(truth, data, o), InputError);
 }
 
-}  // namespace
+}  // namespace fit_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "idlib/identify/identify.h"
 
 namespace lpvid {
-namespace {
+namespace band_support_test {
 
 TEST(BandSupport, FindsTheFrequenciesWhereTheBandIsNarrowAndTheWorstOne) {
   const Eigen::VectorXd omega = (Eigen::VectorXd(5) << 1, 2, 5, 10, 20).finished();
@@ -45,5 +45,5 @@ TEST(BandSupport, CountsThatDoNotMatchAreRefused) {
   EXPECT_THROW(band_support({}, {}, Eigen::VectorXd(), 0.0), InputError);
 }
 
-}  // namespace
+}  // namespace band_support_test
 }  // namespace lpvid

@@ -17,7 +17,7 @@
 #include "idlib/validate/frequency_error.h"
 
 namespace lpvid {
-namespace {
+namespace frequency_route_test {
 
 constexpr double kSamplePeriod_s = 1e-3;
 constexpr double kBandLo_rad_s = 1.0;
@@ -78,5 +78,5 @@ TEST_P(FrequencyVsTimeDomainRoute, PlantsAgreeWithin2PercentMeanWeightedError) {
 
 INSTANTIATE_TEST_SUITE_P(BeamPositions, FrequencyVsTimeDomainRoute, ::testing::Values(-0.1, 0.0, 0.1));
 
-}  // namespace
+}  // namespace frequency_route_test
 }  // namespace lpvid

@@ -16,7 +16,7 @@
 #include "idlib/validate/frequency_error.h"
 
 namespace lpvid {
-namespace {
+namespace identify_platform_test {
 
 // The accuracy band of the issue: the platform model is valid to ~400 rad/s.
 constexpr double kBandLowRadPerS = 1.0;
@@ -163,5 +163,5 @@ TEST(IdentifyErrors, UnstableRealisationIsAComputationFailure) {
   }
 }
 
-}  // namespace
+}  // namespace identify_platform_test
 }  // namespace lpvid

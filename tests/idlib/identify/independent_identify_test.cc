@@ -15,7 +15,7 @@
 #include "tests/idlib/identify/independent_case.h"
 
 namespace lpvid {
-namespace {
+namespace independent_identify_test {
 
 struct Case {
   std::uint64_t seed;
@@ -54,5 +54,5 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{1, 0, 0.0, 0.005 / 100}, Case{1, 1, 0.0, 0.005 / 100}, Case{1, 2, 0.0, 0.02 / 100},
                       Case{1, 0, 1.0, 0.2 / 100}, Case{1, 1, 1.0, 0.2 / 100}, Case{1, 2, 1.0, 0.2 / 100}));
 
-}  // namespace
+}  // namespace independent_identify_test
 }  // namespace lpvid

@@ -19,7 +19,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace levitated_identify_test {
 
 testing::IndependentOutcome run_levitated(std::uint64_t seed, int position, double noise_scale) {
   testing::IndependentCase c;
@@ -79,5 +79,5 @@ TEST(IndependentLevitated, NoisyLogsGiveBandsThatCoverTheTruth) {
   EXPECT_GE(coverage, 0.85);
 }
 
-}  // namespace
+}  // namespace levitated_identify_test
 }  // namespace lpvid

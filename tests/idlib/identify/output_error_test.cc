@@ -12,7 +12,7 @@
 #include "idlib/lti/analysis.h"
 
 namespace lpvid {
-namespace {
+namespace output_error_test {
 
 constexpr double kTs = 1e-3;
 
@@ -114,5 +114,5 @@ TEST(SimulationFit, IsOneHundredForTheModelThatMadeTheData) {
   EXPECT_EQ(simulation_fit_percent(unstable, {{u, y}}, false).size(), 0);
 }
 
-}  // namespace
+}  // namespace output_error_test
 }  // namespace lpvid

@@ -17,7 +17,7 @@
 #include "tests/idlib/identify/small_loop.h"
 
 namespace lpvid {
-namespace {
+namespace plant_fit_test {
 
 using testing::coupled_plant;
 using testing::kSmallLoopTs_s;
@@ -265,5 +265,5 @@ TEST(PlantFit, RejectsAStartWithFeedthroughAndMismatchedShapes) {
   }
 }
 
-}  // namespace
+}  // namespace plant_fit_test
 }  // namespace lpvid

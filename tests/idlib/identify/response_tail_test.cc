@@ -14,7 +14,7 @@
 #include "tests/idlib/identify/small_loop.h"
 
 namespace lpvid {
-namespace {
+namespace response_tail_test {
 
 using testing::coupled_plant;
 using testing::FirstOrderLoop;
@@ -166,5 +166,5 @@ TEST(RefitResponseBeyond, TakesAWrongModelsTailMostOfTheWayToTheTruth) {
   EXPECT_LE(exact_after, 1e-8 * truth_tail.norm());
 }
 
-}  // namespace
+}  // namespace response_tail_test
 }  // namespace lpvid

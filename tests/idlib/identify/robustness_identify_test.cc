@@ -23,7 +23,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace robustness_identify_test {
 
 constexpr double kNoiseFreeBound = 0.01 / 100;
 constexpr double kNoisyFloorBound = 0.1 / 100;
@@ -117,5 +117,5 @@ TEST(IndependentBands, CoverTheTruthAtTheStatedLevelOverNoiseDraws) {
 // logs each round (refit_response_beyond) they converge in 5 rounds: 0.066 %.
 TEST(IndependentRobustnessRegression, Seed2LeftSlowTail) { check_case({2, 0, -1.0}); }
 
-}  // namespace
+}  // namespace robustness_identify_test
 }  // namespace lpvid

@@ -6,7 +6,7 @@
 #include "tests/idlib/lti/test_systems.h"
 
 namespace lpvid {
-namespace {
+namespace analysis_test {
 using test_systems::random_system;
 
 constexpr std::uint32_t kSeedMarkov = 303;
@@ -61,5 +61,5 @@ TEST(MarkovParameters, ContinuousModelIsRejected) {
   }
 }
 
-}  // namespace
+}  // namespace analysis_test
 }  // namespace lpvid

@@ -8,7 +8,7 @@
 #include "idlib/lti/analysis.h"
 
 namespace lpvid {
-namespace {
+namespace discretize_test {
 
 // The Padé exponential of a nilpotent matrix is exact up to rounding.
 constexpr double kClosedFormAgreement = 1e-14;
@@ -54,5 +54,5 @@ TEST(DiscretizeZoh, DiscreteModelIsRejected) {
   EXPECT_THROW(discretize_zoh(c, -1.0), InputError);
 }
 
-}  // namespace
+}  // namespace discretize_test
 }  // namespace lpvid

@@ -6,7 +6,7 @@
 #include "tests/idlib/lti/test_systems.h"
 
 namespace lpvid {
-namespace {
+namespace frequency_response_test {
 
 using test_systems::direct_response;
 using test_systems::random_system;
@@ -92,5 +92,5 @@ TEST(LogFrequencyGrid, NonPositiveLowerBoundIsRejected) {
   EXPECT_THROW(log_frequency_grid(1.0, 10.0, 0), InputError);
 }
 
-}  // namespace
+}  // namespace frequency_response_test
 }  // namespace lpvid

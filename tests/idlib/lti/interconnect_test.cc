@@ -7,7 +7,7 @@
 #include "tests/idlib/lti/test_systems.h"
 
 namespace lpvid {
-namespace {
+namespace interconnect_test {
 
 using test_systems::random_system;
 
@@ -94,5 +94,5 @@ TEST(Series, MismatchedDimensionsAreRejected) {
   }
 }
 
-}  // namespace
+}  // namespace interconnect_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "tests/idlib/lti/test_systems.h"
 
 namespace lpvid {
-namespace {
+namespace reduce_test {
 
 using test_systems::max_relative_difference;
 using test_systems::random_system;
@@ -186,5 +186,5 @@ TEST(BalancedTruncation, ErrorWithinTwiceTheTailBound) {
   EXPECT_LT(max_relative_difference(evaluate_response(balanced_truncation(s, 10), w), h), 1e-9);
 }
 
-}  // namespace
+}  // namespace reduce_test
 }  // namespace lpvid

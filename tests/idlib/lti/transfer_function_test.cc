@@ -14,7 +14,7 @@
 #include "idlib/lti/frequency_response.h"
 
 namespace lpvid {
-namespace {
+namespace transfer_function_test {
 
 constexpr double kTs = 1e-4;  // 10 kHz, a motion controller's rate
 constexpr double kPi = std::numbers::pi;
@@ -215,5 +215,5 @@ TEST(TransferFunction, BadElements_AreRefusedWithTheRuleAndTheFix) {
   EXPECT_EQ(error_of(zpk, TfVariable::kZ).rfind("2 zeros but 1 poles: the element is improper", 0), 0u);
 }
 
-}  // namespace
+}  // namespace transfer_function_test
 }  // namespace lpvid

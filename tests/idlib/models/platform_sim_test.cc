@@ -17,7 +17,7 @@
 #include "tests/idlib/models/closed_loop_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace platform_sim_test {
 
 constexpr std::uint64_t kSimSeed = 7;
 constexpr std::uint64_t kOtherSeed = 8;
@@ -222,5 +222,5 @@ TEST(SimulateExcitationErrors, ModelsMustBeDiscreteStrictlyProperAndAtTheSameRat
             "closed-loop simulation: the plant has 3 inputs and 2 outputs; it must have 3 and 3");
 }
 
-}  // namespace
+}  // namespace platform_sim_test
 }  // namespace lpvid

@@ -16,7 +16,7 @@
 #include "tests/idlib/models/closed_loop_test_util.h"
 
 namespace lpvid {
-namespace {
+namespace platform_test {
 
 // Entries built from a handful of sums/products of O(1) numbers: a few ulps.
 constexpr double kExactTolerance = 1e-12;
@@ -355,5 +355,5 @@ TEST(PlatformErrors, UndampedPlantHasNoDefaultPiGains) {
             "(stability needs d·(k + kp) > m·ki > 0); give a positive damping or supply your own controller");
 }
 
-}  // namespace
+}  // namespace platform_test
 }  // namespace lpvid

@@ -12,7 +12,7 @@
 #include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
-namespace {
+namespace evaluate_test {
 
 // Responses computed two ways in double precision from the same matrices:
 // round-off only (condition of jωI - A at the lowest frequency is ~1e4).
@@ -267,5 +267,5 @@ TEST(PhysicalEvaluate, BeamOutsideTheStrokeIsInputError) {
   EXPECT_THROW(physical_state_space(lpvid_defaults(), 0.0, -1.0), InputError);
 }
 
-}  // namespace
+}  // namespace evaluate_test
 }  // namespace lpvid

@@ -14,7 +14,7 @@
 #include "tests/support/independent_platform.h"
 
 namespace lpvid {
-namespace {
+namespace independent_plant_test {
 
 // The independent plant is sampled with RK4 propagators (local error (0.05)^5/120
 // per substep, ~1e-8 relative over a sample), lpvid with a Taylor/Padé exponential:
@@ -197,5 +197,5 @@ TEST(IndependentPlant, EachHiddenEffectAgreesWithItsLpvidEffect) {
   }
 }
 
-}  // namespace
+}  // namespace independent_plant_test
 }  // namespace lpvid

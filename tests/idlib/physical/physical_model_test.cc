@@ -7,7 +7,7 @@
 #include "idlib/physical/platform/platform_base.h"
 
 namespace lpvid {
-namespace {
+namespace physical_model_test {
 
 using ::testing::HasSubstr;
 
@@ -192,5 +192,5 @@ TEST(PhysicalModel, PlatformParametersCarryTheGeneralisedStiffnessAndDamping) {
   EXPECT_EQ(D(1, 1), 2.5);
 }
 
-}  // namespace
+}  // namespace physical_model_test
 }  // namespace lpvid

@@ -17,7 +17,7 @@
 #include "idlib/stage6/stage6_sim.h"
 
 namespace lpvid {
-namespace {
+namespace stage6_base_test {
 
 using stage6::Vector6d;
 using stage6::Vector8d;
@@ -272,5 +272,5 @@ TEST(Stage6Base, LibraryHasTheSharedAndTheStageEffects) {
   EXPECT_FALSE(m.parameter("mass_kg").free);  // only H/m and kappa/m are identifiable
 }
 
-}  // namespace
+}  // namespace stage6_base_test
 }  // namespace lpvid

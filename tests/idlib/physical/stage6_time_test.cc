@@ -7,7 +7,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
+namespace stage6_time_test {
 
 using ::testing::HasSubstr;
 
@@ -69,5 +69,5 @@ TEST(Stage6Time, FittedValuesGoToTheFreeParametersOnlyAndStayInTheirBounds) {
   EXPECT_THAT(warnings[0], HasSubstr("com_x_m"));
 }
 
-}  // namespace
+}  // namespace stage6_time_test
 }  // namespace lpvid

@@ -7,7 +7,7 @@
 #include "test_systems.h"
 
 namespace lpvid {
-namespace {
+namespace era_test {
 
 using testing::Mode;
 
@@ -293,5 +293,5 @@ TEST(Era, ErrorMessagesArePinned) {
   EXPECT_NE(msg.find("the excitation may be too weak or the record too short"), std::string::npos) << msg;
 }
 
-}  // namespace
+}  // namespace era_test
 }  // namespace lpvid

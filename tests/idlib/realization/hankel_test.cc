@@ -9,7 +9,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
+namespace hankel_test {
 
 constexpr std::uint64_t kRandomMatrixSeed = 500400;
 // leading_svd promises ~1e-10 relative to s_1; rounding of a 500x400 product is ~1e-14.
@@ -100,5 +100,5 @@ TEST(LeadingSvd, KOutOfRangeIsRejected) {
   }
 }
 
-}  // namespace
+}  // namespace hankel_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "idlib/signal/real_fft.h"
 
 namespace lpvid {
-namespace {
+namespace correlation_test {
 
 using ::testing::HasSubstr;
 
@@ -155,5 +155,5 @@ TEST(CrossCorrelation, RejectsNonFiniteSamplesNamingTheFirst) {
   }
 }
 
-}  // namespace
+}  // namespace correlation_test
 }  // namespace lpvid

@@ -15,7 +15,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
+namespace excitation_test {
 
 using ::testing::HasSubstr;
 
@@ -445,5 +445,5 @@ TEST(Schroeder, PhasesFollowTheFormula) {
   }
 }
 
-}  // namespace
+}  // namespace excitation_test
 }  // namespace lpvid

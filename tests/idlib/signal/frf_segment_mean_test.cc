@@ -19,7 +19,7 @@
 #include "idlib/signal/frf.h"
 
 namespace lpvid {
-namespace {
+namespace frf_segment_mean_test {
 
 constexpr double kTs = 1e-3;
 constexpr Index kRecord = 60000;  // 60 s at 1 kHz, as the stage's logs
@@ -83,5 +83,5 @@ TEST(FrfSegmentMean, LineOneOfAnIntegratorIsFreeOfTheWanderingState) {
   EXPECT_GT(without_sum, 3.0 * with_sum);
 }
 
-}  // namespace
+}  // namespace frf_segment_mean_test
 }  // namespace lpvid

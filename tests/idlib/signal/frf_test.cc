@@ -14,7 +14,7 @@
 #include "tests/idlib/closedloop/stage_fixture.h"
 
 namespace lpvid {
-namespace {
+namespace frf_test {
 
 using ::testing::HasSubstr;
 using Window = FrfOptions::Window;
@@ -331,5 +331,5 @@ TEST(EstimateFrf, RejectsBadOptionsAndData) {
                                                     "segment length needs N >= 256"));
 }
 
-}  // namespace
+}  // namespace frf_test
 }  // namespace lpvid

@@ -21,7 +21,7 @@
 #include "tests/idlib/signal/local_fixtures.h"
 
 namespace lpvid {
-namespace {
+namespace lpm_test {
 
 constexpr double kTs = testing::kResonatorTs;
 using testing::median;
@@ -185,5 +185,5 @@ TEST(Lpm, RefusesARecordShorterThanItsWindow) {
   }
 }
 
-}  // namespace
+}  // namespace lpm_test
 }  // namespace lpvid

@@ -20,7 +20,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace lrm_test {
 
 constexpr double kTs = testing::kResonatorTs;
 using testing::Resonator;
@@ -243,5 +243,5 @@ TEST(Lrm, RefusesARecordShorterThanItsWindowAndBadDegrees) {
   }
 }
 
-}  // namespace
+}  // namespace lrm_test
 }  // namespace lpvid

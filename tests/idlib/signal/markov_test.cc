@@ -11,7 +11,7 @@
 #include <string>
 
 namespace lpvid {
-namespace {
+namespace markov_test {
 
 using ::testing::HasSubstr;
 using Method = MarkovOptions::Method;
@@ -530,5 +530,5 @@ TEST(DefaultMarkovLags, RefusesARecordTooShortSayingWhatWouldDo) {
   EXPECT_EQ(default_markov_lags(100, 128, 2), 16);
 }
 
-}  // namespace
+}  // namespace markov_test
 }  // namespace lpvid

@@ -13,7 +13,7 @@
 #include "idlib/signal/noise_spectrum.h"
 
 namespace lpvid {
-namespace {
+namespace noise_spectrum_test {
 
 constexpr std::uint64_t kSeed = 77;
 constexpr Index kRecord = 1 << 16;  // per experiment
@@ -222,5 +222,5 @@ TEST(MarkovErrorReplicates, RejectsASingularExcitationAndTooManyBins) {
   EXPECT_THROW(markov_error_replicates(d.views(), fir(), Eigen::MatrixXd::Identity(1, 1), 256, 64, 34), InputError);
 }
 
-}  // namespace
+}  // namespace noise_spectrum_test
 }  // namespace lpvid

@@ -22,7 +22,7 @@
 #include "tests/idlib/signal/multisine.h"
 
 namespace lpvid {
-namespace {
+namespace periodic_eiv_test {
 
 constexpr Index kL = 256;      // samples per period
 constexpr Index kP = 6;        // measured periods
@@ -268,5 +268,5 @@ TEST(PeriodicEiv, RefusesAnExcitationThatDoesNotRepeat) {
   EXPECT_GT(r.excitation_periodicity, 100.0);
 }
 
-}  // namespace
+}  // namespace periodic_eiv_test
 }  // namespace lpvid

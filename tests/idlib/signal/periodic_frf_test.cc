@@ -18,7 +18,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid {
-namespace {
+namespace periodic_frf_test {
 
 constexpr double kTs = 1e-3;
 constexpr Index kL = 4096;  // one period: 4.1 s, lines 1.53 rad/s apart
@@ -293,5 +293,5 @@ TEST(PeriodicFrf, RefusesANonPeriodicReferenceAndAShortLog) {
   }
 }
 
-}  // namespace
+}  // namespace periodic_frf_test
 }  // namespace lpvid

@@ -14,7 +14,7 @@
 #include "tests/idlib/closedloop/stage_fixture.h"
 
 namespace lpvid {
-namespace {
+namespace plant_frf_test {
 
 constexpr double kTs = 1e-3;
 constexpr Index kRecord = 1 << 17;  // 131 s per experiment
@@ -131,5 +131,5 @@ TEST(EstimatePlantFrf, NeedsTheOutputsBeforeTheInputs) {
   EXPECT_THROW(estimate_plant_frf({{v, z}}, o), InputError);
 }
 
-}  // namespace
+}  // namespace plant_frf_test
 }  // namespace lpvid

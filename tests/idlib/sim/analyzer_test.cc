@@ -16,7 +16,7 @@
 #include "idlib/validate/frequency_error.h"
 
 namespace lpvid {
-namespace {
+namespace analyzer_test {
 
 using ::testing::HasSubstr;
 
@@ -227,5 +227,5 @@ TEST(Analyzer, PlantErrorScalesWithTheNoiseOnS) {
   EXPECT_NEAR(e1.max / e0.max / scale, 1.0, kScalingTolerance);
 }
 
-}  // namespace
+}  // namespace analyzer_test
 }  // namespace lpvid

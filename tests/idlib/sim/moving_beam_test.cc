@@ -13,7 +13,7 @@
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid {
-namespace {
+namespace moving_beam_test {
 
 using ::testing::HasSubstr;
 
@@ -265,5 +265,5 @@ TEST(MovingBeamPrediction, TwentyPercentMoreInertiaFailsTheWhitenessTest) {
   EXPECT_FALSE(r.whiteness[1].pass);
 }
 
-}  // namespace
+}  // namespace moving_beam_test
 }  // namespace lpvid

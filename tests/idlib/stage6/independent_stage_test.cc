@@ -11,7 +11,7 @@
 #include "tests/support/independent_stage.h"
 
 namespace indep_stage {
-namespace {
+namespace independent_stage_test {
 
 using I8 = Eigen::Matrix<double, 8, 1>;
 
@@ -185,5 +185,5 @@ TEST(IndependentStage, ClosedLoopHovers) {
   EXPECT_NEAR(ez, sig / lam, 1e-3 * std::abs(sig / lam));
 }
 
-}  // namespace
+}  // namespace independent_stage_test
 }  // namespace indep_stage

@@ -7,7 +7,7 @@
 #include "idlib/stage6/stage6_sim.h"
 
 namespace lpvid::stage6 {
-namespace {
+namespace stage6_fit_test {
 
 constexpr std::uint64_t kSeed = 6006;
 
@@ -108,11 +108,11 @@ TEST(Stage6Fit, BadLogsAreInputErrors) {
   EXPECT_THROW(fit_stage(StageParameters{}, u, q, 0.0), InputError);
 }
 
-}  // namespace
+}  // namespace stage6_fit_test
 }  // namespace lpvid::stage6
 
 namespace lpvid::stage6 {
-namespace {
+namespace stage6_fit_test {
 
 // With the default sensor noise of `simulate stage6 --experiment` (1 nm, 10 nm,
 // 0.1 µrad) the second differences carry white-ish noise of variance 6σ²/Ts⁴ in
@@ -154,5 +154,5 @@ TEST(Stage6Fit, WithDefaultSensorNoiseInertiaBiasFollowsTheAttenuationLaw) {
   EXPECT_NEAR(r.force_constant_scale, 0.97, 0.005 * 0.97);
 }
 
-}  // namespace
+}  // namespace stage6_fit_test
 }  // namespace lpvid::stage6

@@ -11,7 +11,7 @@
 #include "tests/support/statistics.h"
 
 namespace lpvid::stage6 {
-namespace {
+namespace stage6_output_error_test {
 
 constexpr std::uint64_t kSeed = 6106;
 constexpr double kTs = 1e-3;
@@ -281,5 +281,5 @@ TEST(Stage6OutputError, HeldParametersGiveTheNoiseAtTheTruthAndMoreAwayFromIt) {
   EXPECT_THROW(stage_output_error_at(truth, run.wrench, run.q_measured, kTs, model, off), InputError);
 }
 
-}  // namespace
+}  // namespace stage6_output_error_test
 }  // namespace lpvid::stage6

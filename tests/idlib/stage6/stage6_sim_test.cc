@@ -8,7 +8,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid::stage6 {
-namespace {
+namespace stage6_sim_test {
 
 // The first time after which every |e_i| stays below its bound (m for x, y, z;
 // rad for the angles); +inf if never.
@@ -202,5 +202,5 @@ TEST(Stage6Options, BadValuesAreInputErrors) {
   EXPECT_THROW(simulate_regulation(truth, {}, qr, qr, smc, sim), InputError);
 }
 
-}  // namespace
+}  // namespace stage6_sim_test
 }  // namespace lpvid::stage6

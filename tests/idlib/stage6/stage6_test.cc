@@ -9,7 +9,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid::stage6 {
-namespace {
+namespace stage6_test {
 
 constexpr std::uint64_t kSeed = 6001;
 
@@ -152,5 +152,5 @@ TEST(Stage6Parameters, InvalidValuesAreInputErrors) {
   EXPECT_THROW(p.validate(), InputError);
 }
 
-}  // namespace
+}  // namespace stage6_test
 }  // namespace lpvid::stage6

@@ -5,7 +5,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
+namespace frequency_error_test {
 
 TEST(WeightedMatrixError, ScaledTruthGivesTheScaleError) {
   Eigen::MatrixXcd P(2, 2);
@@ -51,5 +51,5 @@ TEST(WeightedMatrixError, WrongWeightLengthIsRejected) {
   }
 }
 
-}  // namespace
+}  // namespace frequency_error_test
 }  // namespace lpvid

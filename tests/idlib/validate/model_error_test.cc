@@ -11,7 +11,7 @@
 #include "idlib/models/platform.h"
 
 namespace lpvid {
-namespace {
+namespace model_error_test {
 
 // The measurement the tests fake: an H1 estimate with coherence kCoherence and
 // kAverages averages (the defaults of ModelErrorOptions are not used, so the test
@@ -299,5 +299,5 @@ TEST(ModelError, ANearZeroEntryIsMeasuredAgainstTheChannelScaleAndRankedByItsSha
   EXPECT_EQ(ph[1].where, "a <- B");
 }
 
-}  // namespace
+}  // namespace model_error_test
 }  // namespace lpvid

@@ -9,7 +9,7 @@
 #include "idlib/core/error.h"
 
 namespace lpvid {
-namespace {
+namespace time_fit_test {
 
 using ::testing::HasSubstr;
 
@@ -110,5 +110,5 @@ TEST(TimeFitOptions, RejectsBadValues) {
               ::testing::ThrowsMessage<InputError>(HasSubstr("max_lag + 2")));
 }
 
-}  // namespace
+}  // namespace time_fit_test
 }  // namespace lpvid
