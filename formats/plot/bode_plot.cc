@@ -203,13 +203,6 @@ std::vector<Complex> channel(const FrequencyResponse& r, const std::vector<std::
   return v;
 }
 
-std::string fit_text(const std::string& text, const plot::TextStyle& style, int max_width) {
-  if (plot::text_size(text, style).width <= max_width) return text;
-  std::string t = plot::ascii_text(text);
-  while (!t.empty() && plot::text_size(t + "...", style).width > max_width) t.pop_back();
-  return t + "...";
-}
-
 std::string label_or(const std::vector<std::string>& given, const std::vector<std::string>& names,
                      Index count, Index k, const char* prefix) {
   if (static_cast<Index>(given.size()) == count) return given[static_cast<std::size_t>(k)];
@@ -449,12 +442,7 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
 
   if (!options.title.empty()) {
     // A narrow figure (one panel) gets a smaller title before it is cut short.
-    plot::TextStyle ts = plot::title_text();
-    const int room = image.cols - 2 * kMargin;
-    const int wide = plot::text_size(options.title, ts).width;
-    if (wide > room) ts.scale = std::max(plot::label_text().scale, ts.scale * room / wide);
-    plot::put_text(image, fit_text(options.title, ts, room), {image.cols / 2.0, kMargin + kTitleHeight / 2.0 - 4}, ts,
-                   HAlign::kCenter, VAlign::kCenter);
+    plot::put_title(image, options.title, kMargin, kMargin + kTitleHeight / 2.0 - 4);
   }
 
   std::vector<std::vector<std::size_t>> orders;
@@ -475,7 +463,7 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
       const std::string in = label_or(options.input_labels, first.input_names, m, j, "u");
       const std::string out = label_or(options.output_labels, first.output_names, p, i, "y");
       plot::put_text(image,
-                     fit_text(fmt::format("from {} to {}", in, out), plot::panel_title_text(),
+                     plot::fit_text(fmt::format("from {} to {}", in, out), plot::panel_title_text(),
                               axes.magnitude_px.width),
                      {axes.magnitude_px.x + axes.magnitude_px.width / 2.0,
                       axes.magnitude_px.y - 8.0},

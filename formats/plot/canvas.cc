@@ -605,4 +605,20 @@ std::vector<unsigned char> encode_png(const cv::Mat& image) {
   return bytes;
 }
 
+
+std::string fit_text(const std::string& text, const TextStyle& style, int max_width) {
+  if (text_size(text, style).width <= max_width) return text;
+  std::string t = ascii_text(text);
+  while (!t.empty() && text_size(t + "...", style).width > max_width) t.pop_back();
+  return t + "...";
+}
+
+void put_title(cv::Mat& image, const std::string& title, int margin, double y) {
+  TextStyle ts = title_text();
+  const int room = image.cols - 2 * margin;
+  const int wide = text_size(title, ts).width;
+  if (wide > room) ts.scale = std::max(label_text().scale, ts.scale * room / wide);
+  put_text(image, fit_text(title, ts, room), {image.cols / 2.0, y}, ts, HAlign::kCenter, VAlign::kCenter);
+}
+
 }  // namespace lpvid::plot

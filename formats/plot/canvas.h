@@ -111,6 +111,13 @@ enum class VAlign { kTop, kCenter, kBaseline, kBottom };
 // Width and height (ascent + descent) of the text in pixels.
 cv::Size text_size(const std::string& text, const TextStyle& style);
 
+// The text, cut to fit max_width pixels with "..." at its end when it does not.
+std::string fit_text(const std::string& text, const TextStyle& style, int max_width);
+
+// A figure's title centred at height y between margins of `margin` pixels: a narrow
+// figure (one panel) gets a smaller title (down to the label size) before it is cut.
+void put_title(cv::Mat& image, const std::string& title, int margin, double y);
+
 // Draws the text so that its box is aligned to `anchor` as asked.
 void put_text(cv::Mat& image, const std::string& text, cv::Point2d anchor,
               const TextStyle& style, HAlign h, VAlign v);

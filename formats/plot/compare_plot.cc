@@ -149,9 +149,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
   const int height = grid_bottom + kXTickHeight + kXLabelHeight + leg.height + 2 * kMargin;
 
   cv::Mat image(height, width, CV_8UC3, plot::kWhite);
-  if (!o.title.empty())
-    plot::put_text(image, o.title, {width / 2.0, kMargin + kTitleHeight / 2.0 - 4}, plot::title_text(),
-                   HAlign::kCenter, VAlign::kCenter);
+  if (!o.title.empty()) plot::put_title(image, o.title, kMargin, kMargin + kTitleHeight / 2.0 - 4);
 
   for (Index i = 0; i < p; ++i)
     for (Index j = 0; j < m; ++j) {

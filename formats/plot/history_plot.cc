@@ -67,8 +67,7 @@ cv::Mat render_history(const std::vector<HistoryBar>& bars, const std::string& t
   const int height = a.br().y + 12 + label_h + 30 + 40 + kMargin;
   cv::Mat image(height, width, CV_8UC3, plot::kWhite);
   if (!title.empty())
-    plot::put_text(image, title, {width / 2.0, kMargin + kTitleHeight / 2.0 - 4}, plot::title_text(), HAlign::kCenter,
-                   VAlign::kCenter);
+    plot::put_title(image, title, kMargin, kMargin + kTitleHeight / 2.0 - 4);
   const plot::AxisMap y{lo, hi, static_cast<double>(a.br().y - 1), static_cast<double>(a.y), true};
   const plot::AxisMap x{0.5, bars.size() + 0.5, static_cast<double>(a.x), static_cast<double>(a.br().x - 1), false};
   auto ticks = plot::decade_ticks(lo, hi, plot::DecadeLabels::kPlain);

@@ -111,8 +111,7 @@ cv::Mat render_singular_values(const Eigen::VectorXd& sv,
   const plot::AxisMap& y = layout.value;
 
   if (!options.title.empty()) {
-    plot::put_text(image, options.title, {image.cols / 2.0, kMargin + kTitleHeight / 2.0 - 4},
-                   plot::title_text(), HAlign::kCenter, VAlign::kCenter);
+    plot::put_title(image, options.title, kMargin, kMargin + kTitleHeight / 2.0 - 4);
   }
 
   // Grid and ticks.

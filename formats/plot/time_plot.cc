@@ -230,8 +230,7 @@ cv::Mat render_time_plot(const std::vector<TimeSeries>& series, const TimePlotOp
   const TimePlotLayout layout = layout_time_plot(series, options);
   cv::Mat image(layout.figure, CV_8UC3, plot::kWhite);
   if (!options.title.empty()) {
-    plot::put_text(image, options.title, {image.cols / 2.0, kMargin + kTitleHeight / 2.0 - 4},
-                   plot::title_text(), HAlign::kCenter, VAlign::kCenter);
+    plot::put_title(image, options.title, kMargin, kMargin + kTitleHeight / 2.0 - 4);
   }
   const std::vector<Tick> t_ticks =
       plot::linear_ticks(layout.time.lo, layout.time.hi, layout.time_step);
