@@ -41,7 +41,9 @@ The report says where the model fails (distinct phenomena: frequency, channels, 
 sets, size, signature), what is missing and how much of the excess it explains, the
 error before and after, and "explained" only when what remains is within 1.5x the noise
 floor.  Significant candidates rank by BIC; others that also leave only noise are named
-as indistinguishable on these data.  When no single effect leaves only noise, pairs
+as indistinguishable on these data, or as separated by the priors when they tie on the
+data but their estimates contradict the model's priors (design values with ±sigma) by
+more than --delta-bic.  When no single effect leaves only noise, pairs
 (and triples) are tried and named together when each member is needed.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the

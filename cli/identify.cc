@@ -298,10 +298,11 @@ void run(const IdentifyCliOptions& o) {
                                   {"replicates", rf.replicates},
                                   {"reason", r.choices.refinement_reason}}
                  : nlohmann::json(nullptr);
-      report["plant"]["source"] = rf.kept ? "output-error refinement (report.refinement)" : "structured fit (report.fit)";
     }
+    // where the plant (and its bands) come from: one place
+    const bool refined = o.open_loop && r.choices.refinement.kept;
+    report["plant"]["source"] = refined ? "output-error refinement (report.refinement)" : "structured fit (report.fit)";
     report["plant"]["termination"] = r.fit.report.termination;
-    if (!report["plant"].contains("source")) report["plant"]["source"] = "structured fit (report.fit)";
   }
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
   if (truth) {
