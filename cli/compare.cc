@@ -226,7 +226,8 @@ void run_physical_model_error(const CompareCliOptions& o) {
   r.models = {f.model};
   for (const FitDataset& ds : in.data) {
     r.data_names.push_back(ds.label);
-    r.labels.push_back(fmt::format("x_b = {:g} m", ds.beam_position_m));
+    // a base without a scheduling variable: the data set's own name
+    r.labels.push_back(std::isnan(ds.beam_position_m) ? ds.label : fmt::format("x_b = {:g} m", ds.beam_position_m));
     std::string source;
     data_sigma(ds.response, in.options.noise, &source);
     r.noise.push_back(source);

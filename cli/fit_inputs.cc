@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
@@ -60,6 +61,15 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
 
 FitDataSpec parse_data_spec(const std::string& spec) {
   const size_t at = spec.rfind('@');
+  if (at == std::string::npos && !spec.empty()) {
+    // No tag: for a base without a scheduling variable (mechanical) none is needed;
+    // a scheduled base refuses the NaN when the model is known (check_schedule).
+    FitDataSpec d;
+    d.label = spec;
+    d.beam_position_m = std::numeric_limits<double>::quiet_NaN();
+    d.files = spec.find(',') != std::string::npos ? split_names(spec, "--data") : std::vector<std::string>{spec};
+    return d;
+  }
   if (at == std::string::npos || at == 0)
     throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
                                  "e.g. P_left.csv@-0.1, or give the data sets once with --datasets",
@@ -163,6 +173,13 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c; or its "
                                  "measured response C.csv)",
                                  target));
+  // A data file without an @ tag: only a base without a scheduling variable
+  // (mechanical) takes one; the model says which (read again below, after the checks).
+  for (const auto& s : in.specs)
+    if (std::isnan(s.beam_position_m) && !read_physical_model(o.model).base_info().schedule_name.empty())
+      throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
+                                   "e.g. P_left.csv@-0.1, or give the data sets once with --datasets",
+                                   s.label));
   in.inputs = {o.model};
   if (!o.datasets.empty()) in.inputs.push_back(o.datasets);
   for (const auto& s : in.specs)

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <memory>
 
 #include "cli/common.h"
@@ -30,6 +31,9 @@ Example:
   lpvid model init --out model.json                  (the platform base with beam gravity)
   lpvid model init --out model.json --set k_torque_low_Nm_per_rad=45 --set beam_height_m=0.06
                                                      (with the design values you know)
+  lpvid model init --base mechanical --from axis.json --out axis_model.json
+                                                     (a stage you describe: DOFs, M, D, K, actuator and
+                                                      sensor maps; docs/formats.md)
   lpvid model set --model model.json --set platform_mass_kg=5.3±0.05
                                                      (a weighed mass: a prior for fit and diagnose)
   lpvid model effects                                (the effect library: parameters, units, bounds)
@@ -52,7 +56,7 @@ sampled with it (delays, fractional ones too, realised as extra states).  See do
 struct ModelCliOptions {
   std::string out, model, effect, base = "platform", from, from_diagnosis;
   std::vector<std::string> sets;
-  double xb = 0.0, rate_hz = 0.0;
+  double xb = std::numeric_limits<double>::quiet_NaN(), rate_hz = 0.0;  // xb NaN: not given
   bool bare = false, json = false, add_defined = false;
 };
 
@@ -99,11 +103,25 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
   m.validate();
 }
 
+// The base named by --base: the library's, or a user-described one read from --from.
+PhysicalModel model_of_base(const ModelCliOptions& o) {
+  if (o.base == "mechanical") {
+    if (o.from.empty())
+      throw InputError("--base mechanical: give the stage's description with --from DESCRIPTION.json (dofs, inputs, "
+                       "outputs, parameters, mass, damping, stiffness, input_map, output_map; docs/formats.md)");
+    return PhysicalModel::bare(make_mechanical_base(read_mechanical_description(o.from)));
+  }
+  if (!o.from.empty())
+    throw InputError(fmt::format("--from describes a user's base; it goes with --base mechanical, not --base {}",
+                                 o.base));
+  return o.bare ? PhysicalModel::bare(o.base) : PhysicalModel::initial(o.base);
+}
+
 void run_init(const ModelCliOptions& o) {
   OutputSet outputs;
   outputs.file("--out", o.out);
   outputs.check();
-  PhysicalModel m = o.bare ? PhysicalModel::bare(o.base) : PhysicalModel::initial(o.base);
+  PhysicalModel m = model_of_base(o);
   apply_sets(m, o.sets);
   outputs.stage(o.out, physical_model_to_json(m));
   outputs.commit();
@@ -253,6 +271,9 @@ void run_export(const ModelCliOptions& o) {
   outputs.file("--out", o.out);
   outputs.check();
   const PhysicalModel m = read_physical_model(o.model);
+  if (std::isnan(o.xb) && !m.base_info().schedule_name.empty())
+    throw InputError(fmt::format("--xb is required: base '{}' is scheduled by its {} ({}); give the operating point",
+                                 m.base, m.base_info().schedule_name, m.base_info().schedule_unit));
   const double ts = o.rate_hz > 0 ? 1.0 / o.rate_hz : 0.0;
   const PhysicalStateSpace ss = physical_state_space(m, o.xb, ts);
   outputs.stage(o.out, state_space_to_json(ss.system, {{"provenance",
@@ -261,9 +282,11 @@ void run_export(const ModelCliOptions& o) {
                                                          {"input_delay_s", ss.input_delay_s},
                                                          {"delay_in_matrices_samples", ss.delay_samples}}}}));
   outputs.commit();
-  const BaseInfo& base = base_info(m.base);
-  std::string text = fmt::format("model export: {} at {} = {} {}, order {}, {}\n", o.model, base.schedule_name, o.xb,
-                                 base.schedule_unit, ss.system.order(),
+  const BaseInfo& base = m.base_info();
+  const std::string at = base.schedule_name.empty()
+                             ? std::string()
+                             : fmt::format(" at {} = {} {}", base.schedule_name, o.xb, base.schedule_unit);
+  std::string text = fmt::format("model export: {}{}, order {}, {}\n", o.model, at, ss.system.order(),
                                  ts > 0 ? fmt::format("sampled (ZOH) at {} Hz", o.rate_hz) : "continuous");
   double largest = 0;
   for (double t : ss.input_delay_s) largest = std::max(largest, t);
@@ -279,15 +302,17 @@ void run_export(const ModelCliOptions& o) {
 }
 
 void run_effects(const ModelCliOptions& o) {
-  const BaseInfo& b = base_info(o.base);
+  const PhysicalModel m = model_of_base(o);
+  const BaseInfo& b = m.base_info();
   nlohmann::json list = nlohmann::json::array();
   std::string text = fmt::format("base {}: {}\n", b.name, b.description);
   for (const auto& p : b.parameters)
     text += fmt::format("  {} = {:.10g} {} in [{:.10g}, {:.10g}]{}\n", p.name, p.value, p.unit, p.lower, p.upper,
                         p.free ? " (free)" : " (fixed)");
   text += fmt::format("inputs {}; outputs {}; model init adds {}\n\n", fmt::join(b.input_names, ", "),
-                      fmt::join(b.output_names, ", "), fmt::join(b.default_effects, ", "));
-  for (const auto& e : effect_library(o.base)) {
+                      fmt::join(b.output_names, ", "),
+                      b.default_effects.empty() ? std::string("no effect") : fmt::format("{}", fmt::join(b.default_effects, ", ")));
+  for (const auto& e : m.library()) {
     nlohmann::json params = nlohmann::json::array();
     text += fmt::format("{}: {}\n  changes: {}\n  residual signature: {}\n", e.name, e.description, e.changes,
                         e.signature);
@@ -314,7 +339,11 @@ Command make_model_command() {
             app->require_subcommand(1);
             auto* init = app->add_subcommand("init", "write a model file: a base with its default effects");
             init->add_option("--out", o->out, "model file to write")->required();
-            init->add_option("--base", o->base, "the base model (default platform)");
+            init->add_option("--base", o->base,
+                             "the base: platform, stage6, or mechanical (a stage you describe; with --from)");
+            init->add_option("--from", o->from,
+                             "--base mechanical: the stage's description (JSON: DOFs, M, D, K, actuator and sensor maps; "
+                             "docs/formats.md)");
             init->add_option("--set", o->sets,
                              "NAME=VALUE: a design value you know; NAME=VALUE±SIGMA: also its uncertainty, a prior "
                              "for fit and diagnose (repeat)");
@@ -355,8 +384,7 @@ Command make_model_command() {
             exp->add_option("--model", o->model, "model file")->required();
             exp->add_option("--xb", o->xb,
                             "the operating point: beam position x_b in m (platform), hover height above the "
-                            "reference gap in m (stage6)")
-                ->required()
+                            "reference gap in m (stage6); none for a base without one (mechanical)")
                 ->check(number_in(-1e3, 1e3, "the operating point in m"));
             exp->add_option("--rate-hz", o->rate_hz, "sample (ZOH) at this rate (default: continuous)")
                 ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it for continuous time)"));
@@ -364,7 +392,8 @@ Command make_model_command() {
             exp->add_flag("--json", o->json, "print the summary as JSON");
             exp->callback([o] { run_export(*o); });
             auto* eff = app->add_subcommand("effects", "list a base's parameters and its effect library");
-            eff->add_option("--base", o->base, "the base (default platform)");
+            eff->add_option("--base", o->base, "the base (default platform; mechanical with --from)");
+            eff->add_option("--from", o->from, "--base mechanical: the stage's description (JSON)");
             eff->add_flag("--json", o->json, "print the list as JSON");
             eff->callback([o] { run_effects(*o); });
           }};

@@ -10,6 +10,7 @@
 #include "formats/io/csv_detail.h"
 #include "formats/io/json_detail.h"
 #include "idlib/core/error.h"
+#include "idlib/physical/mechanical/mechanical_base.h"
 
 namespace lpvid {
 namespace {
@@ -80,7 +81,8 @@ class Reader {
                                           kPhysicalModelVersion, kPhysicalModelVersion));
     }
     for (auto it = root.begin(); it != root.end(); ++it) {
-      static const char* const kKeys[] = {"format", "version", "base", "effects", "definitions", "parameters", "fit"};
+      static const char* const kKeys[] = {"format", "version", "base", "mechanical", "effects", "definitions",
+                                          "parameters", "fit"};
       bool known = false;
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
@@ -93,11 +95,28 @@ class Reader {
     if (base == root.end() || !base->is_string())
       fail_at(top("base"), "missing key 'base' (a string); give \"base\": \"platform\"");
     model.base = base->get<std::string>();
-    if (find_base(model.base) == nullptr) {
+    const auto mech = root.find("mechanical");
+    if (model.base == "mechanical") {
+      if (mech == root.end())
+        fail_at(top("base"), "base 'mechanical' needs its description under key \"mechanical\"; write the model with "
+                             "'lpvid model init --base mechanical --from DESCRIPTION.json'");
+      const MechanicalDescription d = mechanical_description(*mech, top("mechanical"));
       try {
-        base_info(model.base);
+        model.user_base = make_mechanical_base(d);
       } catch (const InputError& e) {
-        fail_at(top("base"), e.what());
+        fail_at(top("mechanical"), e.what());
+      }
+    } else {
+      if (mech != root.end())
+        fail_at(top("mechanical"), fmt::format("key 'mechanical' describes a user's base, but the model's base is '{}'; "
+                                               "remove it or write \"base\": \"mechanical\"",
+                                               model.base));
+      if (find_base(model.base) == nullptr) {
+        try {
+          model.base_info();
+        } catch (const InputError& e) {
+          fail_at(top("base"), e.what());
+        }
       }
     }
     // User-defined effects first: "effects" may name them.
@@ -126,7 +145,7 @@ class Reader {
       const std::string name = e.get<std::string>();
       if (model.effect_info(name) == nullptr) {
         std::string names;
-        for (const auto& x : effect_library(model.base)) names += (names.empty() ? "" : ", ") + x.name;
+        for (const auto& x : model.library()) names += (names.empty() ? "" : ", ") + x.name;
         for (const auto& x : model.definitions) names += ", " + x.name + " (defined in the file)";
         fail_at(find_key(text_, "effects", 0) == std::string::npos ? 0 : text_.find("\"" + name + "\"", top("effects")),
                 fmt::format("unknown effect {}; use one of {} (the library of base '{}'; lpvid model effects)",
@@ -150,7 +169,7 @@ class Reader {
     // Canonical order first (base, then each effect's), then any unknown names
     // (validate() reports them).
     std::vector<std::string> order;
-    for (const auto& q : base_info(model.base).parameters) order.push_back(q.name);
+    for (const auto& q : model.base_info().parameters) order.push_back(q.name);
     for (const auto& e : model.effects)
       for (const auto& q : model.effect_info(e)->parameters) order.push_back(q.name);
     for (auto it = params->begin(); it != params->end(); ++it)
@@ -172,6 +191,138 @@ class Reader {
       fail_at(name.empty() || missing ? top("parameters") : param(name), what);
     }
     return model;
+  }
+
+  // A mechanical base's description (docs/formats.md, "Mechanical base descriptions"),
+  // the object at offset `at`; `standalone`: a description file of its own, which
+  // also carries "format" and "version".
+  MechanicalDescription mechanical_description(const json& v, size_t at, bool standalone = false) const {
+    const char* const kForm = "(docs/formats.md, \"Mechanical base descriptions\")";
+    auto key_at = [&](const std::string& key) {
+      const size_t k = find_key(text_, key, at);
+      return k == std::string::npos ? at : k;
+    };
+    if (!v.is_object())
+      fail_at(at, fmt::format("a mechanical base description is an object {{\"name\", \"dofs\", \"inputs\", "
+                              "\"outputs\", \"parameters\", \"mass\", \"damping\", \"stiffness\", \"input_map\", "
+                              "\"output_map\"}} {}",
+                              kForm));
+    for (auto it = v.begin(); it != v.end(); ++it) {
+      static const char* const kFields[] = {"name",       "description", "dofs",      "inputs",    "outputs",
+                                            "parameters", "mass",        "damping",   "stiffness", "input_map",
+                                            "output_map", "format",      "version"};
+      bool known = false;
+      for (const char* k : kFields) known = known || it.key() == k;
+      if (!standalone && (it.key() == "format" || it.key() == "version")) known = false;
+      if (!known)
+        fail_at(key_at(it.key()), fmt::format("mechanical base: unknown field {}; remove it (the fields are name, "
+                                              "description, dofs, inputs, outputs, parameters, mass, damping, "
+                                              "stiffness, input_map, output_map) {}",
+                                              detail::quote_cell(it.key()), kForm));
+    }
+    if (standalone) {
+      const auto f = v.find("format");
+      if (f == v.end() || !f->is_string() || f->get<std::string>() != kMechanicalBaseFormat)
+        fail_at(key_at("format"), fmt::format("key 'format' must be \"{}\"; is this a mechanical base description? {}",
+                                              kMechanicalBaseFormat, kForm));
+      const auto ver = v.find("version");
+      if (ver == v.end() || !ver->is_number_integer() || ver->get<int>() != kMechanicalBaseVersion)
+        fail_at(key_at("version"), fmt::format("key 'version' must be {}", kMechanicalBaseVersion));
+    }
+    MechanicalDescription d;
+    auto text = [&](const char* key, bool required) {
+      const auto f = v.find(key);
+      if (f == v.end()) {
+        if (required) fail_at(at, fmt::format("mechanical base: missing key '{}' (a string) {}", key, kForm));
+        return std::string();
+      }
+      if (!f->is_string()) fail_at(key_at(key), fmt::format("mechanical base: '{}' must be a string", key));
+      return f->get<std::string>();
+    };
+    d.name = text("name", true);
+    d.description = text("description", false);
+    auto channels = [&](const char* key) {
+      std::vector<MechanicalChannel> out;
+      const auto f = v.find(key);
+      if (f == v.end() || !f->is_array())
+        fail_at(f == v.end() ? at : key_at(key),
+                fmt::format("mechanical base: '{}' must be an array of {{\"name\", \"unit\"}} {}", key, kForm));
+      const bool outputs = std::string(key) == "outputs";
+      for (const json& c : *f) {
+        const std::size_t extra = outputs && c.is_object() && c.contains("measures") ? 1 : 0;
+        if (!c.is_object() || c.size() != 2 + extra || !c.contains("name") || !c.contains("unit") ||
+            !c["name"].is_string() || !c["unit"].is_string())
+          fail_at(key_at(key), fmt::format("mechanical base: '{}' holds {}; each entry is {{\"name\": \"...\", "
+                                           "\"unit\": \"...\"}}{}",
+                                           key, detail::json_excerpt(c),
+                                           outputs ? " with optionally \"measures\": \"position\", \"velocity\" or "
+                                                     "\"acceleration\""
+                                                   : ""));
+        MechanicalChannel ch{c["name"].get<std::string>(), c["unit"].get<std::string>(), 0};
+        if (extra) {
+          const json& m = c["measures"];
+          const std::string what = m.is_string() ? m.get<std::string>() : std::string();
+          if (what == "position") ch.derivative = 0;
+          else if (what == "velocity") ch.derivative = 1;
+          else if (what == "acceleration") ch.derivative = 2;
+          else
+            fail_at(key_at(key), fmt::format("mechanical base: output {} measures {}; write \"position\", "
+                                             "\"velocity\" or \"acceleration\"",
+                                             detail::json_excerpt(c["name"]), detail::json_excerpt(m)));
+        }
+        out.push_back(ch);
+      }
+      return out;
+    };
+    d.dofs = channels("dofs");
+    d.inputs = channels("inputs");
+    d.outputs = channels("outputs");
+    const auto params = v.find("parameters");
+    if (params == v.end() || !params->is_object())
+      fail_at(params == v.end() ? at : key_at("parameters"),
+              "mechanical base: 'parameters' must be an object name -> {value, unit, lower, upper, free} (the design "
+              "values)");
+    for (auto it = params->begin(); it != params->end(); ++it)
+      d.parameters.push_back(parameter(it.key(), it.value(), key_at(it.key())));
+    auto matrix = [&](const char* key) {
+      std::vector<std::vector<LinearExpression>> out;
+      const auto f = v.find(key);
+      if (f == v.end() || !f->is_array())
+        fail_at(f == v.end() ? at : key_at(key),
+                fmt::format("mechanical base: '{}' must be an array of rows, each an array of entries (a number or an "
+                            "expression such as \"m1_kg + m2_kg\") {}",
+                            key, kForm));
+      for (const json& row : *f) {
+        if (!row.is_array())
+          fail_at(key_at(key), fmt::format("mechanical base: '{}' holds the row {}; write each row as an array", key,
+                                           detail::json_excerpt(row)));
+        std::vector<LinearExpression> r;
+        for (const json& e : row) {
+          if (e.is_number()) {
+            const double x = e.get<double>();
+            r.push_back(x == 0.0 ? LinearExpression{} : LinearExpression{{x, ""}});
+          } else if (e.is_string()) {
+            try {
+              r.push_back(parse_linear_expression(e.get<std::string>()));
+            } catch (const InputError& err) {
+              fail_at(key_at(key), fmt::format("mechanical base: '{}': {}", key, err.what()));
+            }
+          } else {
+            fail_at(key_at(key), fmt::format("mechanical base: '{}' holds {}; an entry is a number or an expression "
+                                             "string",
+                                             key, detail::json_excerpt(e)));
+          }
+        }
+        out.push_back(std::move(r));
+      }
+      return out;
+    };
+    d.mass = matrix("mass");
+    d.damping = matrix("damping");
+    d.stiffness = matrix("stiffness");
+    d.input_map = matrix("input_map");
+    d.output_map = matrix("output_map");
+    return d;
   }
 
   // One user-defined effect: {"description", "blocks": [...], "parameters": {...}}.
@@ -323,6 +474,65 @@ std::string parameter_json_text(const PhysicalParameter& p) {
 
 }  // namespace
 
+nlohmann::ordered_json mechanical_description_json(const MechanicalDescription& d) {
+  auto channels = [](const std::vector<MechanicalChannel>& list) {
+    json a = json::array();
+    static const char* const kMeasures[] = {"position", "velocity", "acceleration"};
+    for (const auto& c : list) {
+      json e = {{"name", c.name}, {"unit", c.unit}};
+      if (c.derivative != 0) e["measures"] = kMeasures[c.derivative];
+      a.push_back(e);
+    }
+    return a;
+  };
+  auto matrix = [](const std::vector<std::vector<LinearExpression>>& m) {
+    json rows = json::array();
+    for (const auto& row : m) {
+      json r = json::array();
+      for (const LinearExpression& e : row) {
+        if (e.empty())
+          r.push_back(0);
+        else if (e.size() == 1 && e[0].parameter.empty())
+          r.push_back(e[0].coefficient);
+        else
+          r.push_back(linear_expression_text(e));
+      }
+      rows.push_back(r);
+    }
+    return rows;
+  };
+  json params = json::object();
+  for (const PhysicalParameter& p : d.parameters) params[p.name] = json::parse(parameter_json_text(p));
+  json out = {{"name", d.name}};
+  if (!d.description.empty()) out["description"] = d.description;
+  out["dofs"] = channels(d.dofs);
+  out["inputs"] = channels(d.inputs);
+  out["outputs"] = channels(d.outputs);
+  out["parameters"] = params;
+  out["mass"] = matrix(d.mass);
+  out["damping"] = matrix(d.damping);
+  out["stiffness"] = matrix(d.stiffness);
+  out["input_map"] = matrix(d.input_map);
+  out["output_map"] = matrix(d.output_map);
+  return out;
+}
+
+MechanicalDescription parse_mechanical_description(const std::string& text, const std::string& path) {
+  const json root = parse_ordered(path, text);
+  const Reader reader(text, path);
+  MechanicalDescription d = reader.mechanical_description(root, 0, true);
+  try {
+    make_mechanical_base(d);
+  } catch (const InputError& e) {
+    detail::fail_at(path, 1, 1, e.what());
+  }
+  return d;
+}
+
+MechanicalDescription read_mechanical_description(const std::string& path) {
+  return parse_mechanical_description(detail::read_json_text(path, "a mechanical base description"), path);
+}
+
 nlohmann::ordered_json effect_definition_json(const EffectInfo& e) {
   json blocks = json::array();
   for (const Block& b : e.blocks)
@@ -379,9 +589,28 @@ std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::j
   model.validate();
   if (!fit_section.is_null() && !fit_section.is_object())
     throw InputError("the fit section of a model file must be a JSON object");
-  std::string out = fmt::format("{{\n  \"format\": \"{}\",\n  \"version\": {},\n  \"base\": {},\n  \"effects\": {},\n",
-                                kPhysicalModelFormat, kPhysicalModelVersion, json(model.base).dump(),
-                                json(model.effects).dump());
+  std::string out = fmt::format("{{\n  \"format\": \"{}\",\n  \"version\": {},\n  \"base\": {},\n",
+                                kPhysicalModelFormat, kPhysicalModelVersion, json(model.base).dump());
+  if (model.user_base != nullptr) {
+    // one line per key (per parameter), each value compact: a reader sees the matrices' rows
+    const json d = mechanical_description_json(model.user_base->description);
+    out += "  \"mechanical\": {\n";
+    std::size_t k = 0;
+    for (auto it = d.begin(); it != d.end(); ++it, ++k) {
+      const std::string comma = k + 1 < d.size() ? "," : "";
+      if (it.key() == "parameters") {
+        out += "    \"parameters\": {\n";
+        std::size_t i = 0;
+        for (auto p = it->begin(); p != it->end(); ++p, ++i)
+          out += fmt::format("      {}: {}{}\n", json(p.key()).dump(), p->dump(), i + 1 < it->size() ? "," : "");
+        out += "    }" + comma + "\n";
+      } else {
+        out += fmt::format("    {}: {}{}\n", json(it.key()).dump(), it->dump(), comma);
+      }
+    }
+    out += "  },\n";
+  }
+  out += fmt::format("  \"effects\": {},\n", json(model.effects).dump());
   if (!model.definitions.empty()) {
     out += "  \"definitions\": {\n";
     for (std::size_t k = 0; k < model.definitions.size(); ++k) {

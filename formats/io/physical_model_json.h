@@ -25,12 +25,25 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "idlib/physical/mechanical/mechanical_base.h"
 #include "idlib/physical/physical_model.h"
 
 namespace lpvid {
 
 inline constexpr const char* kPhysicalModelFormat = "lpvid-physical-model";
 inline constexpr int kPhysicalModelVersion = 2;
+inline constexpr const char* kMechanicalBaseFormat = "lpvid-mechanical-base";
+inline constexpr int kMechanicalBaseVersion = 1;
+
+// A mechanical base's description (idlib/physical/mechanical/mechanical_base.h) as
+// the JSON object a model file holds under "mechanical" (without format/version).
+nlohmann::ordered_json mechanical_description_json(const MechanicalDescription& description);
+// Reads a description file {"format": "lpvid-mechanical-base", "version": 1, "name",
+// "dofs", "inputs", "outputs", "parameters", "mass", "damping", "stiffness",
+// "input_map", "output_map"} (docs/formats.md) and checks it (make_mechanical_base).
+// @throws InputError "path:line:column: ..." at the offending key.
+MechanicalDescription read_mechanical_description(const std::string& path);
+MechanicalDescription parse_mechanical_description(const std::string& text, const std::string& path);
 
 // A user-defined effect as JSON {"description", "blocks": [{"kind", "side",
 // "channels", "parameters"}], "parameters": {name: {value, unit, lower, upper, free}}}

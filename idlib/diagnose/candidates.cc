@@ -154,7 +154,7 @@ std::vector<std::pair<std::string, double>> library_defaults(const PhysicalModel
       if (i >= 0 && m.parameters[static_cast<std::size_t>(i)].free) out.emplace_back(d.name, d.value);
     }
   };
-  add_from(base_info(m.base).parameters);
+  add_from(m.base_info().parameters);
   for (const std::string& e : m.effects)
     if (const EffectInfo* info = m.effect_info(e)) add_from(info->parameters);
   return out;
@@ -293,7 +293,27 @@ namespace {
 
 std::string joined(const std::vector<std::string>& members) { return fmt::format("{}", fmt::join(members, " + ")); }
 
+bool is_mode_effect(const std::string& name) {
+  return name == "structural_mode" || name.rfind("structural_mode_", 0) == 0;
+}
+
+// Modes are interchangeable: {structural_mode_2} is the candidate {structural_mode},
+// {structural_mode, structural_mode_3} the candidate {structural_mode, structural_mode_2}.
+std::vector<std::string> modes_renumbered(const std::vector<std::string>& members) {
+  std::vector<std::string> out;
+  int modes = 0;
+  for (const std::string& m : members)
+    if (is_mode_effect(m))
+      ++modes;
+    else
+      out.push_back(m);
+  for (int k = 1; k <= modes; ++k) out.push_back(k == 1 ? "structural_mode" : fmt::format("structural_mode_{}", k));
+  return out;
+}
+
 bool same_members(std::vector<std::string> a, std::vector<std::string> b) {
+  a = modes_renumbered(a);
+  b = modes_renumbered(b);
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   return a == b;
@@ -385,6 +405,19 @@ std::vector<CandidateOutcome> evaluate_combinations(const std::vector<CandidateO
   if (anchor != nullptr)
     for (const CandidateOutcome& c : singles)
       if (c.fitted && &c != anchor) add_pair(anchor, &c);
+  // Two modes at once: a structure with several unmodelled modes (a base offering
+  // more than one, idlib/physical/mechanical) — the anchor mode and the next one,
+  // seeded from what the anchor's fit leaves.
+  CandidateOutcome next_mode;
+  if (anchor != nullptr && is_mode_effect(anchor->effect)) {
+    for (const EffectInfo& e : ctx.given.library())
+      if (is_mode_effect(e.name) && e.name != anchor->effect && !ctx.given.has_effect(e.name)) {
+        next_mode.effect = e.name;
+        next_mode.members = {e.name};
+        add_pair(anchor, &next_mode);
+        break;
+      }
+  }
   // the pool's pairs, each from its member with the better ΔBIC (the pool is sorted by it)
   for (std::size_t i = 0; i < pool.size(); ++i)
     for (std::size_t j = i + 1; j < pool.size(); ++j) add_pair(pool[i], pool[j]);

@@ -106,7 +106,11 @@ void describe_phenomena(const std::vector<Phenomenon>& phenomena, const std::vec
       at = fmt::format("at all {} data sets", data.size());
     } else {
       std::vector<std::string> xs;
-      for (Index d : ph.data_sets) xs.push_back(fmt::format("{:g}", data[static_cast<std::size_t>(d)].beam_position_m));
+      for (Index d : ph.data_sets) {
+        const FitDataset& ds = data[static_cast<std::size_t>(d)];
+        // a base without a scheduling variable: the data set's name
+        xs.push_back(std::isnan(ds.beam_position_m) ? ds.label : fmt::format("{:g}", ds.beam_position_m));
+      }
       at = fmt::format("at {} {}", ph.data_sets.size() == 1 ? "data set" : "data sets", fmt::join(xs, ", "));
     }
     // gain and phase of data over model: none where the model is zero there (a
@@ -152,7 +156,7 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
                                                    const std::vector<Phenomenon>& phenomena,
                                                    const std::vector<FitDataset>& data, const FitOptions& refit,
                                                    double floor, int candidate_starts, Progress* progress) {
-  const BaseInfo& base = base_info(reference.base);
+  const BaseInfo& base = reference.base_info();
   double wmin = INFINITY, wmax = 0;
   for (const FitDataset& ds : data) {
     wmin = std::min(wmin, ds.response.omega_rad_s.minCoeff());
@@ -299,7 +303,7 @@ std::vector<ResidualDescription> describe_residual(const PhysicalModel& referenc
 std::vector<DesignHint> design_hints(const FitResult& baseline, const std::vector<FitDataset>& data,
                                      const FitOptions& refit, double* widened_error) {
   constexpr double kWiden = 10.0;
-  const BaseInfo& base = base_info(baseline.model.base);
+  const BaseInfo& base = baseline.model.base_info();
   std::vector<DesignHint> hints;
   for (const ParameterEstimate& p : baseline.parameters) {
     if (!p.at_bound) continue;
@@ -314,7 +318,7 @@ std::vector<DesignHint> design_hints(const FitResult& baseline, const std::vecto
         h.design = design;
         h.design_value = baseline.model.parameter(design).value;
       }
-    for (const EffectInfo& e : effect_library(baseline.model.base))
+    for (const EffectInfo& e : baseline.model.library())
       if (std::find(e.holds.begin(), e.holds.end(), p.name) != e.holds.end() && !baseline.model.has_effect(e.name))
         h.effects.push_back(e.name);
     hints.push_back(std::move(h));

@@ -611,7 +611,7 @@ bool in_band(double w, const FitOptions& o) { return w >= o.band_min_rad_s && w 
 Prepared prepare(const FitDataset& ds, const PhysicalModel& model, const FitOptions& o, bool* noise_known,
                  std::string* noise_source) {
   const FrequencyResponse& f = ds.response;
-  const BaseInfo& base = base_info(model.base);
+  const BaseInfo& base = model.base_info();
   if (f.num_frequencies() == 0 || f.response.size() != static_cast<std::size_t>(f.num_frequencies()))
     throw InputError(fmt::format("{}: no frequencies (or as many responses as frequencies are missing); give FRD data",
                                  ds.label));
@@ -855,7 +855,7 @@ std::vector<Eigen::MatrixXd> data_sigma(const FrequencyResponse& data, const Noi
 ModelScore score_model(const PhysicalModel& model, const std::vector<FitDataset>& data, const FitOptions& options) {
   options.validate();
   model.validate();
-  check_controller(options, &base_info(model.base));
+  check_controller(options, &model.base_info());
   const PreparedAll all = prepare_all(model, data, options);
   Engine engine(model, options);
   ModelScore s;
@@ -903,7 +903,7 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   const auto t0 = std::chrono::steady_clock::now();
   options.validate();
   start.validate();
-  const BaseInfo& base = base_info(start.base);
+  const BaseInfo& base = start.base_info();
   check_controller(options, &base);
   Engine engine(start, options);
   const Index p = engine.num_free();
@@ -1366,7 +1366,7 @@ ResponseBand response_band(const PhysicalModel& model, const Eigen::MatrixXd& co
                            const Eigen::VectorXd& omega_rad_s, const FitOptions& options) {
   options.validate();
   model.validate();
-  const BaseInfo& base = base_info(model.base);
+  const BaseInfo& base = model.base_info();
   check_controller(options, &base);
   check_schedule(model, beam_position_m);
   Engine engine(model, options);

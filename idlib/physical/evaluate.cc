@@ -20,13 +20,14 @@ Index channel_of(const std::vector<std::string>& names, const std::string& name)
 
 ModelLayout::ModelLayout(const PhysicalModel& model) {
   model.validate();
-  const BaseInfo& b = base_info(model.base);
+  const BaseInfo& b = model.base_info();
   base = b.name;
   n_in = static_cast<Index>(b.input_names.size());
   n_out = static_cast<Index>(b.output_names.size());
   n_dof = static_cast<Index>(b.dof_names.size());
   if (base == "platform") platform.emplace(model);
   if (base == "stage6") stage6.emplace(model);
+  if (model.user_base != nullptr) mechanical.emplace(model);
   delays.assign(static_cast<std::size_t>(n_in), {});
   for (const std::string& name : model.effects) {
     const EffectInfo* e = model.effect_info(name);
@@ -74,6 +75,14 @@ bool ModelLayout::has_delay() const {
 }
 
 void check_schedule(const PhysicalModel& model, double schedule) {
+  if (std::isnan(schedule)) {
+    const BaseInfo& b = model.base_info();
+    if (!b.schedule_name.empty())
+      throw InputError(fmt::format("no {} given for a data set: base '{}' is scheduled by it; tag each data file "
+                                   "FILE@VALUE (in {})",
+                                   b.schedule_name, b.name, b.schedule_unit));
+    return;  // a base without a scheduling variable needs none
+  }
   if (model.base == "platform") {
     check_platform_beam_position(model, schedule);
     return;
@@ -97,7 +106,7 @@ void check_period(double sample_period_s) {
   throw InputError(fmt::format(
       "the mass matrix of base '{}' at {} {} is not positive definite; the centre-of-mass offsets or J_psitheta are "
       "too large for the inertias — check their values and units",
-      model.base, schedule, base_info(model.base).schedule_unit));
+      model.base, schedule, model.base_info().schedule_unit));
 }
 
 }  // namespace
@@ -106,7 +115,7 @@ PhysicalStateSpace physical_state_space(const PhysicalModel& model, double sched
   const ModelLayout L(model);
   check_schedule(model, schedule);
   check_period(sample_period_s);
-  const BaseInfo& b = base_info(model.base);
+  const BaseInfo& b = model.base_info();
   const Eigen::VectorXd p = model.values();
   Eigen::MatrixXd A, B, C, D;
   if (!build_continuous<double>(L, p.data(), schedule, A, B, C, D)) not_positive_definite(model, schedule);

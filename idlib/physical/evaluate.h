@@ -52,6 +52,7 @@
 #include "idlib/core/error.h"
 #include "idlib/core/types.h"
 #include "idlib/physical/gauss_jordan.h"
+#include "idlib/physical/mechanical/mechanical_base.h"
 #include "idlib/physical/physical_model.h"
 #include "idlib/physical/platform/platform_base.h"
 #include "idlib/physical/stage6/stage6_base.h"
@@ -78,6 +79,7 @@ struct ModelLayout {
   std::string base;
   std::optional<PlatformIndices> platform;
   std::optional<Stage6Indices> stage6;
+  std::optional<MechanicalIndices> mechanical;
   std::vector<CompiledBlock> input_blocks, modes, output_blocks;
   std::vector<std::vector<Index>> delays;  // per input: parameter positions of its delays (summed)
   Index n_in = 0, n_out = 0, n_dof = 0;
@@ -217,6 +219,8 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
     if (!stage6_matrices<T>(*L.stage6, p, schedule, &ScalarValue<T>::of, M, Dm, K, Bw, F, Cq)) return false;
     if (L.stage6->com[0] < 0) Cq.resize(0, 0);
     if (L.stage6->back_emf < 0) F.resize(0, 0);
+  } else if (L.mechanical) {
+    mechanical_matrices<T>(*L.mechanical, p, M, Dm, K, Bw, Cq);
   } else if (L.platform) {
     T m3[3][3], d3[3][3], k3[3][3];
     platform_matrices<T>(*L.platform, p, schedule, m3, d3, k3);
@@ -237,7 +241,7 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   body.A = MatrixT<T>::Constant(nb, nb, zero);
   body.B = MatrixT<T>::Constant(nb, L.n_in, zero);
   body.C = MatrixT<T>::Constant(nd, nb, zero);
-  body.D = MatrixT<T>::Constant(nd, nd, zero);
+  body.D = MatrixT<T>::Constant(nd, L.n_in, zero);
   for (Index i = 0; i < nd; ++i) {
     body.A(i, nd + i) = one;
     body.C(i, i) = one;
@@ -258,7 +262,37 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
       body.C(d, i) = phi;
     }
   }
-  if (Cq.size() > 0) body.C = Cq * body.C;
+  if (L.mechanical && std::any_of(L.mechanical->output_derivative.begin(), L.mechanical->output_derivative.end(),
+                                  [](int d) { return d != 0; })) {
+    // Sensors of velocity or acceleration: each output row is C_q applied to q, q' or q''.
+    MatrixT<T> C1 = MatrixT<T>::Constant(nd, nb, zero), C2 = MatrixT<T>::Constant(nd, nb, zero);
+    MatrixT<T> D2 = Mi * Bw;  // q'' = M⁻¹(B_w w − D q' − K q) + Σ φ η''
+    for (Index i = 0; i < nd; ++i) C1(i, nd + i) = one;
+    C2.leftCols(2 * nd) = body.A.block(nd, 0, nd, 2 * nd);
+    for (Index k = 0; k < nm; ++k) {
+      const auto& b = L.modes[static_cast<std::size_t>(k)];
+      const Index i = 2 * nd + 2 * k;
+      const T w = p[b.params[0]], z = p[b.params[1]];
+      for (Index d = 0; d < nd; ++d) {
+        const T phi = p[b.params[static_cast<std::size_t>(2 + d)]];
+        C1(d, i + 1) = phi;
+        C2(d, i) = -phi * w * w;
+        C2(d, i + 1) = T(-2.0) * phi * z * w;
+        for (Index j = 0; j < L.n_in; ++j) D2(d, j) += phi * body.B(i + 1, j);
+      }
+    }
+    const MatrixT<T> C0 = body.C;
+    body.C = MatrixT<T>(Cq.rows(), nb);
+    body.D = MatrixT<T>::Constant(Cq.rows(), L.n_in, zero);
+    for (Index r = 0; r < Cq.rows(); ++r) {
+      const int order = L.mechanical->output_derivative[static_cast<std::size_t>(r)];
+      body.C.row(r) = Cq.row(r) * (order == 0 ? C0 : order == 1 ? C1 : C2);
+      if (order == 2) body.D.row(r) = Cq.row(r) * D2;
+    }
+  } else if (Cq.size() > 0) {
+    body.C = Cq * body.C;
+    body.D = MatrixT<T>::Constant(Cq.rows(), L.n_in, zero);
+  }
   const Lti<T> in = physical_detail::block_chain<T>(L.input_blocks, L.n_in, p);
   const Lti<T> out = physical_detail::block_chain<T>(L.output_blocks, L.n_out, p);
   Lti<T> driven = physical_detail::series(in, body);

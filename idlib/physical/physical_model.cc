@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <map>
 #include <mutex>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/mechanical/mechanical_base.h"
 #include "idlib/physical/platform/platform_base.h"
 #include "idlib/physical/stage6/stage6_base.h"
 
@@ -34,24 +37,34 @@ std::string ratio_unit(const std::string& to, const std::string& from) {
   return to + "/" + from;
 }
 
-// The block effects every base shares, with the base's channel names.
+}  // namespace
+
+namespace physical_detail {
+
 std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
   std::vector<EffectInfo> out;
   const std::size_t n = b.dof_names.size();
-  {
-    EffectInfo e{"structural_mode", "an extra lightly damped (non-rigid) mode above the rigid-body band",
+  // structural_mode, then (a base with b.max_modes > 1) structural_mode_2 ... _N with
+  // parameters mode_2_frequency_rad_s ...: the k-th mode is proposed once the (k−1)-th
+  // is in the model (PhysicalModel::absent_effects)
+  for (int k = 1; k <= b.max_modes; ++k) {
+    const std::string tag = k == 1 ? "mode_" : fmt::format("mode_{}_", k);
+    EffectInfo e{k == 1 ? "structural_mode" : fmt::format("structural_mode_{}", k),
+                 k == 1 ? "an extra lightly damped (non-rigid) mode above the rigid-body band"
+                        : fmt::format("a further lightly damped (non-rigid) mode (number {} of the model)", k),
                  "adds phi phiᵀ / (s² + 2 zeta w s + w²) to P (collocated: driven by the same wrench it is seen in); "
                  "2 states",
                  "a narrow peak/notch pair in several channels at one frequency, above the rigid-body band",
-                 {par("mode_frequency_rad_s", "rad/s", 600.0, 300.0, 6000.0, true),
-                  par("mode_damping", "1", 0.02, 1e-4, 0.7, true)},
+                 {par(tag + "frequency_rad_s", "rad/s", std::clamp(600.0, b.mode_lower_rad_s, b.mode_upper_rad_s),
+                      b.mode_lower_rad_s, b.mode_upper_rad_s, true),
+                  par(tag + "damping", "1", 0.02, 1e-4, 0.7, true)},
                  {},
                  false, {}};
-    Block blk{BlockKind::kMode, BlockSide::kBody, {}, {"mode_frequency_rad_s", "mode_damping"}};
+    Block blk{BlockKind::kMode, BlockSide::kBody, {}, {tag + "frequency_rad_s", tag + "damping"}};
     for (std::size_t i = 0; i < n; ++i) {
-      const std::string name = "mode_shape_" + b.dof_names[i];
+      const std::string name = tag + "shape_" + b.dof_names[i];
       // a tilt-like shape of 1/sqrt(J)-size and a translation of 0.3/sqrt(m)-size
-      e.parameters.push_back(par(name, shape_unit(b.output_units[i]), b.output_units[i] == "m" ? 0.3 : 1.0, -100.0,
+      e.parameters.push_back(par(name, shape_unit(b.dof_units[i]), b.dof_units[i] == "m" ? 0.3 : 1.0, -100.0,
                                  100.0, true));
       blk.parameters.push_back(name);
     }
@@ -125,6 +138,10 @@ std::vector<EffectInfo> shared_block_effects(const BaseInfo& b) {
   return out;
 }
 
+}  // namespace physical_detail
+
+namespace {
+
 struct Registry {
   std::vector<BaseInfo> bases;
   std::map<std::string, std::vector<EffectInfo>> libraries;
@@ -137,7 +154,7 @@ const Registry& registry() {
     reg.bases.push_back(make_stage6_base());
     for (const BaseInfo& b : reg.bases) {
       std::vector<EffectInfo> lib = b.physics_effects;
-      for (EffectInfo& e : shared_block_effects(b)) lib.push_back(std::move(e));
+      for (EffectInfo& e : physical_detail::shared_block_effects(b)) lib.push_back(std::move(e));
       reg.libraries[b.name] = std::move(lib);
     }
     return reg;
@@ -148,6 +165,7 @@ const Registry& registry() {
 std::string base_names() {
   std::vector<std::string> names;
   for (const BaseInfo& b : base_library()) names.push_back("\"" + b.name + "\"");
+  names.push_back("\"mechanical\" (described by the user: lpvid model init --base mechanical --from DESCRIPTION.json)");
   return join(names);
 }
 
@@ -252,7 +270,7 @@ std::vector<std::string> block_parameter_units(const BaseInfo& b, const Block& b
       check_side(blk.side == BlockSide::kBody, "body");
       if (!blk.channels.empty()) throw InputError("mode block: a mode has no channels (its shape has one entry per DOF)");
       std::vector<std::string> u{"rad/s", "1"};
-      for (const std::string& unit : b.output_units) u.push_back(shape_unit(unit));
+      for (const std::string& unit : b.dof_units) u.push_back(shape_unit(unit));
       return u;
     }
   }
@@ -286,20 +304,54 @@ const EffectInfo* find_effect(const std::string& base, const std::string& name) 
 }
 
 PhysicalModel PhysicalModel::bare(const std::string& base) {
+  if (base == "mechanical")
+    throw InputError("base 'mechanical' is described by the user: give its description (lpvid model init --base "
+                     "mechanical --from DESCRIPTION.json; docs/formats.md)");
   PhysicalModel m;
   m.base = base;
-  m.parameters = base_info(base).parameters;
+  m.parameters = lpvid::base_info(base).parameters;
+  return m;
+}
+
+PhysicalModel PhysicalModel::bare(std::shared_ptr<const UserBase> user) {
+  LPVID_ASSERT(user != nullptr);
+  PhysicalModel m;
+  m.base = user->info.name;
+  m.user_base = std::move(user);
+  m.parameters = m.user_base->info.parameters;
   return m;
 }
 
 PhysicalModel PhysicalModel::initial(const std::string& base) {
   PhysicalModel m = bare(base);
-  for (const std::string& e : base_info(base).default_effects) m.add_effect(e);
+  for (const std::string& e : lpvid::base_info(base).default_effects) m.add_effect(e);
   return m;
 }
 
+const BaseInfo& PhysicalModel::base_info() const {
+  if (user_base != nullptr) {
+    if (base != user_base->info.name)
+      throw InputError(fmt::format("the model names base '{}' but carries a {} description; write \"base\": \"{}\"",
+                                   base, user_base->info.name, user_base->info.name));
+    return user_base->info;
+  }
+  if (base == "mechanical")
+    throw InputError("base 'mechanical' needs its description (key \"mechanical\" of the model file; lpvid model init "
+                     "--base mechanical --from DESCRIPTION.json writes it)");
+  return lpvid::base_info(base);
+}
+
+const std::vector<EffectInfo>& PhysicalModel::library() const {
+  if (user_base != nullptr) {
+    base_info();  // the name must match
+    return user_base->library;
+  }
+  return effect_library(base_info().name);
+}
+
 const EffectInfo* PhysicalModel::effect_info(const std::string& name) const {
-  if (const EffectInfo* e = find_effect(base, name)) return e;
+  for (const EffectInfo& e : library())
+    if (e.name == name) return &e;
   for (const EffectInfo& d : definitions)
     if (d.name == name) return &d;
   return nullptr;
@@ -307,8 +359,17 @@ const EffectInfo* PhysicalModel::effect_info(const std::string& name) const {
 
 std::vector<std::string> PhysicalModel::absent_effects() const {
   std::vector<std::string> out;
-  for (const EffectInfo& e : effect_library(base))
-    if (!has_effect(e.name)) out.push_back(e.name);
+  for (const EffectInfo& e : library()) {
+    if (has_effect(e.name)) continue;
+    // structural_mode_k (k >= 2) once the mode before it is in the model: modes are
+    // added one at a time, each candidate a new one
+    if (e.name.rfind("structural_mode_", 0) == 0) {
+      const int k = std::atoi(e.name.c_str() + std::strlen("structural_mode_"));
+      const std::string before = k == 2 ? "structural_mode" : fmt::format("structural_mode_{}", k - 1);
+      if (!has_effect(before)) continue;
+    }
+    out.push_back(e.name);
+  }
   for (const EffectInfo& d : definitions)
     if (!has_effect(d.name)) out.push_back(d.name);
   return out;
@@ -318,7 +379,7 @@ void PhysicalModel::add_effect(const std::string& name) {
   const EffectInfo* e = effect_info(name);
   if (e == nullptr) {
     std::vector<std::string> names;
-    for (const EffectInfo& x : effect_library(base)) names.push_back(x.name);
+    for (const EffectInfo& x : library()) names.push_back(x.name);
     for (const EffectInfo& d : definitions) names.push_back(d.name + " (user-defined)");
     throw InputError(fmt::format("unknown effect '{}'; the library of base '{}' has {}", name, base, join(names)));
   }
@@ -332,7 +393,7 @@ void PhysicalModel::add_effect(const std::string& name) {
   effects.push_back(name);
   for (const PhysicalParameter& q : e->parameters) parameters.push_back(q);
   for (const std::string& h : e->holds)
-    for (const PhysicalParameter& design : base_info(base).parameters)
+    for (const PhysicalParameter& design : base_info().parameters)
       if (design.name == h) {
         PhysicalParameter& q = parameter(h);
         q.value = design.value;
@@ -356,14 +417,14 @@ void PhysicalModel::remove_effect(const std::string& name) {
 }
 
 void PhysicalModel::define_effect(const EffectInfo& def) {
-  const BaseInfo& b = base_info(base);
+  const BaseInfo& b = base_info();
   auto fail = [&](const std::string& what) {
     throw InputError(fmt::format("user-defined effect '{}': {}", def.name, what));
   };
   if (def.name.empty() || def.name.find_first_of(" \t\r\n,\"") != std::string::npos)
     throw InputError(fmt::format("user-defined effect name '{}': give a name without blanks, commas or quotes",
                                  def.name));
-  if (find_effect(base, def.name) != nullptr)
+  if (std::any_of(library().begin(), library().end(), [&](const EffectInfo& e) { return e.name == def.name; }))
     fail("the library already has an effect of that name; choose another name");
   for (const EffectInfo& d : definitions)
     if (d.name == def.name) fail("it is defined twice; define each effect once");
@@ -457,11 +518,12 @@ std::vector<Index> PhysicalModel::free_indices() const {
 }
 
 void PhysicalModel::validate() const {
-  const BaseInfo& b = base_info(base);
+  const BaseInfo& b = base_info();
   // Definitions: re-check each against the base (a copy defines them one by one).
   {
     PhysicalModel check;
     check.base = base;
+    check.user_base = user_base;
     for (const EffectInfo& d : definitions) check.define_effect(d);
   }
   std::vector<const PhysicalParameter*> expected;
@@ -470,7 +532,7 @@ void PhysicalModel::validate() const {
     const EffectInfo* e = effect_info(effects[k]);
     if (e == nullptr) {
       std::vector<std::string> names;
-      for (const EffectInfo& x : effect_library(base)) names.push_back(x.name);
+      for (const EffectInfo& x : library()) names.push_back(x.name);
       throw InputError(fmt::format("unknown effect '{}'; the library of base '{}' has {}{}", effects[k], base,
                                    join(names),
                                    definitions.empty() ? std::string() : " (and the user-defined effects of the file)"));
@@ -486,7 +548,7 @@ void PhysicalModel::validate() const {
       if (x->name == q.name) lib = x;
     if (lib == nullptr) {
       std::string owner;
-      for (const auto& e : effect_library(base))
+      for (const auto& e : library())
         for (const auto& x : e.parameters)
           if (x.name == q.name) owner = e.name;
       for (const auto& e : definitions)

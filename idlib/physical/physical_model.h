@@ -37,6 +37,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -106,9 +107,15 @@ struct BaseInfo {
   std::vector<std::string> input_names, input_units;     // e.g. T_psi N·m
   std::vector<std::string> output_names, output_units;   // e.g. psi rad
   std::vector<std::string> dof_names;                    // q, e.g. psi theta z (outputs are q)
+  std::vector<std::string> dof_units;                    // e.g. rad rad m (a mode's shape units follow them)
   std::string schedule_name;  // the scheduling variable, e.g. "beam position x_b"; "" = none
   std::string schedule_unit;  // "m"
   std::vector<std::string> default_effects;  // what `model init` adds
+  // The structural_mode's frequency bounds (rad/s): above the rigid-body band of the
+  // library's bases; a user's stage may have its modes anywhere.
+  double mode_lower_rad_s = 300.0, mode_upper_rad_s = 6000.0;
+  // How many structural modes the library offers (structural_mode, structural_mode_2, ...).
+  int max_modes = 1;
   std::vector<EffectInfo> physics_effects;   // this base's physics effects
   // Dimensionless tolerances on a design value: {scale, design} means the model uses
   // design × scale, the scale bounded to the build's tolerance (platform: the rods'
@@ -117,7 +124,8 @@ struct BaseInfo {
   std::vector<std::pair<std::string, std::string>> design_scales;
 };
 
-// The bases there are ("platform").
+// The library's bases ("platform", "stage6").  A model may instead carry a base of
+// its own, declared by the user ("mechanical": idlib/physical/mechanical/).
 const std::vector<BaseInfo>& base_library();
 // The base of that name, or nullptr.
 const BaseInfo* find_base(const std::string& name);
@@ -131,8 +139,19 @@ const std::vector<EffectInfo>& effect_library(const std::string& base);
 // The library entry of name for base, or nullptr.
 const EffectInfo* find_effect(const std::string& base, const std::string& name);
 
+namespace physical_detail {
+// The block effects every base shares, with b's channel names (structural_mode,
+// input_delay, actuator_lag, gain_error, sensor_gain, sensor_crosstalk).
+std::vector<EffectInfo> shared_block_effects(const BaseInfo& b);
+}  // namespace physical_detail
+
+struct UserBase;  // idlib/physical/mechanical/mechanical_base.h
+
 struct PhysicalModel {
   std::string base = "platform";
+  // The user-described base when base == "mechanical" (its description travels in
+  // the model file); null for the library's bases.
+  std::shared_ptr<const UserBase> user_base;
   std::vector<PhysicalParameter> parameters;  // base first, then each enabled effect's
   std::vector<std::string> effects;           // enabled effects, in order
   // User-defined effects declared in the model file (enabled or not); their names
@@ -143,6 +162,14 @@ struct PhysicalModel {
   static PhysicalModel bare(const std::string& base = "platform");
   // The base with its default effects (`lpvid model init`).
   static PhysicalModel initial(const std::string& base = "platform");
+  // A model of a user-described base (no effect; its defaults are the description's).
+  static PhysicalModel bare(std::shared_ptr<const UserBase> user_base);
+
+  // The model's base: the library's entry, or the user's.  @throws InputError
+  // unknown base, or "mechanical" without a description.
+  const BaseInfo& base_info() const;
+  // The effect library of the model's base (effect_library(base) for the library's bases).
+  const std::vector<EffectInfo>& library() const;
 
   // The library entry or user definition of an effect name, or nullptr.
   const EffectInfo* effect_info(const std::string& name) const;

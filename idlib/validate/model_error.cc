@@ -108,6 +108,10 @@ namespace {
 
 void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, FailingBand& b) {
   const Index i = b.output, j = b.input;
+  // a coupling is an off-diagonal entry of a square response (input k drives output
+  // k); a non-square one (a mechanical base with two sensors on one actuator) has none
+  const bool off_diagonal =
+      i != j && !mem.data.empty() && mem.data.front().rows() == mem.data.front().cols();
   const std::size_t n = idx.size();
   std::vector<double> gain(n), phase(n), err(n), rel(n), w(n);
   bool model_zero = false;
@@ -156,7 +160,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
   }
 
   // --- signature (header comment: the first rule that holds) ---
-  if (i != j && sum_model < kCouplingLacking * sum_data) {
+  if (off_diagonal && sum_model < kCouplingLacking * sum_data) {
     b.signature = "coupling";
     b.hint = fmt::format("off-diagonal coupling the model lacks (model at {:.0f} % of the measured)",
                          100.0 * sum_model / sum_data);
@@ -198,7 +202,7 @@ void describe(const ModelErrorModel& mem, const std::vector<Index>& idx, Failing
       return;
     }
   }
-  if (i != j) {
+  if (off_diagonal) {
     b.signature = "coupling";
     b.hint = "off-diagonal coupling error";
     return;

@@ -60,6 +60,7 @@ BaseInfo make_platform_base() {
   b.output_names = {"psi", "theta", "z"};
   b.output_units = {"rad", "rad", "m"};
   b.dof_names = {"psi", "theta", "z"};
+  b.dof_units = b.output_units;
   b.schedule_name = "beam position x_b";
   b.schedule_unit = "m";
   b.default_effects = {"beam_gravity"};

@@ -51,6 +51,7 @@ BaseInfo make_stage6_base() {
   b.output_names = {"x", "y", "z", "psi", "theta", "phi"};
   b.output_units = {"m", "m", "m", "rad", "rad", "rad"};
   b.dof_names = {"x", "y", "z", "psi", "theta", "phi"};
+  b.dof_units = b.output_units;
   b.schedule_name = "hover height z_0 above the reference gap";
   b.schedule_unit = "m";
   b.default_effects = {};
