@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
+#include <optional>
 #include <atomic>
 #include <cmath>
 #include <exception>
@@ -62,6 +63,82 @@ Eigen::MatrixXcd plant_residual(const PhysicalModel& model, const FitDataset& ds
   return Pd - Pm;
 }
 
+// The (frequency, damping) of a single real-residue mode r_ij/(wm² − w² + 2j zeta wm w)
+// that best fits the residual ΔP of the first phenomenon's data set, relative to the
+// data (each entry weighted by 1/|P_data|), over the failing bands' frequencies: a
+// linear least-squares fit of the real residues at each candidate (wm, zeta) on a log
+// grid inside the bounds; nothing when there is no residual to scan.
+std::optional<std::pair<double, double>> mode_scan(const PhysicalModel& baseline,
+                                                   const std::vector<Phenomenon>& phenomena,
+                                                   const std::vector<FitDataset>& data, const FitOptions& fit,
+                                                   std::pair<double, double> bounds) {
+  if (phenomena.empty()) return std::nullopt;
+  const Index set = phenomena.front().bands.front().data_index;
+  const FitDataset& ds = data[static_cast<std::size_t>(set)];
+  double lo = INFINITY, hi = 0;
+  for (const Phenomenon& ph : phenomena)
+    for (const FailingBand& b : ph.bands)
+      if (b.data_index == set) {
+        lo = std::min(lo, b.lo_rad_s);
+        hi = std::max(hi, b.hi_rad_s);
+      }
+  if (!(hi > lo)) return std::nullopt;
+  std::vector<double> w;
+  std::vector<Eigen::MatrixXcd> rel;  // ΔP / |P_data|, entry by entry
+  std::vector<Eigen::MatrixXd> weight;
+  try {
+    for (Index k = 0; k < ds.response.num_frequencies(); ++k) {
+      const double wk = ds.response.omega_rad_s(k);
+      if (wk < lo || wk > hi) continue;
+      const Eigen::MatrixXcd dP = plant_residual(baseline, ds, k, fit);
+      const Eigen::MatrixXd mag = ds.response.response[static_cast<std::size_t>(k)].cwiseAbs();
+      Eigen::MatrixXd wt = Eigen::MatrixXd::Zero(mag.rows(), mag.cols());
+      for (Index i = 0; i < mag.rows(); ++i)
+        for (Index j = 0; j < mag.cols(); ++j)
+          if (mag(i, j) > 0) wt(i, j) = 1.0 / mag(i, j);
+      if (dP.rows() != wt.rows() || dP.cols() != wt.cols()) return std::nullopt;  // an S or G target
+      w.push_back(wk);
+      rel.push_back(dP);
+      weight.push_back(wt);
+    }
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (w.size() < 3) return std::nullopt;
+  constexpr int kGrid = 60;                                // log-spaced candidate frequencies
+  constexpr double kDampings[] = {0.005, 0.02, 0.08};      // light to moderate
+  const double glo = std::max(lo / 1.5, bounds.first), ghi = std::min(hi * 1.5, bounds.second);
+  if (!(ghi > glo)) return std::nullopt;
+  double best = INFINITY;
+  std::pair<double, double> pick{0, 0};
+  for (int g = 0; g < kGrid; ++g) {
+    const double wm = glo * std::pow(ghi / glo, g / (kGrid - 1.0));
+    for (double z : kDampings) {
+      // per entry: min over real r of Σ_k wt² |ΔP − r h_k|²  =  Σ wt²|ΔP|² − (Σ wt² Re(conj(h) ΔP))² / Σ wt² |h|²
+      double cost = 0;
+      const Index rows = rel.front().rows(), cols = rel.front().cols();
+      for (Index i = 0; i < rows; ++i)
+        for (Index j = 0; j < cols; ++j) {
+          double a = 0, hh = 0, pp = 0;
+          for (std::size_t k = 0; k < w.size(); ++k) {
+            const Complex h = 1.0 / Complex(wm * wm - w[k] * w[k], 2.0 * z * wm * w[k]);
+            const double q = weight[k](i, j) * weight[k](i, j);
+            a += q * (std::conj(h) * rel[k](i, j)).real();
+            hh += q * std::norm(h);
+            pp += q * std::norm(rel[k](i, j));
+          }
+          cost += hh > 0 ? pp - a * a / hh : pp;
+        }
+      if (cost < best) {
+        best = cost;
+        pick = {wm, z};
+      }
+    }
+  }
+  if (!(pick.first > 0)) return std::nullopt;
+  return pick;
+}
+
 std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectInfo& effect,
                                                                    const PhysicalModel& baseline,
                                                                    const std::vector<Phenomenon>& phenomena,
@@ -85,6 +162,12 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
   };
   for (const Block& b : effect.blocks) {
     if (b.kind == BlockKind::kMode) {
+      // A scan first: the frequency and damping whose mode shape best explains the
+      // residual over the failing bands.  A phenomenon's own frequency is where the
+      // error is largest, which for a mode seen through a rolling-off base (a load's
+      // response falling as 1/w²) lies well above the mode (2200 rad/s seen at 3270).
+      if (const auto scanned = mode_scan(baseline, phenomena, data, fit, bounds(b.parameters[0])))
+        out.push_back({{b.parameters[0], scanned->first}, {b.parameters[1], scanned->second}});
       for (const Phenomenon* p : strongest_within(b.parameters[0])) {
         const Phenomenon& ph = *p;
         std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
