@@ -240,7 +240,10 @@ void run(const DiagnoseCliOptions& o) {
     std::vector<CompareBandMark> marks;
     for (std::size_t k = 0; k < in.data.size(); ++k) {
       const ModelErrorModel& mem = mes.models[k];
-      series.push_back({fmt::format("x_b = {:g} m", in.data[k].beam_position_m), mem.omega_rad_s, mem.data, mem.model,
+      // a base without a scheduling variable: the data set's name
+      series.push_back({std::isnan(in.data[k].beam_position_m) ? in.data[k].label
+                                                               : fmt::format("x_b = {:g} m", in.data[k].beam_position_m),
+                        mem.omega_rad_s, mem.data, mem.model,
                         mem.radius, mem.skipped});
     }
     for (const auto& set : d.baseline_failures)

@@ -2,8 +2,9 @@
 # The main job on sample data: install dependencies, build, simulate the sample
 # datasets (3 beam positions at 1 kHz, 60 s per experiment) and identify each one,
 # writing models, PNG plots and reports under samples/out/; then the model-error
-# loop on data with a hidden effect (samples/loop/), and on the 6-DOF stage
-# (samples/stage6/).
+# loop on data with a hidden effect (samples/loop/), on the 6-DOF stage
+# (samples/stage6/), the lab workflow (samples/lab/) and a stage described by the user
+# (samples/mechanical/out/).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # Builds only what the samples run: the program and the independent simulator that
@@ -23,3 +24,7 @@ echo "stage6 loop: $root/samples/stage6/ (where-it-fails.png, history.png)"
 # with their noise and distortion -> fit -> diagnose (samples/lab-periodic.sh).
 bash "$root/samples/lab-periodic.sh"
 echo "lab workflow: $root/samples/lab/ (where-it-fails.png, history.png)"
+# A stage of your own: a two-mass axis described in JSON (base mechanical), its measured
+# response with two flexible modes the description lacks (samples/mechanical-loop.sh).
+bash "$root/samples/mechanical-loop.sh"
+echo "your own stage: $root/samples/mechanical/out/ (where-it-fails.png, fit2.png)"

@@ -87,7 +87,8 @@ class Reader {
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
         fail_at(top(it.key()), fmt::format("unknown key {}; remove it (a model file has format, version, base, "
-                                           "effects, parameters and optionally definitions and fit)",
+                                           "effects, parameters and optionally definitions and fit; mechanical "
+                                           "with the base mechanical)",
                                            detail::quote_cell(it.key())));
     }
     PhysicalModel model;

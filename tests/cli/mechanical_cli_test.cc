@@ -114,6 +114,37 @@ TEST(MechanicalCli, TwoUnmodelledModesAreNamedTogether) {
   EXPECT_THAT(m2.absent_effects(), ::testing::Not(::testing::Contains("structural_mode_4")));
 }
 
+// The bundled sample (samples/mechanical-loop.sh): the axis's response with two hidden
+// modes under 0.5 % noise (samples/mechanical/make_p_axis.py).  The modes' largest
+// error shows well above them (the load's response falls as 1/w²: the 2200 rad/s
+// mode is seen at 3270 rad/s), so diagnose seeds a mode from a scan of the residual,
+// not from where the error peaks; before that seed, the pair ended with its second
+// mode's damping and shape on their bounds at 21 % error.
+TEST(MechanicalCli, TheSampleLoopReachesTheNoiseFloor) {
+  const TempDir dir("mech_sample");
+  const std::string data =
+      fmt::format("--data {}/samples/mechanical/P_axis.csv --noise-level 0.005", std::string(LPVID_SOURCE_DIR));
+  ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", sample(), dir / "m.json")).exit_code,
+            0);
+  ASSERT_EQ(run_lpvid(fmt::format("fit --model {} {} --out {}", dir / "m.json", data, dir / "fit1.json")).exit_code, 0);
+  const auto r = run_lpvid(
+      fmt::format("diagnose --model {} {} --json --out {}", dir / "fit1.json", data, dir / "step2.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json d = nlohmann::json::parse(r.out);
+  EXPECT_EQ(d["missing_effects"], nlohmann::json({"structural_mode", "structural_mode_2"})) << r.out.substr(0, 3000);
+  const auto f = run_lpvid(fmt::format("fit --model {} {} --out {} --json", dir / "step2.json", data, dir / "fit2.json"));
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  const nlohmann::json j = nlohmann::json::parse(f.out);
+  // within 1.5x the stated floor (diagnose's "explained"); seen: 0.496 % for 0.5 %
+  EXPECT_LT(j["error"].get<double>(), 1.5 * 0.005) << f.out.substr(0, 2000);
+  // the truth (make_p_axis.py) within 3 reported standard errors
+  const PhysicalModel m = read_physical_model(dir / "fit2.json");
+  const nlohmann::json fit = nlohmann::json::parse(slurp(dir / "fit2.json"))["fit"]["parameters"];
+  for (const auto& [name, truth] : std::vector<std::pair<std::string, double>>{
+           {"m_load_kg", 6.5}, {"k_coupling_N_per_m", 1.6e5}, {"c_coupling_Ns_per_m", 55.0}, {"c_guide_Ns_per_m", 24.0}})
+    EXPECT_LT(std::abs(m.parameter(name).value - truth), 3.0 * fit[name]["std_error"].get<double>()) << name;
+}
+
 TEST(MechanicalCli, BadDescriptionsFailAtTheirKeyAndWriteNothing) {
   const TempDir dir("mech_bad");
   std::string text = slurp(sample());

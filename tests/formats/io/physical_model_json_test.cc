@@ -6,7 +6,9 @@
 #include <fmt/format.h>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "tests/support/two_mass_axis.h"
 
 namespace lpvid {
 namespace physical_model_json_test {
@@ -144,6 +146,44 @@ TEST(PhysicalModelJson, AVersionOneFileIsRefusedWithWhatToDo) {
   const std::string e = error_of(edit(good, "\"version\": 2", "\"version\": 1"));
   EXPECT_THAT(e, StartsWith("m.json:3:3: "));
   EXPECT_THAT(e, HasSubstr("write a new one with 'lpvid model init'"));
+}
+
+
+// A mechanical base travels in the model file (key "mechanical"): the file alone gives
+// back the same base, the same parameters and the same response; its own rules and the
+// key's misuse are refused at their position.
+TEST(PhysicalModelJson, AMechanicalBaseRoundTripsInTheModelFileAndItsErrorsArePositioned) {
+  MechanicalDescription d = two_mass_axis::axis();
+  d.outputs[1].derivative = 2;  // an accelerometer: "measures" is written and read back
+  PhysicalModel m = PhysicalModel::bare(make_mechanical_base(d));
+  m.add_effect("structural_mode");
+  m.parameter("m_load_kg").value = 0.1 + 6.2;  // 17 significant digits
+  const std::string text = physical_model_to_json(m);
+  EXPECT_THAT(text, HasSubstr("\"measures\":\"acceleration\""));
+  const PhysicalModel back = parse_physical_model(text, "m.json");
+  ASSERT_NE(back.user_base, nullptr);
+  EXPECT_EQ(back.base, "mechanical");
+  EXPECT_EQ(back.effects, m.effects);
+  ASSERT_EQ(back.parameters.size(), m.parameters.size());
+  for (std::size_t i = 0; i < m.parameters.size(); ++i) EXPECT_EQ(back.parameters[i].value, m.parameters[i].value);
+  const Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(7, 10.0, 3000.0);
+  const auto P = physical_response(m, 0.0, w, 0.0), Q = physical_response(back, 0.0, w, 0.0);
+  for (std::size_t k = 0; k < P.size(); ++k) EXPECT_EQ(P[k], Q[k]) << k;  // the same base, bit for bit
+  // a second write gives the same text (the description is canonical)
+  EXPECT_EQ(physical_model_to_json(back), text);
+
+  const int mech_line = line_of(text, "\"mechanical\": {");
+  EXPECT_THAT(error_of(edit(text, "  \"mechanical\": {", "  \"mechanica\": {")),
+              HasSubstr("unknown key 'mechanica'; remove it"));
+  const std::string without = edit(text, "\"mechanical\": {", "\"unused\": {");
+  EXPECT_THAT(error_of(edit(without, "\"unused\": {", "\"fit\": {")),
+              HasSubstr("base 'mechanical' needs its description under key \"mechanical\""));
+  EXPECT_THAT(error_of(edit(text, "\"base\": \"mechanical\"", "\"base\": \"platform\"")),
+              HasSubstr("key 'mechanical' describes a user's base, but the model's base is 'platform'"));
+  EXPECT_THAT(error_of(edit(text, "[[\"m_carriage_kg\",0],[0,\"m_load_kg\"]]", "[[\"m_carriage_kg\",0],[\"m_load_kg\",\"m_load_kg\"]]")),
+              StartsWith(fmt::format("m.json:{}:3: mechanical base 'two_mass_axis': the mass matrix is not symmetric", mech_line)));
+  EXPECT_THAT(error_of(edit(text, "\"measures\":\"acceleration\"", "\"measures\":\"jerk\"")),
+              HasSubstr("output \"load\" measures \"jerk\"; write \"position\", \"velocity\" or \"acceleration\""));
 }
 
 }  // namespace physical_model_json_test
