@@ -49,7 +49,10 @@ struct TimeCompareCliOptions {
   std::vector<std::string> overrides;  // --set NAME=VALUE
   std::string controller;  // discrete controller model (JSON)
   std::string out_png;
-  double window_s = 0.5;
+  // A state-space model (--model M.json): the log's columns for its channels (default:
+  // the model's names), and with --controller the loop's excitation (cli/compare_model_time.cc).
+  std::string input, output, excitation, excitation_at = "input";
+  double window_s = 0;  // 0: the route's default (0.5 s; a twentieth of the record for a state-space model)
   double threshold_percent = 10.0;
   long max_lag = 25;
   int substeps = 1;
@@ -68,5 +71,9 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
 // logged run with `model` and reports fit, residual tests and failing windows.
 void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParameters& model,
                            const std::string& out_json, bool json);
+
+// A state-space or transfer-function model file (o.params) on any log: open loop from
+// the logged input, or closed loop with o.controller from the logged excitation.
+void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json);
 
 }  // namespace lpvid::cli

@@ -84,7 +84,19 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--controller", o.controller,
                   "the discrete controller (JSON model): of the run with --log; for G and S data of a physical "
                   "model also its measured response (FRD .csv/.mat on the data's lines)");
-  app->add_option("--window-s", o.window_s, "with --log: failing-window length in s (default 0.5)")
+  app->add_option("--input", o.input,
+                  "with --log and a state-space model: the log's columns of the plant's input (default: the model's "
+                  "input names); with --controller, the logged plant input for the residual tests");
+  app->add_option("--output", o.output,
+                  "with --log and a state-space model: the log's columns of the model's outputs (default: its names)");
+  app->add_option("--excitation", o.excitation,
+                  "with --log, a state-space model and --controller: the log's excitation columns (the loop is "
+                  "simulated from them)");
+  app->add_option("--excitation-at", o.excitation_at,
+                  "with --excitation: 'input' (added to the plant input, default) or 'reference' (setpoints, e = r - q)");
+  app->add_option("--window-s", o.window_s,
+                  "with --log: failing-window length in s (default 0.5; a twentieth of the record for a state-space "
+                  "model)")
       ->check(positive_up_to(kMaxDurationS, "the window length in s"));
   app->add_option("--threshold-percent", o.threshold_percent,
                   "with --log: a window fails when its residual rms exceeds this % of the output's rms (default 10)")
@@ -97,17 +109,25 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
 
 // Every input and output of the time-domain compare (cli/output_set.h).
 void register_time_compare_files(OutputSet& outputs, const TimeCompareCliOptions& o, const std::string& out_json) {
-  if (o.controller.empty())
-    throw InputError("compare --log: give --controller CONTROLLER.json, the discrete controller of the measured run");
   outputs.input(o.log);
   outputs.input(o.controller);
   outputs.input(o.params);
   outputs.file("--out-png", o.out_png);
   outputs.file("--out", out_json);
-  outputs.check();
+  outputs.check();  // a missing file is named before a missing flag
+  if (o.controller.empty())
+    throw InputError("compare --log: give --controller CONTROLLER.json, the discrete controller of the measured run "
+                     "(or --model M.json with a state-space model, compared on its own logged input)");
 }
 
 void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
+  if (!o.params.empty() && is_state_space_file(o.params)) return run_model_time_compare(o, out_json, json);
+  if (!o.input.empty() || !o.output.empty() || !o.excitation.empty() || o.excitation_at != "input")
+    throw InputError(fmt::format("compare --log: --input, --output, --excitation and --excitation-at are for a "
+                                 "state-space model (--model M.json with \"type\": \"state_space\" or "
+                                 "\"transfer_function\"); {} is a physical model or parameter file, whose channels "
+                                 "are fixed by its base",
+                                 o.params.empty() ? "the default platform model" : o.params));
   if (!o.params.empty() && is_physical_model_file(o.params)) {
     // A stage6 model: the stage's time-domain route (cli/stage6_time.h).
     {
@@ -132,7 +152,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
       req.log = o.log;
       req.out_png = o.out_png;
       req.out_json = out_json;
-      req.window_s = o.window_s;
+      req.window_s = o.window_s > 0 ? o.window_s : 0.5;
       req.threshold_percent = o.threshold_percent;
       req.json = json;
       return run_stage_time_compare(req);
@@ -168,7 +188,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
 void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParameters& model,
                            const std::string& out_json, bool json) {
   TimeFitOptions fo;
-  fo.window_s = o.window_s;
+  fo.window_s = o.window_s > 0 ? o.window_s : 0.5;
   fo.window_threshold_percent = o.threshold_percent;
   fo.max_lag = o.max_lag;
   fo.validate();

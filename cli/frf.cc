@@ -263,6 +263,7 @@ void run_other(const FrfCliOptions& o, const ExperimentSet& set, const std::vect
   write_frd_csv(outputs.stage(o.out), frd, o.quantity, comments);
   text += fmt::format("  written to {}\n", o.out);
   outputs.commit();
+  print_log_findings(set);
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 
@@ -388,6 +389,7 @@ void run(const FrfCliOptions& o) {
                                        frd.omega_rad_s.size() ? frd.omega_rad_s(frd.omega_rad_s.size() - 1) : 0.0,
                                        flagged, o.out);
   outputs.commit();
+  print_log_findings(set);
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
 }
 

@@ -236,6 +236,7 @@ void run(const IdentifyCliOptions& o) {
   const double Ts = set.sample_period_s;
   nlohmann::json report = {
       {"logs", set.paths},
+      {"log_findings", set.findings},
       {"controller", o.open_loop ? nlohmann::json(nullptr) : nlohmann::json(o.controller)},
       {"route", o.open_loop      ? "open loop: the excitation is the plant's input (C = 0, G = P)"
                 : at_reference ? "closed loop with the known controller, excited at the reference (v = C r)"
@@ -439,6 +440,7 @@ void run(const IdentifyCliOptions& o) {
   files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "report.json"), json_text(report));
   files.commit();
+  print_log_findings(set);
 
   std::string text = fmt::format("identify ({}{}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
                                  o.open_loop ? ", open loop" : "", set.paths.size(), Ts);

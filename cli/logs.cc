@@ -5,9 +5,11 @@
 #include <sys/stat.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "formats/io/csv_log.h"
 #include "idlib/core/error.h"
+#include "idlib/signal/log_checks.h"
 
 namespace lpvid::cli {
 
@@ -47,8 +49,22 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
           path, log.sample_period_s, set.paths.front(), set.sample_period_s));
     }
     set.paths.push_back(path);
+    // The habits of real logs the methods do not model: said with the place, not corrected.
+    const Eigen::MatrixXd& ex = set.excitations.back();
+    const Eigen::MatrixXd& ou = set.outputs.back();
+    for (const auto* block : {&ex, &ou}) {
+      const std::vector<std::string>& names = block == &ex ? excitation : output;
+      for (const ChannelFinding& f : inspect_channels(*block)) {
+        set.findings.push_back(fmt::format("{}: {}", path == "-" ? "<stdin>" : path,
+                                           describe_finding(f, names[static_cast<std::size_t>(f.channel)])));
+      }
+    }
   }
   return set;
+}
+
+void print_log_findings(const ExperimentSet& set) {
+  for (const std::string& f : set.findings) std::fprintf(stderr, "lpvid: warning: %s\n", f.c_str());
 }
 
 }  // namespace lpvid::cli

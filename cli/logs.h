@@ -16,13 +16,21 @@ struct ExperimentSet {
   std::vector<Eigen::MatrixXd> outputs;      // per log: N x p
   double sample_period_s = 0;
   std::vector<std::string> paths;
+  // What idlib/signal/log_checks.h found in the named columns ("PATH: channel y sits at
+  // ..."), one sentence each (print_log_findings).
+  std::vector<std::string> findings;
   std::vector<ExperimentView> views() const;
 };
 
 // Reads each log, keeps only the named columns (the rest is freed at once), and
 // checks that all logs share the sample period (relative 1e-6; the message names
-// both files and periods).
+// both files and periods).  Saturated or drifting columns (idlib/signal/log_checks.h)
+// are collected in `findings`, never changed.
 ExperimentSet read_experiments(const std::vector<std::string>& paths, const std::vector<std::string>& excitation,
                                const std::vector<std::string>& output);
+
+// Prints each finding as "lpvid: warning: ..." on stderr: called by a command once its
+// work succeeded (a refused command's error stays one line).
+void print_log_findings(const ExperimentSet& set);
 
 }  // namespace lpvid::cli

@@ -84,6 +84,7 @@ void run(const MarkovCliOptions& o) {
   file.output_rms = r.output_rms;
   outputs.stage(o.out, markov_csv_text(file, o.out));
   outputs.commit();
+  print_log_findings(set);
 
   nlohmann::json summary = {{"lags", options.num_lags},
                             {"horizon", horizon},

@@ -4,7 +4,8 @@
 # project's to ship, so this is not part of the main job).
 #   F-16 ground vibration test: the periodic FRF with the measured voltage as reference,
 #     levels 1 and 7 (the wing-torsion mode softens), also from the raw .mat file;
-#   DaISy robot arm: markov's default horizon (sample time unknown), identify --open-loop;
+#   DaISy robot arm: markov's default horizon (sample time unknown), identify --open-loop,
+#     compare --log of the identified model on the record;
 #   DaISy steel subframe: identify --open-loop (fails today; the message says what to try).
 # Writes samples/real/.  LPVID overrides the program's path.
 #   ./samples/real-data.sh ../shared/real-data
@@ -34,10 +35,13 @@ run bode --hz --min 2 --max 15 --labels "level 1,level 7" --title "F-16 GVT: for
 
 run markov --excitation u --output y --out arm_markov.csv "$data/daisy_robot_arm/robot_arm.csv"
 run identify --open-loop --excitation u --output y --out arm "$data/daisy_robot_arm/robot_arm.csv"
+# The identified model judged on the record (fit from rest and with its initial state,
+# residual tests, the overlay).
+run compare --log "$data/daisy_robot_arm/robot_arm.csv" --model arm/plant.json --out-png arm_compare.png
 
 outputs="$(awk '!/^#/ { print; exit }' "$data/daisy_flexible_structure/flexible_structure.csv" | tr ',' '\n' |
            grep '^a' | paste -sd,)"
 echo "\$ lpvid identify --open-loop --excitation f1,f2 --output a1,...,a28 --out subframe ..."
 "$lpvid" identify --open-loop --excitation f1,f2 --output "$outputs" --out subframe \
     "$data/daisy_flexible_structure/flexible_structure.csv" || echo "(exit $?: see docs/real-data.md)"
-echo "real data: $here/real/ (f16_levels.png, arm/bode.png, the FRD files)"
+echo "real data: $here/real/ (f16_levels.png, arm/bode.png, arm_compare.png, the FRD files)"

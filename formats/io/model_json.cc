@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 
 #include "formats/io/csv_detail.h"
 #include "formats/io/json_detail.h"
@@ -355,6 +356,18 @@ StateSpace read_state_space(const std::string& path) {
 }
 
 StateSpace parse_state_space(const std::string& text, const std::string& path) { return ModelReader(path, text).read(); }
+
+bool is_state_space_file(const std::string& path) {
+  // Only a regular file is probed: a pipe or stdin would be consumed by the probe.
+  std::error_code ec;
+  if (path == "-" || !std::filesystem::is_regular_file(path, ec)) return false;
+  try {
+    const json j = detail::parse_json(path, detail::read_json_text(path, "a model file"));
+    return j.is_object() && j.contains("type") && (j["type"] == "state_space" || j["type"] == "transfer_function");
+  } catch (const InputError&) {
+    return false;  // not readable JSON: the caller's other reader says why
+  }
+}
 
 std::string state_space_to_json(const StateSpace& model, const nlohmann::json& extra) {
   model.validate();

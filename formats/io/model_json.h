@@ -53,6 +53,10 @@ StateSpace read_state_space(const std::string& path);
 // The same from text already read (path for messages only; content detection of stdin).
 StateSpace parse_state_space(const std::string& text, const std::string& path);
 
+// True when path is a regular file of JSON whose "type" is "state_space" or
+// "transfer_function" (nothing else validated: read_state_space says what is wrong).
+bool is_state_space_file(const std::string& path);
+
 // Largest model a file may hold: unloop's interconnection of two such models
 // takes about 1 s at 400 + 400 states (2 cores; cubic in the order).
 inline constexpr Index kMaxModelStates = 400;

@@ -309,49 +309,62 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
   return res;
 }
 
-Eigen::VectorXd simulation_fit_percent(const StateSpace& model, const std::vector<ExperimentView>& experiments,
-                                       bool fit_initial_states) {
+SimulatedOutput simulate_with_fitted_start(const StateSpace& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
+                                           const Eigen::Ref<const Eigen::MatrixXd>& y, bool fit_initial_states) {
   model.validate();
   const Index n = model.order(), m = model.num_inputs(), p = model.num_outputs();
+  if (u.cols() != m || y.cols() != p || u.rows() != y.rows())
+    throw InputError(fmt::format("simulation fit: a log is {} x {} / {} x {} but the model is {} -> {}", u.rows(),
+                                 u.cols(), y.rows(), y.cols(), m, p));
+  const Index N = u.rows();
+  SimulatedOutput out;
+  Eigen::MatrixXd yhat = simulate_discrete(model, u);
+  if (!yhat.allFinite()) return out;
+  // The misfit's least-squares correction: a constant per output (the Markov estimate's
+  // intercept) and, when asked, the free response F_t x(0), F_t = C A^t — by the normal
+  // equations of the p + n unknowns, accumulated over time (O(N p n²), no N p × (p + n)
+  // matrix held).
+  const Index k = p + (fit_initial_states ? n : 0);
+  Eigen::MatrixXd OtO = Eigen::MatrixXd::Zero(k, k), row(p, k);
+  Eigen::VectorXd Otr = Eigen::VectorXd::Zero(k);
+  Eigen::MatrixXd F = model.C;  // p × n
+  const Eigen::MatrixXd misfit = y - yhat;
+  row.leftCols(p).setIdentity();
+  for (Index t = 0; t < N; ++t) {
+    if (k > p) {
+      row.rightCols(n) = F;
+      F = F * model.A;
+    }
+    OtO.noalias() += row.transpose() * row;
+    Otr.noalias() += row.transpose() * misfit.row(t).transpose();
+  }
+  if (!OtO.allFinite()) return out;
+  const Eigen::VectorXd c = OtO.completeOrthogonalDecomposition().solve(Otr);
+  F = model.C;
+  for (Index t = 0; t < N; ++t) {
+    Eigen::VectorXd corr = c.head(p);
+    if (k > p) {
+      corr += F * c.tail(n);
+      F = F * model.A;
+    }
+    yhat.row(t) += corr.transpose();
+  }
+  if (!yhat.allFinite()) return out;
+  out.predicted = std::move(yhat);
+  out.offsets = c.head(p);
+  out.initial_state = k > p ? Eigen::VectorXd(c.tail(n)) : Eigen::VectorXd::Zero(n);
+  return out;
+}
+
+Eigen::VectorXd simulation_fit_percent(const StateSpace& model, const std::vector<ExperimentView>& experiments,
+                                       bool fit_initial_states) {
+  const Index p = model.num_outputs();
   Eigen::VectorXd err = Eigen::VectorXd::Zero(p), spread = Eigen::VectorXd::Zero(p);
   for (const auto& e : experiments) {
-    if (e.excitation.cols() != m || e.output.cols() != p || e.excitation.rows() != e.output.rows())
-      throw InputError(fmt::format("simulation fit: a log is {} x {} / {} x {} but the model is {} -> {}",
-                                   e.excitation.rows(), e.excitation.cols(), e.output.rows(), e.output.cols(), m, p));
-    const Index N = e.excitation.rows();
+    const SimulatedOutput s = simulate_with_fitted_start(model, e.excitation, e.output, fit_initial_states);
+    if (s.predicted.size() == 0) return {};
     const Eigen::MatrixXd& y = e.output;
-    Eigen::MatrixXd yhat = simulate_discrete(model, e.excitation);
-    if (!yhat.allFinite()) return {};
-    // The misfit's least-squares correction: a constant per output (the Markov estimate's
-    // intercept) and, when asked, the free response F_t x(0), F_t = C A^t — by the normal
-    // equations of the p + n unknowns, accumulated over time (O(N p n²), no N p × (p + n)
-    // matrix held).
-    const Index k = p + (fit_initial_states ? n : 0);
-    Eigen::MatrixXd OtO = Eigen::MatrixXd::Zero(k, k), row(p, k);
-    Eigen::VectorXd Otr = Eigen::VectorXd::Zero(k);
-    Eigen::MatrixXd F = model.C;  // p × n
-    const Eigen::MatrixXd misfit = y - yhat;
-    row.leftCols(p).setIdentity();
-    for (Index t = 0; t < N; ++t) {
-      if (k > p) {
-        row.rightCols(n) = F;
-        F = F * model.A;
-      }
-      OtO.noalias() += row.transpose() * row;
-      Otr.noalias() += row.transpose() * misfit.row(t).transpose();
-    }
-    if (!OtO.allFinite()) return {};
-    const Eigen::VectorXd c = OtO.completeOrthogonalDecomposition().solve(Otr);
-    F = model.C;
-    for (Index t = 0; t < N; ++t) {
-      Eigen::VectorXd corr = c.head(p);
-      if (k > p) {
-        corr += F * c.tail(n);
-        F = F * model.A;
-      }
-      yhat.row(t) += corr.transpose();
-    }
-    err += (y - yhat).colwise().squaredNorm().transpose();
+    err += (y - s.predicted).colwise().squaredNorm().transpose();
     spread += (y.rowwise() - y.colwise().mean()).colwise().squaredNorm().transpose();
   }
   Eigen::VectorXd fit(p);

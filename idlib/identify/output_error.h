@@ -67,6 +67,20 @@ struct OutputErrorResult {
 OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                                       const OutputErrorOptions& options = {});
 
+// The model's response to u as logged, corrected by least squares as MATLAB compare
+// does: a constant per output (a sensor offset, the Markov estimate's intercept) and,
+// with fit_initial_states, the initial state x(0) that fits y best (compare's 'e';
+// otherwise x(0) = 0, compare's 'z').  predicted is empty when the response diverges
+// (an unstable model, or a free response that overflows).
+// | u: N × m | y: N × p | predicted: N × p | offsets: p | initial_state: n |
+struct SimulatedOutput {
+  Eigen::MatrixXd predicted;
+  Eigen::VectorXd offsets, initial_state;
+};
+// @throws InputError  shapes that differ from the model's; an invalid model.
+SimulatedOutput simulate_with_fitted_start(const StateSpace& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
+                                           const Eigen::Ref<const Eigen::MatrixXd>& y, bool fit_initial_states);
+
 // MATLAB compare's simulation fit, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) per output over all
 // experiments, ŷ the model's response to u as logged plus a constant per output and
 // experiment (the Markov estimate's intercept: a sensor offset), simulated from

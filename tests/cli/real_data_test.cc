@@ -213,6 +213,14 @@ TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) 
   EXPECT_GT(fit_e, plain_e + 3.0);
   EXPECT_THAT(report["fit"]["excitation_reason"].get<std::string>(), HasSubstr("coloured"));
   EXPECT_THAT(report["fit"]["bands_reason"].get<std::string>(), HasSubstr("output-error refinement"));
+  // compare --log judges the written model on the record as identify did (its columns from
+  // the model's names): the same two figures from the written file.
+  const auto c = run_lpvid("compare --json --log " + log + " --model " + (dir / "out/plant.json"));
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  const auto cmp = nlohmann::json::parse(c.out);
+  EXPECT_NEAR(cmp["fit_percent"]["y"].get<double>(), fit_e, 1e-9);
+  EXPECT_NEAR(cmp["fit_zero_state_percent"]["y"].get<double>(), fit, 1e-9);
+  EXPECT_EQ(cmp["stable"], true);
 }
 
 }  // namespace real_data_test
