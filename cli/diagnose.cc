@@ -11,6 +11,7 @@
 #include "cli/common.h"
 #include "cli/stage6_time.h"
 #include "cli/fit_inputs.h"
+#include "formats/io/history.h"
 #include "cli/output_set.h"
 #include "cli/progress_line.h"
 #include "cli/registry.h"
@@ -134,6 +135,12 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
   OutputSet outputs;
   outputs.file("--out", o.out);
+  // The refit's history beside --out continues the model's lineage (as fit --out does).
+  const bool history = !o.out.empty() && o.out != "-";
+  if (history) {
+    outputs.file("--out (its history)", history_path_for(o.out));
+    outputs.input(history_path_for(o.in.model));
+  }
   outputs.file("--out-effect", o.out_effect);
   outputs.file("--png", o.png);
   outputs.file("--report", o.report);
@@ -228,8 +235,14 @@ void run(const DiagnoseCliOptions& o) {
                         d.explained ? fmt::format("{} explains the error within the noise", d.missing)
                                     : std::string("the residual was not described"),
                         o.out_effect);
-  if (unmet.empty() && !o.out.empty())
-    outputs.stage(o.out, physical_model_to_json(d.winner()->fit.model, nlohmann::json()));
+  if (unmet.empty() && !o.out.empty()) {
+    const FitResult& won = d.winner()->fit;
+    outputs.stage(o.out, physical_model_to_json(won.model, nlohmann::json()));
+    if (history)
+      outputs.stage(history_path_for(o.out),
+                    fit_history_text(o.in.model, o.out, won, won.output_names, won.input_names,
+                                     fmt::format("diagnose of {}: the refit with {}", o.in.model, d.missing)));
+  }
   if (unmet.empty() && !o.out_effect.empty())
     outputs.stage(o.out_effect, effect_definition_file(d.descriptions.front().effect));
   if (unmet.empty() && !o.png.empty()) {

@@ -234,34 +234,10 @@ void run(const FitCliOptions& o) {
   // The fit history beside the fitted model (formats/io/history.h): the start
   // model's history, if it has one, then this fit, so that `lpvid history` on the
   // newest model shows the whole lineage, model by model.
-  const std::string history_out = history_path_for(o.out);
-  {
-    std::vector<HistoryRecord> records;
-    if (std::filesystem::exists(history_path_for(o.in.model))) records = read_history(history_path_for(o.in.model));
-    HistoryRecord rec;
-    rec.timestamp = utc_timestamp_now();
-    rec.model = o.out;
-    rec.effects = r.model.effects;
-    rec.free_parameters = static_cast<Index>(r.parameters.size());
-    rec.cost = r.cost_final;
-    rec.error_mean = 0.0;
-    rec.error_max = 0.0;
-    for (const auto& c : r.channels) {
-      rec.error_mean += c.relative_rms_error / static_cast<double>(r.channels.size());
-      rec.error_max = std::max(rec.error_max, c.relative_rms_error);
-      rec.channels.push_back({outs[static_cast<std::size_t>(c.output)], ins[static_cast<std::size_t>(c.input)],
-                              c.relative_rms_error, c.relative_rms_error});
-    }
-    rec.error = r.error;
-    rec.noise_floor = r.noise_floor;
-    rec.aic = r.aic;
-    rec.bic = r.bic;
-    rec.note = fmt::format("fit of {} to {} data sets ({} target)", o.in.model, data.size(), target_name(options.target));
-    std::string text;
-    for (const auto& old : records) text += history_line(old) + "\n";
-    text += history_line(rec) + "\n";
-    outputs.stage(history_out, text);
-  }
+  outputs.stage(history_path_for(o.out),
+                fit_history_text(o.in.model, o.out, r, outs, ins,
+                                 fmt::format("fit of {} to {} data sets ({} target)", o.in.model, data.size(),
+                                             target_name(options.target))));
   outputs.commit();
 
   // Report.
@@ -290,7 +266,9 @@ void run(const FitCliOptions& o) {
                       std::isfinite(r.noise_floor) ? fmt::format("{:.4g} %", 100.0 * r.noise_floor) : "unknown",
                       r.noise_source,
                       std::isfinite(r.noise_floor) && r.error <= 1.5 * r.noise_floor ? ": within the noise" : "");
-  text += "per-channel relative rms error (%), pooled over x_b:\n";
+  const std::string& schedule = start.base_info().schedule_symbol;
+  text += fmt::format("per-channel relative rms error (%), pooled over {}:\n",
+                      schedule.empty() ? "the data sets" : schedule);
   for (std::size_t i = 0; i < outs.size(); ++i) {
     text += fmt::format("  {:<8}", outs[i]);
     for (std::size_t j = 0; j < ins.size(); ++j)
@@ -299,7 +277,7 @@ void run(const FitCliOptions& o) {
   }
   for (const auto& w : r.identifiability) text += "identifiability: " + w + "\n";
   for (const auto& w : r.report.warnings) text += "warning: " + w + "\n";
-  text += fmt::format("{} in {:.2f} s; wrote {} (history: {})\n", r.report.termination, r.seconds, o.out, history_out);
+  text += fmt::format("{} in {:.2f} s; wrote {} (history: {})\n", r.report.termination, r.seconds, o.out, history_path_for(o.out));
   // a fit that stopped on its iteration limit: say exactly how to go on (issue 25)
   if (r.iterations >= o.in.max_iterations && r.report.termination.rfind("stopped", 0) == 0 && o.out != "-")
     text += fmt::format("to continue from where it stopped: lpvid fit --model {} ... --out NEXT.json (the same data; "

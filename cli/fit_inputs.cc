@@ -3,7 +3,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -13,6 +15,7 @@
 #include "cli/responses.h"
 #include "formats/io/atomic_file.h"
 #include "formats/io/dataset_manifest.h"
+#include "formats/io/history.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/io/text.h"
@@ -25,7 +28,8 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
   app.add_option("--model", o.model, "start model file (lpvid model init)")->required();
   app.add_option("--data", o.data,
                  "FILE@X_B: FRD (.csv/.mat; A.csv,B.csv,C.csv@X_B merges one file per excited input) or "
-                 "state-space .json, x_b in m (repeat); or give --datasets once");
+                 "state-space .json, x_b in m (repeat); a base without a scheduling variable (mechanical) takes FILE "
+                 "alone; or give --datasets once");
   app.add_option("--datasets", o.datasets,
                  "dataset manifest (JSON): the files and x_b of every data set, and optionally target, "
                  "controller, rate_hz, averages, noise_level, band_rad_s (docs/formats.md)");
@@ -277,6 +281,36 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   else if (controller_used && ts == 0.0)
     std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
   return in;
+}
+
+std::string fit_history_text(const std::string& start_model, const std::string& out, const FitResult& r,
+                             const std::vector<std::string>& outs, const std::vector<std::string>& ins,
+                             const std::string& note) {
+  std::vector<HistoryRecord> records;
+  if (std::filesystem::exists(history_path_for(start_model))) records = read_history(history_path_for(start_model));
+  HistoryRecord rec;
+  rec.timestamp = utc_timestamp_now();
+  rec.model = out;
+  rec.effects = r.model.effects;
+  rec.free_parameters = static_cast<Index>(r.parameters.size());
+  rec.cost = r.cost_final;
+  rec.error_mean = 0.0;
+  rec.error_max = 0.0;
+  for (const auto& c : r.channels) {
+    rec.error_mean += c.relative_rms_error / static_cast<double>(r.channels.size());
+    rec.error_max = std::max(rec.error_max, c.relative_rms_error);
+    rec.channels.push_back({outs[static_cast<std::size_t>(c.output)], ins[static_cast<std::size_t>(c.input)],
+                            c.relative_rms_error, c.relative_rms_error});
+  }
+  rec.error = r.error;
+  rec.noise_floor = r.noise_floor;
+  rec.aic = r.aic;
+  rec.bic = r.bic;
+  rec.note = note;
+  std::string text;
+  for (const auto& old : records) text += history_line(old) + "\n";
+  text += history_line(rec) + "\n";
+  return text;
 }
 
 }  // namespace lpvid::cli

@@ -89,4 +89,13 @@ std::string measured_controller_rate_warning(const std::string& controller_path)
 // an InputError naming the file and both rates.
 std::string recorded_rate_warning(const std::string& path, double rate_hz, std::size_t more);
 
+// The fit history written beside a fitted model (formats/io/history.h): the start
+// model's history (start_model's .history.jsonl, when it exists), then one record of
+// `r` saved as `out` with `note`, as JSON lines.  `fit --out` and `diagnose --out` (the
+// winning candidate's refit) both write it, so that `lpvid history` on the newest model
+// shows the whole lineage.  outs/ins: the response's channel names.
+std::string fit_history_text(const std::string& start_model, const std::string& out, const FitResult& r,
+                             const std::vector<std::string>& outs, const std::vector<std::string>& ins,
+                             const std::string& note);
+
 }  // namespace lpvid::cli

@@ -478,7 +478,14 @@ cv::Mat render_bode(const std::vector<BodeSeries>& series, const BodePlotOptions
       std::vector<cv::Point2d> flag_mag, flag_phase;
       const std::vector<std::vector<double>> phases =
           options.show_phase ? panel_phases(series, orders, i, j) : std::vector<std::vector<double>>();
-      for (std::size_t s = 0; s < series.size(); ++s) {
+      // Magnitude-only series (a band's envelopes) first, so that the lines they bound
+      // are drawn over them, not hidden where the band is tight; colours stay by index.
+      std::vector<std::size_t> draw_order;
+      for (std::size_t s = 0; s < series.size(); ++s)
+        if (!series[s].show_phase) draw_order.push_back(s);
+      for (std::size_t s = 0; s < series.size(); ++s)
+        if (series[s].show_phase) draw_order.push_back(s);
+      for (const std::size_t s : draw_order) {
         const FrequencyResponse& r = series[s].response;
         const std::vector<Complex> h = channel(r, orders[s], i, j);
         const std::vector<double> phase = options.show_phase ? phases[s] : std::vector<double>(h.size(), kNaN);

@@ -42,7 +42,8 @@ struct BodeSeries {
   FrequencyResponse response;  // outputs x inputs x frequency
   enum class Style { kLine, kDashed, kMarkers } style = Style::kLine;
   // Flagged frequencies (response.flagged) are drawn with a red cross on top.
-  // false: magnitude only (e.g. the envelope of a band, whose phase is the estimate's).
+  // false: magnitude only (e.g. the envelope of a band, whose phase is the estimate's);
+  // such series are drawn first, under the others.
   bool show_phase = true;
 };
 

@@ -110,6 +110,7 @@ struct BaseInfo {
   std::vector<std::string> dof_units;                    // e.g. rad rad m (a mode's shape units follow them)
   std::string schedule_name;  // the scheduling variable, e.g. "beam position x_b"; "" = none
   std::string schedule_unit;  // "m"
+  std::string schedule_symbol;  // its short name in tables, e.g. "x_b"; "" = none
   std::vector<std::string> default_effects;  // what `model init` adds
   // The structural_mode's frequency bounds (rad/s): above the rigid-body band of the
   // library's bases; a user's stage may have its modes anywhere.

@@ -99,11 +99,19 @@ TEST_F(DiagnoseLoop, NamesTheHiddenDelayThenTheErrorFallsAndNothingIsLeft) {
 TEST_F(DiagnoseLoop, ModelAddFromTheDiagnosisReachesTheErrorDiagnoseReported) {
   const TempDir& d = *dir_;
   ASSERT_EQ(run_lpvid("fit --model " + (d / "start.json") + data_args() + " --out " + (d / "p1.json")).exit_code, 0);
-  const auto diag = run_lpvid("diagnose --model " + (d / "p1.json") + data_args() + " --averages 16 --json");
+  const auto diag = run_lpvid("diagnose --model " + (d / "p1.json") + data_args() + " --averages 16 --json --out " +
+                              (d / "p1d.json"));
   ASSERT_EQ(diag.exit_code, 0) << diag.err;
   std::ofstream(d / "report.json") << diag.out;
   const auto j = nlohmann::json::parse(diag.out);
   ASSERT_EQ(j["missing"], "input_delay");
+  // diagnose --out continues the lineage: p1's fit, then the winner's refit.
+  const auto hist = run_lpvid("history --model " + (d / "p1d.json") + " --json");
+  ASSERT_EQ(hist.exit_code, 0) << hist.err;
+  const auto fits = nlohmann::json::parse(hist.out)["fits"];
+  ASSERT_EQ(fits.size(), 2u) << hist.out;
+  EXPECT_EQ(fits[1]["model"], d / "p1d.json");
+  EXPECT_NEAR(fits[1]["error"].get<double>(), j["candidates"][0]["error"].get<double>(), 1e-12);
   const double promised = j["candidates"][0]["error"].get<double>();
 
   const auto add = run_lpvid("model add input_delay --model " + (d / "p1.json") + " --from-diagnosis " +

@@ -63,6 +63,7 @@ BaseInfo make_platform_base() {
   b.dof_units = b.output_units;
   b.schedule_name = "beam position x_b";
   b.schedule_unit = "m";
+  b.schedule_symbol = "x_b";
   b.default_effects = {"beam_gravity"};
   b.physics_effects = {
       {"rod_twist", "torsional stiffness of the suspension rods (k_torque_high, Fig. 7), per tilt axis",

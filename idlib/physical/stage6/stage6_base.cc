@@ -54,6 +54,7 @@ BaseInfo make_stage6_base() {
   b.dof_units = b.output_units;
   b.schedule_name = "hover height z_0 above the reference gap";
   b.schedule_unit = "m";
+  b.schedule_symbol = "z_0";
   b.default_effects = {};
   b.physics_effects = {
       {"com_offset", "centre-of-mass offset c from the reference point the allocation's arms are measured from and the sensors "
