@@ -7,7 +7,13 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "idlib/models/platform.h"
+
+namespace lpvid {
+struct CorrelationTest;  // idlib/validate/time_fit.h
+}
 
 namespace CLI {
 class App;
@@ -71,6 +77,12 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
 // logged run with `model` and reports fit, residual tests and failing windows.
 void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParameters& model,
                            const std::string& out_json, bool json);
+
+// One residual test of idlib/validate/time_fit.h as compare --log's JSON: channel
+// (outputs[t.channel]), pass, worst_ratio, worst_lag, bound, bound_per_lag,
+// lags_outside_per_lag_bound, and input (inputs[t.input]) for a cross test.
+nlohmann::json correlation_test_json(const CorrelationTest& t, const std::vector<std::string>& outputs,
+                                     const std::vector<std::string>& inputs);
 
 // A state-space or transfer-function model file (o.params) on any log: open loop from
 // the logged input, or closed loop with o.controller from the logged excitation.

@@ -46,19 +46,6 @@ constexpr std::size_t kMaxPlottedOutputs = 6;
 // samples (the window's rms must average over more than a few noise samples).
 constexpr Index kMinWindowSamples = 20;
 
-nlohmann::json test_json(const CorrelationTest& t, const std::vector<std::string>& outputs,
-                         const std::vector<std::string>& inputs) {
-  nlohmann::json j = {{"channel", outputs[static_cast<std::size_t>(t.channel)]},
-                      {"pass", t.pass},
-                      {"worst_ratio", t.worst_ratio},
-                      {"worst_lag", t.worst_lag},
-                      {"bound", t.bound},
-                      {"bound_per_lag", t.bound_per_lag},
-                      {"lags_outside_per_lag_bound", t.lags_outside_per_lag_bound}};
-  if (t.input >= 0) j["input"] = inputs[static_cast<std::size_t>(t.input)];
-  return j;
-}
-
 nlohmann::json per_output(const std::vector<std::string>& names, const Eigen::VectorXd& v) {
   nlohmann::json j = nlohmann::json::object();
   for (std::size_t i = 0; i < names.size(); ++i)
@@ -132,15 +119,13 @@ std::vector<std::string> channel_columns(const std::string& given, const std::st
 
 void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
   using namespace compare_model_time;
-  {
-    OutputSet guard;  // nothing is read before every output is checked
-    guard.input(o.log);
-    guard.input(o.params);
-    guard.input(o.controller);
-    guard.file("--out-png", o.out_png);
-    guard.file("--out", out_json);
-    guard.check();
-  }
+  OutputSet out;  // nothing is read before every output is checked
+  out.input(o.log);
+  out.input(o.params);
+  out.input(o.controller);
+  out.file("--out-png", o.out_png);
+  out.file("--out", out_json);
+  out.check();
   if (!o.overrides.empty() || o.substeps != 1)
     throw InputError("compare --log with a state-space model: --set and --substeps are for the platform's physical "
                      "model; edit or re-identify the model instead");
@@ -260,8 +245,8 @@ void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& o
   const Eigen::VectorXd fit_zero = nrmse_fit_percent(y, from_rest.predicted);
 
   nlohmann::json white = nlohmann::json::array(), cross = nlohmann::json::array(), failures = nlohmann::json::array();
-  for (const auto& w : r.whiteness) white.push_back(test_json(w, out_names, cross_names));
-  for (const auto& c : r.cross) cross.push_back(test_json(c, out_names, cross_names));
+  for (const auto& w : r.whiteness) white.push_back(correlation_test_json(w, out_names, cross_names));
+  for (const auto& c : r.cross) cross.push_back(correlation_test_json(c, out_names, cross_names));
   for (const auto& f : r.failures)
     failures.push_back({{"channel", out_names[static_cast<std::size_t>(f.channel)]},
                         {"t_start_s", f.t_start_s},
@@ -329,13 +314,6 @@ void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& o
     text += "  the model is unstable: simulated outside its loop it runs away from the log; if the log is of a closed "
             "loop, give --controller C.json and --excitation\n";
 
-  OutputSet out;
-  out.input(o.log);
-  out.input(o.params);
-  out.input(o.controller);
-  out.file("--out-png", o.out_png);
-  out.file("--out", out_json);
-  out.check();
   if (!o.out_png.empty()) {
     const auto png = overlay_png(t, y, with_x0.predicted, r, out_names, fmt::format("{}: measured vs {}", o.log, o.params));
     out.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));

@@ -35,18 +35,6 @@ const std::vector<std::string> kOutputNames = {"psi", "theta", "z"};
 const std::vector<std::string> kExcitations = {"v1", "v2", "v3"};
 const std::vector<std::string> kPlantInputs = {"u1", "u2", "u3"};
 
-nlohmann::json test_json(const CorrelationTest& t, const std::vector<std::string>& inputs) {
-  nlohmann::json j = {{"channel", kOutputNames[static_cast<std::size_t>(t.channel)]},
-                      {"pass", t.pass},
-                      {"worst_ratio", t.worst_ratio},
-                      {"worst_lag", t.worst_lag},
-                      {"bound", t.bound},
-                      {"bound_per_lag", t.bound_per_lag},
-                      {"lags_outside_per_lag_bound", t.lags_outside_per_lag_bound}};
-  if (t.input >= 0) j["input"] = inputs[static_cast<std::size_t>(t.input)];
-  return j;
-}
-
 std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::MatrixXd& measured,
                                        const Eigen::MatrixXd& predicted, const TimeFitResult& r,
                                        const std::string& title) {
@@ -73,6 +61,19 @@ std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::Ma
 }
 
 }  // namespace
+
+nlohmann::json correlation_test_json(const CorrelationTest& t, const std::vector<std::string>& outputs,
+                                     const std::vector<std::string>& inputs) {
+  nlohmann::json j = {{"channel", outputs[static_cast<std::size_t>(t.channel)]},
+                      {"pass", t.pass},
+                      {"worst_ratio", t.worst_ratio},
+                      {"worst_lag", t.worst_lag},
+                      {"bound", t.bound},
+                      {"bound_per_lag", t.bound_per_lag},
+                      {"lags_outside_per_lag_bound", t.lags_outside_per_lag_bound}};
+  if (t.input >= 0) j["input"] = inputs[static_cast<std::size_t>(t.input)];
+  return j;
+}
 
 void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--log", o.log,
@@ -229,8 +230,8 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
   for (Index i = 0; i < 3; ++i)
     fit[kOutputNames[static_cast<std::size_t>(i)]] =
         std::isfinite(r.fit_percent(i)) ? nlohmann::json(r.fit_percent(i)) : nlohmann::json(nullptr);
-  for (const auto& w : r.whiteness) white.push_back(test_json(w, in_names));
-  for (const auto& c : r.cross) cross.push_back(test_json(c, in_names));
+  for (const auto& w : r.whiteness) white.push_back(correlation_test_json(w, kOutputNames, in_names));
+  for (const auto& c : r.cross) cross.push_back(correlation_test_json(c, kOutputNames, in_names));
   for (const auto& f : r.failures)
     failures.push_back({{"channel", kOutputNames[static_cast<std::size_t>(f.channel)]},
                         {"t_start_s", f.t_start_s},
