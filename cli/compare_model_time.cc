@@ -66,33 +66,26 @@ std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::Ma
     std::sort(shown.begin(), shown.end());
   }
   const Index k = static_cast<Index>(shown.size()), N = t.size();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  Eigen::MatrixXd meas = Eigen::MatrixXd::Constant(N, 2 * k, nan), model = meas, resid = meas;
-  std::vector<std::string> labels(static_cast<std::size_t>(2 * k));
+  FitOverlay ov;
+  ov.t_s = t;
+  ov.measured.resize(N, k);
+  ov.predicted.resize(N, k);
+  ov.residual.resize(N, k);
   for (Index c = 0; c < k; ++c) {
     const Index i = shown[static_cast<std::size_t>(c)];
-    meas.col(c) = measured.col(i);
-    model.col(c) = predicted.col(i);
-    resid.col(k + c) = r.residual.col(i);
-    labels[static_cast<std::size_t>(c)] =
-        fmt::format("{} (fit {:.1f} %)", names[static_cast<std::size_t>(i)], r.fit_percent(i));
-    labels[static_cast<std::size_t>(k + c)] = names[static_cast<std::size_t>(i)] + " residual";
+    ov.measured.col(c) = measured.col(i);
+    ov.predicted.col(c) = predicted.col(i);
+    ov.residual.col(c) = r.residual.col(i);
+    ov.value_labels.push_back(fmt::format("{} (fit {:.1f} %)", names[static_cast<std::size_t>(i)], r.fit_percent(i)));
+    ov.residual_labels.push_back(names[static_cast<std::size_t>(i)] + " residual");
   }
-  std::vector<TimeSeries> series = {{"measured", t, meas}, {"model", t, model}, {"residual (measured - model)", t, resid}};
-  TimePlotOptions po;
-  po.channel_labels = labels;
-  po.title = measured.cols() > k ? fmt::format("{} ({} of {} outputs: the lowest fits)", title, k, measured.cols())
-                                 : title;
-  po.panel_height_px = 150;
-  cv::Mat image = render_time_plot(series, po);
-  const TimePlotLayout layout = layout_time_plot(series, po);
-  std::vector<TimeWindowMark> marks;
   for (const auto& w : r.failures) {
     const auto at = std::find(shown.begin(), shown.end(), w.channel);
-    if (at != shown.end()) marks.push_back({static_cast<std::size_t>(k + (at - shown.begin())), w.t_start_s, w.t_end_s});
+    if (at != shown.end()) ov.failures.push_back({static_cast<std::size_t>(at - shown.begin()), w.t_start_s, w.t_end_s});
   }
-  shade_time_windows(image, layout, marks);
-  return plot::encode_png(image);
+  ov.title = measured.cols() > k ? fmt::format("{} ({} of {} outputs: the lowest fits)", title, k, measured.cols())
+                                 : title;
+  return fit_overlay_png(ov);
 }
 
 // The log's columns for the model's channels: the names given on the command line, or

@@ -35,30 +35,6 @@ const std::vector<std::string> kOutputNames = {"psi", "theta", "z"};
 const std::vector<std::string> kExcitations = {"v1", "v2", "v3"};
 const std::vector<std::string> kPlantInputs = {"u1", "u2", "u3"};
 
-std::vector<unsigned char> overlay_png(const Eigen::VectorXd& t, const Eigen::MatrixXd& measured,
-                                       const Eigen::MatrixXd& predicted, const TimeFitResult& r,
-                                       const std::string& title) {
-  const Index N = t.size();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  Eigen::MatrixXd meas = Eigen::MatrixXd::Constant(N, 6, nan), model = meas, resid = meas;
-  meas.leftCols(3) = measured;
-  model.leftCols(3) = predicted;
-  resid.rightCols(3) = r.residual;
-  std::vector<TimeSeries> series = {{"measured", t, meas}, {"model", t, model}, {"residual (measured - model)", t, resid}};
-  TimePlotOptions po;
-  po.channel_labels = {"psi [rad]", "theta [rad]", "z [m]", "psi residual [rad]", "theta residual [rad]",
-                       "z residual [m]"};
-  po.title = title;
-  po.panel_height_px = 150;
-  cv::Mat image = render_time_plot(series, po);
-  const TimePlotLayout layout = layout_time_plot(series, po);
-  // Failing windows: shaded in the residual panel of their channel.
-  std::vector<TimeWindowMark> marks;
-  for (const auto& w : r.failures)
-    marks.push_back({static_cast<std::size_t>(3 + w.channel), w.t_start_s, w.t_end_s});
-  shade_time_windows(image, layout, marks);
-  return plot::encode_png(image);
-}
 
 }  // namespace
 
@@ -270,7 +246,11 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
   }
   OutputSet& out = outputs;
   if (!o.out_png.empty()) {
-    const auto png = overlay_png(t, q, pr.q, r, fmt::format("{}: measured vs model", o.log));
+    FitOverlay ov{t, q, pr.q, r.residual, {"psi [rad]", "theta [rad]", "z [m]"},
+                  {"psi residual [rad]", "theta residual [rad]", "z residual [m]"}, {},
+                  fmt::format("{}: measured vs model", o.log)};
+    for (const auto& w : r.failures) ov.failures.push_back({static_cast<std::size_t>(w.channel), w.t_start_s, w.t_end_s});
+    const auto png = fit_overlay_png(ov);
     out.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   }
   if (!out_json.empty()) out.stage(out_json, json_text(summary));

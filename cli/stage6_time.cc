@@ -381,35 +381,6 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
   if (!unmet.empty()) throw NumericalError(unmet);
 }
 
-namespace {
-
-std::vector<unsigned char> stage_overlay_png(const Eigen::VectorXd& t, const Eigen::MatrixXd& measured,
-                                             const Eigen::MatrixXd& predicted, const TimeFitResult& r,
-                                             const std::string& title) {
-  const Index N = t.size();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  // Micrometres and microradians: the stage moves by tens of nanometres.
-  Eigen::MatrixXd meas = Eigen::MatrixXd::Constant(N, 12, nan), model = meas, resid = meas;
-  meas.leftCols(6) = 1e6 * measured;
-  model.leftCols(6) = 1e6 * predicted;
-  resid.rightCols(6) = 1e6 * r.residual;
-  std::vector<TimeSeries> series = {{"measured", t, meas}, {"model", t, model}, {"residual (measured - model)", t, resid}};
-  TimePlotOptions po;
-  po.channel_labels = {"x [um]", "y [um]", "z [um]", "psi [urad]", "theta [urad]", "phi [urad]",
-                       "x resid [um]", "y resid [um]", "z resid [um]", "psi resid [urad]", "theta resid [urad]",
-                       "phi resid [urad]"};
-  po.title = title;
-  po.panel_height_px = 110;
-  cv::Mat image = render_time_plot(series, po);
-  const TimePlotLayout layout = layout_time_plot(series, po);
-  std::vector<TimeWindowMark> marks;
-  for (const auto& w : r.failures)
-    marks.push_back({static_cast<std::size_t>(6 + w.channel), w.t_start_s, w.t_end_s});
-  shade_time_windows(image, layout, marks);
-  return plot::encode_png(image);
-}
-
-}  // namespace
 
 void run_stage_time_compare(const StageTimeCompareRequest& req) {
   const Stage6TimeSetup setup = stage6_time_setup(req.model);
@@ -493,10 +464,16 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
                           stage6::kStageChannelNames[static_cast<std::size_t>(f.channel)], f.t_start_s, f.t_end_s,
                           f.size_percent);
   }
-  if (!req.out_png.empty())
-    outputs.stage(req.out_png, stage_overlay_png(log.t, log.q, predicted, r,
-                                                 fmt::format("{}: measured vs {} (red: failing windows)", req.log,
-                                                             req.model_label)));
+  if (!req.out_png.empty()) {
+    // Micrometres and microradians: the stage moves by tens of nanometres.
+    FitOverlay ov{log.t, 1e6 * log.q, 1e6 * predicted, 1e6 * r.residual,
+                  {"x [um]", "y [um]", "z [um]", "psi [urad]", "theta [urad]", "phi [urad]"},
+                  {"x resid [um]", "y resid [um]", "z resid [um]", "psi resid [urad]", "theta resid [urad]",
+                   "phi resid [urad]"},
+                  {}, fmt::format("{}: measured vs {} (red: failing windows)", req.log, req.model_label), 110};
+    for (const auto& w : r.failures) ov.failures.push_back({static_cast<std::size_t>(w.channel), w.t_start_s, w.t_end_s});
+    outputs.stage(req.out_png, fit_overlay_png(ov));
+  }
   if (!req.out_json.empty()) outputs.stage(req.out_json, json_text(summary));
   outputs.commit();
   if (!outputs.to_stdout()) print_summary(req.json, summary, text);

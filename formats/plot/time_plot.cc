@@ -296,4 +296,30 @@ void shade_time_windows(cv::Mat& image, const TimePlotLayout& layout, const std:
   cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
 }
 
+std::vector<unsigned char> fit_overlay_png(const FitOverlay& o) {
+  const Index N = o.t_s.size(), k = o.measured.cols();
+  if (o.predicted.cols() != k || o.residual.cols() != k || o.measured.rows() != N || o.predicted.rows() != N ||
+      o.residual.rows() != N || o.value_labels.size() != static_cast<std::size_t>(k) ||
+      o.residual_labels.size() != static_cast<std::size_t>(k))
+    throw InputError("fit overlay: the measured, predicted and residual signals and their labels must have one column "
+                     "per channel and one row per time");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Eigen::MatrixXd meas = Eigen::MatrixXd::Constant(N, 2 * k, nan), model = meas, resid = meas;
+  meas.leftCols(k) = o.measured;
+  model.leftCols(k) = o.predicted;
+  resid.rightCols(k) = o.residual;
+  const std::vector<TimeSeries> series = {
+      {"measured", o.t_s, meas}, {"model", o.t_s, model}, {"residual (measured - model)", o.t_s, resid}};
+  TimePlotOptions po;
+  po.channel_labels = o.value_labels;
+  po.channel_labels.insert(po.channel_labels.end(), o.residual_labels.begin(), o.residual_labels.end());
+  po.title = o.title;
+  po.panel_height_px = o.panel_height_px;
+  cv::Mat image = render_time_plot(series, po);
+  std::vector<TimeWindowMark> marks = o.failures;
+  for (auto& m : marks) m.panel += static_cast<std::size_t>(k);
+  shade_time_windows(image, layout_time_plot(series, po), marks);
+  return plot::encode_png(image);
+}
+
 }  // namespace lpvid

@@ -68,6 +68,22 @@ struct TimeWindowMark {
 // stay readable), clipped to the panel.  A panel index out of range is skipped.
 void shade_time_windows(cv::Mat& image, const TimePlotLayout& layout, const std::vector<TimeWindowMark>& marks);
 
+// A model's prediction of a log (compare --log, every route): per channel a panel of the
+// measured and the predicted signal, then per channel a panel of the residual with the
+// failing windows shaded.  measured, predicted and residual are N × k with the same k;
+// value_labels and residual_labels one per channel; a mark's panel is the channel's
+// index 0..k-1 (its residual panel is shaded).
+struct FitOverlay {
+  Eigen::VectorXd t_s;
+  Eigen::MatrixXd measured, predicted, residual;
+  std::vector<std::string> value_labels, residual_labels;
+  std::vector<TimeWindowMark> failures;
+  std::string title;
+  int panel_height_px = 150;
+};
+// @throws InputError  shapes or label counts that differ (as render_time_plot).
+std::vector<unsigned char> fit_overlay_png(const FitOverlay& overlay);
+
 // The polyline drawn for samples (t, v): with x = time.to_px(t), one point per
 // sample when there are at most 2 per pixel column, otherwise per column the
 // minimum and the maximum (in the order they occur) at the column's centre.
