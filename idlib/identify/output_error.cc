@@ -171,11 +171,12 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
     return res;
   }
   if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
-    res.reason = fmt::format("not refined: the output-error Jacobian would hold {:.3g} entries ({} residuals x {} "
-                             "parameters), above the {:.3g} this refinement allows",
-                             static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
-                             kMaxOutputErrorJacobianEntries);
-    return res;
+    OutputErrorResult modal = refine_output_error_modal(experiments, start, options);
+    modal.form_reason = fmt::format("the full form's Jacobian would hold {:.3g} entries ({} residuals x {} "
+                                    "parameters), above {:.3g}",
+                                    static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
+                                    kMaxOutputErrorJacobianEntries);
+    return modal;
   }
   // Channel scales: the RMS of the centred signals over all experiments.
   Eigen::VectorXd su = Eigen::VectorXd::Zero(m), sy = Eigen::VectorXd::Zero(p);
@@ -253,9 +254,18 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
     refined.D = sy.asDiagonal() * Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oD, p, m) * su.cwiseInverse().asDiagonal();
   const bool converged = summary.termination_type == ceres::CONVERGENCE;
   if (!is_stable(refined)) {
+    // The modal form keeps every pole inside the unit circle by construction: its optimum
+    // is the best stable model (or, with poles on its bound, says the logs cannot tell).
+    OutputErrorResult modal = refine_output_error_modal(experiments, start, options);
+    if (modal.accepted) {
+      modal.form_reason = fmt::format("the full form's optimum is unstable (spectral radius {:.6g})",
+                                      poles(refined).cwiseAbs().maxCoeff());
+      modal.reason = fmt::format("{}; {}", modal.form_reason, modal.reason);
+      return modal;
+    }
     res.reason = fmt::format("not refined: the output-error optimum is unstable (spectral radius {:.6g}) and the "
-                             "logs ran a stable plant; the start is kept",
-                             poles(refined).cwiseAbs().maxCoeff());
+                             "logs ran a stable plant, and the stable (modal) form did not help ({}); the start is kept",
+                             poles(refined).cwiseAbs().maxCoeff(), modal.reason);
     return res;
   }
   if (!(res.cost < res.start_cost)) {

@@ -24,8 +24,9 @@
 // model are coloured (no noise model), so σ² (JᵀJ)⁻¹ would claim too little.
 //
 // Cost: O(N (n² P)) per Jacobian, P = n² + n m + p n (+ p m) + n E parameters; the
-// Jacobian is N p × P doubles, so the refinement is skipped (reason says so) above
-// kMaxOutputErrorJacobianEntries.
+// Jacobian is N p × P doubles.  Above kMaxOutputErrorJacobianEntries (many outputs) the
+// refinement runs in its separable modal form instead (refine_output_error_modal), and is
+// skipped (reason says so) only when that too would exceed it.
 #pragma once
 
 #include <string>
@@ -60,12 +61,29 @@ struct OutputErrorResult {
   Eigen::MatrixXd covariance;
   Eigen::MatrixXd feedthrough_variance;
   Index replicates = 0;
+  // "full" (θ = vec A, B, C, ...) or "modal" (refine_output_error_modal), and the poles of
+  // a modal result that sit on its bound |z| = ρ_max (the logs cannot tell them from
+  // undamped or integrating ones).
+  std::string form = "full";
+  std::string form_reason;  // why the modal form ran (empty for the full form)
+  Index poles_on_bound = 0;
 };
 
 // | experiments: excitation N_e × m (u), output N_e × p (y) | start: discrete, m → p |
 // @throws InputError  shapes that differ; a start that is not discrete.
 OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                                       const OutputErrorOptions& options = {});
+
+// The same criterion in the coordinates that keep it small when there are many outputs:
+// A in real modal form (n numbers, every pole inside the unit circle by construction),
+// C, D and the offsets eliminated by least squares for every θ (variable projection), so
+// θ = [modal A; B; x_e(0)], n (1 + m + E) numbers.  The returned model is in the modal
+// basis; its covariance is the full problem's sandwich, in the same [vec A; vec B; vec C]
+// layout as refine_output_error's.  Not used (reason says so) when the start has nearly
+// repeated poles (the modal basis would be ill-conditioned).
+// @throws InputError  as refine_output_error.
+OutputErrorResult refine_output_error_modal(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                                            const OutputErrorOptions& options = {});
 
 // The model's response to u as logged, corrected by least squares as MATLAB compare
 // does: a constant per output (a sensor offset, the Markov estimate's intercept) and,
