@@ -46,6 +46,7 @@ Nothing is written unless every step succeeds.)";
 
 struct IdentifyCliOptions {
   std::vector<std::string> logs;
+  LogLayoutCli layout;
   std::string controller, excitation, output, out, truth, weights;
   std::string method = "structured";
   Index lags = 0, order = 0, plant_order = 0;
@@ -197,7 +198,7 @@ void run(const IdentifyCliOptions& o) {
                                    w.size(), output.size()));
     for (std::size_t i = 0; i < w.size(); ++i) weights(static_cast<Index>(i)) = w[i];
   }
-  ExperimentSet set = read_experiments(o.logs, excitation, output);
+  ExperimentSet set = read_experiments(o.logs, excitation, output, o.layout.read_options());
   if (!o.open_loop)
     check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
                              at_reference ? controller.num_outputs() : static_cast<Index>(excitation.size()),
@@ -297,6 +298,8 @@ void run(const IdentifyCliOptions& o) {
                                   {"parameters", rf.parameters},
                                   {"residuals", rf.residuals},
                                   {"replicates", rf.replicates},
+                                  {"form", rf.form},
+                                  {"poles_on_bound", rf.poles_on_bound},
                                   {"reason", r.choices.refinement_reason}}
                  : nlohmann::json(nullptr);
     }
@@ -510,6 +513,7 @@ Command make_identify_command() {
                             "input (default: v added to the plant's input, u = u_c + v) or reference (the excitation "
                             "columns are setpoints r, one per output, e = r - q)");
             app->add_option("--output", o->output, "measured output columns q (comma separated)")->required();
+            add_log_layout_options(app, &o->layout);
             app->add_option("--out", o->out, "output directory")->required();
             app->add_option("--method", o->method,
                             "structured (default: the plant fitted with the known controller, every setting from the "

@@ -646,9 +646,17 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       }
       if (best >= 0 && n >= best + kLadderPlateau) break;
     }
-    if (best < 0) {
-      // identify_open_loop passes C = 0 (no states, no feedthrough): no loop to speak of.
-      const bool open_loop = controller.order() == 0 && controller.D.isZero(0.0);
+    // identify_open_loop passes C = 0 (no states, no feedthrough): no loop to speak of.
+    const bool open_loop = controller.order() == 0 && controller.D.isZero(0.0);
+    Index beyond = -1;  // open loop, nothing near the floor: the best stable order of the ladder
+    if (best < 0 && open_loop)
+      for (Index n = 1; n <= n_cap; ++n) {
+        const OrderFit& o = fits[static_cast<std::size_t>(n)];
+        if (o.found && o.fit.closed_loop_stable &&
+            (beyond < 0 || per_dof(o.fit) < per_dof(fits[static_cast<std::size_t>(beyond)].fit)))
+          beyond = n;
+      }
+    if (best < 0 && beyond < 0) {
       throw NumericalError(fmt::format(
           "no candidate plant (orders {}) {}", order_list(ch.order_candidates),
           open_loop ? "is stable and fits the open-loop logs to their noise floor; the plant may need an order beyond "
@@ -658,7 +666,20 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
     }
     Index chosen = at_floor;
     std::string why;
-    if (chosen >= 0) {
+    if (best < 0) {
+      // A real structure with more modes than the ladder holds (the DaISy steel subframe:
+      // every order 1-20 stays above kOrderAbandonRatio times the floor): the open-loop logs
+      // still define a best model of each order; take the ladder's best and say why.
+      chosen = beyond;
+      fits[static_cast<std::size_t>(chosen)].fit =
+          fit_plant_closed_loop(first, controller, fits[static_cast<std::size_t>(chosen)].fit.plant, fo);
+      why = fmt::format("no order up to {} came within {:g} times the noise floor, so the plant holds more dynamics "
+                        "than {} states (or the logs more than a linear plant and white noise); {} is the ladder's "
+                        "best (cost per degree of freedom {:.4g} after refitting) and is taken -- judge it by the "
+                        "simulation fit below, and give --plant-order above {} to try more states",
+                        n_cap, kOrderAbandonRatio, n_cap, chosen, per_dof(fits[static_cast<std::size_t>(chosen)].fit),
+                        n_cap);
+    } else if (chosen >= 0) {
       why = fmt::format("{} is the first order at the noise floor (cost per degree of freedom {:.4g}) and the next "
                         "order is not better by {:g} sigma",
                         chosen, per_dof(fits[static_cast<std::size_t>(chosen)].fit), kOrderSigmas);
@@ -1004,7 +1025,7 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
       if (oe.accepted)
         oe.reason = fmt::format(
             "output error on the logs (Levenberg-Marquardt, Ceres): the outputs' normalised squared simulation error "
-            "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; stable{}",
+            "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; stable{}{}",
             at_rest.start_cost, at_rest.accepted ? at_rest.cost : at_rest.start_cost,
             use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
                                    "factor {:.4g} for {:g} more values)",
@@ -1013,7 +1034,15 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
                                    free.accepted ? fmt::format(" lowers it by a factor {:.4g} only",
                                                                at_rest.cost / free.cost)
                                                  : std::string("")),
-            oe.iterations >= 200 ? "; stopped at the iteration limit" : "");
+            oe.iterations >= 200 ? "; stopped at the iteration limit" : "",
+            oe.form == "modal"
+                ? fmt::format("; in modal form with C and D eliminated ({}){}", oe.form_reason,
+                              oe.poles_on_bound > 0
+                                  ? fmt::format(", {} pole(s) on its stability bound: the logs cannot tell them from "
+                                                "undamped or integrating ones (a drift, or a line in the outputs)",
+                                                oe.poles_on_bound)
+                                  : std::string())
+                : std::string());
       r.choices.refinement_reason = oe.reason;
       IdentifyChoices::Refinement& rf = r.choices.refinement;
       rf.ran = true;
@@ -1025,6 +1054,8 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
       rf.parameters = oe.parameters;
       rf.residuals = oe.residuals;
       rf.replicates = oe.accepted ? oe.replicates : 0;
+      rf.form = oe.form;
+      rf.poles_on_bound = oe.accepted ? oe.poles_on_bound : 0;
       if (oe.accepted) {
         r.plant = oe.model;
         r.fit.plant = oe.model;

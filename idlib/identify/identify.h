@@ -121,6 +121,8 @@ struct IdentifyChoices {
     double start_cost = 0, cost = 0;  // V at the structured fit and at the result
     int iterations = 0;
     Index parameters = 0, residuals = 0, replicates = 0;
+    std::string form = "full";  // OutputErrorResult::form
+    Index poles_on_bound = 0;   // OutputErrorResult::poles_on_bound
   } refinement;
 };
 
