@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +15,32 @@
 #include "idlib/core/error.h"
 
 namespace lpvid::cli {
+
+namespace common_names {
+
+// "a1..a28" -> a1, a2, ..., a28 (a range of numbered channels: the same non-empty prefix
+// ending in a non-digit, ascending numbers; "a01..a12" keeps the width).  False when
+// item is not such a range (then it is a name as it stands).
+bool expand_name_range(const std::string& item, std::vector<std::string>& names) {
+  const std::size_t dots = item.find("..");
+  if (dots == std::string::npos || dots == 0 || item.find("..", dots + 1) != std::string::npos) return false;
+  auto split = [](const std::string& s, std::string& prefix, std::string& digits) {
+    std::size_t k = s.size();
+    while (k > 0 && std::isdigit(static_cast<unsigned char>(s[k - 1])) != 0) --k;
+    prefix = s.substr(0, k);
+    digits = s.substr(k);
+    return !prefix.empty() && !digits.empty() && digits.size() <= 6;
+  };
+  std::string p1, d1, p2, d2;
+  if (!split(item.substr(0, dots), p1, d1) || !split(item.substr(dots + 2), p2, d2) || p1 != p2) return false;
+  const int a = std::stoi(d1), b = std::stoi(d2);
+  if (b < a || b - a >= 10000) return false;
+  const std::size_t width = d1.size() > 1 && d1[0] == '0' ? d1.size() : 0;
+  for (int k = a; k <= b; ++k) names.push_back(fmt::format("{}{:0{}}", p1, k, width));
+  return true;
+}
+
+}  // namespace common_names
 
 std::vector<std::string> split_names(const std::string& text, const std::string& flag) {
   std::vector<std::string> names;
@@ -29,7 +56,7 @@ std::vector<std::string> split_names(const std::string& text, const std::string&
     if (!valid_utf8(item))
       throw InputError(fmt::format("{}: a name is not valid UTF-8; give names as UTF-8 text (as in the file's header)",
                                    flag));
-    names.push_back(item);
+    if (!common_names::expand_name_range(item, names)) names.push_back(item);
     if (comma == std::string::npos) return names;
     start = comma + 1;
   }

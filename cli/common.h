@@ -14,7 +14,9 @@ class Validator;
 namespace lpvid::cli {
 
 // Splits "a,b,c" into names, trimming spaces around each (inner spaces stay:
-// "P from S, truth"); rejects empty names (InputError naming the flag).
+// "P from S, truth"); a numbered range "a1..a28" stands for a1, a2, ..., a28 (the same
+// prefix, ascending; "a01..a12" keeps the width); rejects empty names (InputError naming
+// the flag).
 std::vector<std::string> split_names(const std::string& text, const std::string& flag);
 
 // "1,0.5,2" -> {1, 0.5, 2}: finite decimal numbers (parse_decimal), each
