@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli/logs.h"
 #include "idlib/models/platform.h"
 
 namespace lpvid {
@@ -62,10 +63,11 @@ struct TimeCompareCliOptions {
   double threshold_percent = 10.0;
   long max_lag = 25;
   int substeps = 1;
+  LogLayoutCli layout;  // --log-columns, --log-rate (a .mat log of one unnamed matrix)
   bool active() const { return !log.empty(); }
 };
 
-// Adds --log, --params, --set, --controller, --out-png, --window-s,
+// Adds --log, --log-columns, --log-rate, --params, --set, --controller, --out-png, --window-s,
 // --threshold-percent, --max-lag, --substeps to `compare`.
 void add_time_compare_options(CLI::App* compare, TimeCompareCliOptions& o);
 

@@ -139,7 +139,7 @@ void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& o
 
   TimeFitOptions fo;
   StateSpace model = read_state_space(o.params);
-  const Log log = read_log(o.log);
+  const Log log = read_log(o.log, o.layout.read_options());
   const double Ts = log.sample_period_s;
   const Index N = log.num_samples();
   std::string sampling;

@@ -56,6 +56,7 @@ void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
                   "time domain: a measured run to predict: the platform's (t, v1..v3, u1..u3, q1..q3, x_b) with its "
                   "controller, or the stage's (t, v1..v6, u1..u6, q1..q6) with a stage6 model file (--model or "
                   "--params; no controller)");
+  add_log_layout_options(app, &o.layout);
   app->add_option("--params", o.params, "with --log: the model: a fitted physical model file (lpvid fit) or a platform parameter file (default: documented defaults)");
   app->add_option("--set", o.overrides, "with --log: override a model parameter, NAME=VALUE (repeatable)");
   app->add_option("--controller", o.controller,
@@ -173,7 +174,7 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
   register_time_compare_files(outputs, o, out_json);
 
   const StateSpace controller = read_controller(o.controller);
-  const Log log = read_log(o.log);
+  const Log log = read_log(o.log, o.layout.read_options());
   const Eigen::MatrixXd v = log.columns(kExcitations), q = log.columns(kOutputs), u = log.columns(kPlantInputs);
   const Eigen::VectorXd t = log.data.col(0), xb = log.data.col(log.column("x_b"));
   check_beam_stroke(o.log, xb, model.beam_stroke_m);

@@ -57,6 +57,7 @@ per output row): follows lightly damped resonances that the LPM's polynomial can
 
 struct FrfCliOptions {
   std::vector<std::string> logs;
+  LogLayoutCli layout;
   std::string excitation, input, output, out, quantity = "H", window = "hann";
   Index segment = 0;
   double overlap = 0.5;
@@ -362,7 +363,7 @@ void run(const FrfCliOptions& o) {
     popt.sample_period_s = 1;  // replaced by the logs' below; checks the layout before any log is read
     popt.validate();
   }
-  const ExperimentSet set = read_experiments(o.logs, excitation, read);
+  const ExperimentSet set = read_experiments(o.logs, excitation, read, o.layout.read_options());
   if (o.method != "welch") {
     run_other(o, set, excitation, output, input, outputs, popt);
     return;
@@ -403,6 +404,7 @@ Command make_frf_command() {
             app->add_option("logs", o->logs, "logs (CSV or .mat), one experiment each")->required();
             app->add_option("--excitation", o->excitation, "excitation columns v (comma separated)")->required();
             app->add_option("--output", o->output, "response columns (u for S, q for G), comma separated")->required();
+            add_log_layout_options(app, &o->layout);
             app->add_option("--input", o->input,
                             "plant input columns u (comma separated, one per excitation): estimate the plant "
                             "u -> output from the closed loop");

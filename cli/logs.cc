@@ -1,5 +1,6 @@
 #include "cli/logs.h"
 
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
 #include <sys/stat.h>
@@ -7,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "cli/common.h"
 #include "formats/io/csv_log.h"
 #include "idlib/core/error.h"
 #include "idlib/signal/log_checks.h"
@@ -21,7 +23,7 @@ std::vector<ExperimentView> ExperimentSet::views() const {
 }
 
 ExperimentSet read_experiments(const std::vector<std::string>& paths, const std::vector<std::string>& excitation,
-                               const std::vector<std::string>& output) {
+                               const std::vector<std::string>& output, const LogReadOptions& read) {
   if (paths.empty()) throw InputError("no logs given; pass one or more CSV logs (one file per experiment)");
   // One experiment given twice would count twice (and stdin can be read once).
   for (std::size_t i = 0; i < paths.size(); ++i)
@@ -38,7 +40,7 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
   constexpr double kSamePeriodTolerance = 1e-6;
   ExperimentSet set;
   for (const std::string& path : paths) {
-    Log log = read_log(path);
+    Log log = read_log(path, read);
     set.excitations.push_back(log.columns(excitation));
     set.outputs.push_back(log.columns(output));
     if (set.paths.empty()) {
@@ -61,6 +63,21 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
     }
   }
   return set;
+}
+
+LogReadOptions LogLayoutCli::read_options() const {
+  LogReadOptions r;
+  r.sample_rate_hz = rate_hz;
+  if (!columns.empty()) r.channel_names = split_names(columns, "--log-columns");
+  return r;
+}
+
+void add_log_layout_options(CLI::App* app, LogLayoutCli* o) {
+  app->add_option("--log-columns", o->columns,
+                  "for a .mat log of one unnamed matrix (a DaISy file): its channel names in order, comma separated "
+                  "(ranges such as a1..a28 allowed); needs --log-rate");
+  app->add_option("--log-rate", o->rate_hz, "for a .mat log without t or a rate variable: its sample rate in Hz")
+      ->check(positive_up_to(1e9, "the sample rate in Hz"));
 }
 
 void print_log_findings(const ExperimentSet& set) {

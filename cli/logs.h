@@ -7,7 +7,12 @@
 
 #include <Eigen/Core>
 
+#include "formats/io/csv_log.h"
 #include "idlib/signal/markov.h"
+
+namespace CLI {
+class App;
+}
 
 namespace lpvid::cli {
 
@@ -27,7 +32,17 @@ struct ExperimentSet {
 // both files and periods).  Saturated or drifting columns (idlib/signal/log_checks.h)
 // are collected in `findings`, never changed.
 ExperimentSet read_experiments(const std::vector<std::string>& paths, const std::vector<std::string>& excitation,
-                               const std::vector<std::string>& output);
+                               const std::vector<std::string>& output, const LogReadOptions& read = {});
+
+// --log-columns NAMES and --log-rate HZ: the channel names (in the file's order; "a1..a28"
+// ranges allowed) and the sample rate of a .mat log that has neither (a DaISy file: one
+// unnamed N × k matrix).  Refused for a file that has its own (formats.md).
+struct LogLayoutCli {
+  std::string columns;
+  double rate_hz = 0;
+  LogReadOptions read_options() const;  // @throws InputError  a bad name list
+};
+void add_log_layout_options(CLI::App* app, LogLayoutCli* o);
 
 // Prints each finding as "lpvid: warning: ..." on stderr: called by a command once its
 // work succeeded (a refused command's error stays one line).

@@ -29,6 +29,7 @@ Each log is one experiment; experiments are combined, never concatenated.)";
 
 struct MarkovCliOptions {
   std::vector<std::string> logs;
+  LogLayoutCli layout;
   std::string excitation, output, out;
   Index lags = 0;
   double horizon_s = 0.0;  // 0: not given
@@ -55,7 +56,7 @@ void run(const MarkovCliOptions& o) {
   outputs.inputs(o.logs);
   outputs.file("--out", o.out);
   outputs.check();
-  const ExperimentSet set = read_experiments(o.logs, excitation, output);
+  const ExperimentSet set = read_experiments(o.logs, excitation, output, o.layout.read_options());
   Index shortest = set.excitations.front().rows(), total = 0;
   for (const auto& e : set.excitations) {
     shortest = std::min<Index>(shortest, e.rows());
@@ -115,6 +116,7 @@ Command make_markov_command() {
             app->add_option("--excitation", o->excitation, "excitation columns, comma separated (e.g. v1,v2,v3)")
                 ->required();
             app->add_option("--output", o->output, "output columns, comma separated (e.g. q1,q2,q3)")->required();
+            add_log_layout_options(app, &o->layout);
             app->add_option("--out", o->out, "Markov parameter CSV to write ('-' = stdout)")->required();
             app->add_option("--lags", o->lags,
                             "number of lags L (default: --horizon-s / Ts when given, else the longest the records "

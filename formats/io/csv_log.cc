@@ -15,6 +15,19 @@ void LogReadOptions::validate() const {
   if (!std::isfinite(sampling_tolerance) || sampling_tolerance < 0)
     throw InputError(fmt::format(
         "sampling tolerance {} is not allowed; give a finite relative tolerance >= 0, e.g. 1e-3", sampling_tolerance));
+  if (!std::isfinite(sample_rate_hz) || sample_rate_hz < 0)
+    throw InputError(fmt::format("--log-rate {}: give the sample rate in Hz as a positive number", sample_rate_hz));
+  for (std::size_t i = 0; i < channel_names.size(); ++i) {
+    if (channel_names[i].empty() || channel_names[i] == "t")
+      throw InputError(fmt::format("--log-columns: name {} is '{}'; give each channel a non-empty name other than 't' "
+                                   "(the time comes from --log-rate)",
+                                   i + 1, channel_names[i]));
+    for (std::size_t k = 0; k < i; ++k)
+      if (channel_names[k] == channel_names[i])
+        throw InputError(fmt::format("--log-columns: '{}' is given twice (names {} and {}); give every channel its own "
+                                     "name",
+                                     channel_names[i], k + 1, i + 1));
+  }
 }
 
 Index Log::column(const std::string& name) const {
@@ -34,6 +47,10 @@ Eigen::MatrixXd Log::columns(const std::vector<std::string>& wanted) const {
 Log read_log(const std::string& path, const LogReadOptions& options) {
   options.validate();
   if (is_mat_log(path)) return read_log_mat(path, options);
+  if (options.sample_rate_hz > 0 || !options.channel_names.empty())
+    throw InputError(fmt::format("{}: a CSV log names its channels and its time t in its header; --log-columns and "
+                                 "--log-rate are for a .mat file without them (drop them)",
+                                 detail::display_path(path)));
   detail::NumericCsv csv =
       detail::read_numeric_csv(path, "t", "add a time column 't' in seconds (see docs/formats.md)");
   const Index n = csv.data.rows();

@@ -32,6 +32,14 @@ struct LogReadOptions {
   // deviates by 1.  Must be finite and >= 0.
   double sampling_tolerance = 1e-3;
 
+  // For a .mat file that names neither its time nor its channels (a DaISy file: one
+  // unnamed N × k matrix): the sample rate in Hz (t = 0, 1/rate, ...) and the k channel
+  // names in the matrix's order (the CLI's --log-rate and --log-columns).  0 and empty:
+  // not given.  Refused for a file that has its own (a CSV header, a .mat t or rate,
+  // a .mat layout with names): never two sources for one thing.
+  double sample_rate_hz = 0;
+  std::vector<std::string> channel_names;
+
   // Throws InputError if a field is out of range.
   void validate() const;
 };

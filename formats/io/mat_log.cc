@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -42,11 +43,24 @@ class MatLogReader {
     options_.validate();
     source_ = mat_detail::open_mat(path_);
     variables_ = source_->variables();
+    const bool given = options_.sample_rate_hz > 0 || !options_.channel_names.empty();
+    auto not_given = [&](const char* layout) {
+      if (given)
+        fail_file(fmt::format("the file gives its own time and channel names ({}); --log-columns and --log-rate are "
+                              "for a file without them (drop them)",
+                              layout));
+    };
     if (has("data") && has("names")) {
+      not_given("data and names");
       matrix_layout();
     } else if (has("t")) {
+      not_given("a variable t");
       per_signal_layout();
-    } else if (!simulink_layout() && !struct_layout() && !lab_layout()) {
+    } else if (simulink_layout()) {
+      not_given("Simulink 'Structure With Time'");
+    } else if (struct_layout()) {
+      not_given("a struct with a field t");
+    } else if (!lab_layout()) {
       fail_file(fmt::format("no log in the file; save t and the signals as N-vectors, or data (N × channels) and "
                             "names, or a struct of signals, or Simulink 'Structure With Time', or the signals with "
                             "their sample rate as a scalar Fs (Hz) or Ts (s) (docs/formats.md, \"Logs in .mat "
@@ -248,14 +262,29 @@ class MatLogReader {
       rate_name = name;
       in_hz = hz;
     }
-    if (rate_name.empty()) return false;
-    const Value& rate = get(rate_name);
-    need_real_numeric(rate, rate_name, in_hz ? "the sample rate in Hz" : "the sample period in s");
-    const double r = rate.re[0];
-    if (!(std::isfinite(r) && r > 0))
-      fail(rate_name, fmt::format("is {}; give the {} as a positive number", r,
-                                  in_hz ? "sample rate in Hz" : "sample period in s"));
-    const double ts = in_hz ? 1.0 / r : r;
+    double ts = 0;
+    if (!rate_name.empty() && options_.sample_rate_hz > 0)
+      fail(rate_name, fmt::format("gives the sample rate and so does --log-rate {:g}; drop --log-rate",
+                                  options_.sample_rate_hz));
+    if (rate_name.empty()) {
+      if (!(options_.sample_rate_hz > 0)) {
+        if (!options_.channel_names.empty())
+          fail_file(fmt::format("--log-columns names the channels but the file has no time t and no rate (Fs, Ts); "
+                                "give --log-rate HZ too; the file holds: {}",
+                                holds()));
+        return false;
+      }
+      rate_name = "--log-rate";
+      ts = 1.0 / options_.sample_rate_hz;
+    } else {
+      const Value& rate = get(rate_name);
+      need_real_numeric(rate, rate_name, in_hz ? "the sample rate in Hz" : "the sample period in s");
+      const double r = rate.re[0];
+      if (!(std::isfinite(r) && r > 0))
+        fail(rate_name, fmt::format("is {}; give the {} as a positive number", r,
+                                    in_hz ? "sample rate in Hz" : "sample period in s"));
+      ts = in_hz ? 1.0 / r : r;
+    }
     // The signals and N.
     std::vector<std::string> signals;
     size_t n = 0;
@@ -310,6 +339,24 @@ class MatLogReader {
         const std::string label = fmt::format("{} {} ({}) ", by_rows ? "row" : "column", c + 1, detail::quote_cell(channel));
         columns_.push_back({channel, name, label, &v, by_rows ? c : c * n, by_rows ? rows : 1});
         name_where_.push_back(name);
+      }
+    }
+    if (!options_.channel_names.empty()) {  // the command line names the channels, in the file's order
+      const std::vector<std::string>& names = options_.channel_names;
+      std::vector<std::string> found;
+      for (std::size_t j = 1; j < columns_.size(); ++j) found.push_back(columns_[j].name);
+      if (names.size() != found.size())
+        fail_file(fmt::format("--log-columns gives {} name(s) but the file holds {} channel(s) ({}); give one name "
+                              "per channel, in the file's order",
+                              names.size(), found.size(),
+                              found.size() <= 6 ? fmt::format("{}", fmt::join(found, ", "))
+                                                : fmt::format("{}, {}, ..., {}", found[0], found[1], found.back())));
+      for (std::size_t j = 1; j < columns_.size(); ++j) {
+        Column& c = columns_[j];
+        c.name = names[j - 1];
+        if (!c.label.empty())
+          c.label = fmt::format("{} {} ({}) ", c.stride == 1 ? "column" : "row",
+                                c.stride == 1 ? c.offset / n + 1 : c.offset + 1, detail::quote_cell(c.name));
       }
     }
     return true;

@@ -314,6 +314,87 @@ TEST_F(MatLog, RealF16RawFile_ReadsAsTheCsvExport) {
   }
 }
 
+TEST_F(MatLog, OneUnnamedMatrix_TakesItsNamesAndRateFromTheCommandLineAndNothingElse) {
+  // A DaISy file: one N x k matrix, no t, no rate.  Without names and rate it is refused
+  // saying what it holds; with them (LogReadOptions, the CLI's --log-columns/--log-rate)
+  // its columns are the channels, t = k / rate.
+  const Index n = 40;
+  const Eigen::MatrixXd d = samples(n, 3);
+  const Eigen::MatrixXd m = d.rightCols(3);
+  {
+    File f(path("daisy.mat"));
+    f.add(num("robot_arm_dat", {static_cast<size_t>(n), 3}, m.data()));
+  }
+  EXPECT_NE(input_error([&] { read_log(path("daisy.mat")); }).find("the file holds: robot_arm_dat"), std::string::npos);
+  LogReadOptions o;
+  o.sample_rate_hz = 1024;
+  o.channel_names = {"u", "y1", "y2"};
+  const Log log = read_log(path("daisy.mat"), o);
+  EXPECT_EQ(log.names, (std::vector<std::string>{"t", "u", "y1", "y2"}));
+  ASSERT_EQ(log.data.rows(), n);
+  EXPECT_TRUE((log.data.rightCols(3).array() == m.array()).all());
+  for (Index k = 0; k < n; ++k) EXPECT_EQ(log.data(k, 0), static_cast<double>(k) / 1024.0);
+  EXPECT_EQ(log.sample_period_s, 1.0 / 1024.0);
+  // A bad sample is named by the given name.
+  {
+    Eigen::MatrixXd bad = m;
+    bad(5, 1) = std::numeric_limits<double>::quiet_NaN();
+    File f(path("nan.mat"));
+    f.add(num("x", {static_cast<size_t>(n), 3}, bad.data()));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("nan.mat"), o); }),
+            path("nan.mat") + ":x: column 2 ('y1') holds a NaN at row 6; a log holds finite numbers only: remove or "
+                              "interpolate the bad samples");
+  // Never two sources for one thing, never a silent default.
+  LogReadOptions names_only = o;
+  names_only.sample_rate_hz = 0;
+  EXPECT_EQ(input_error([&] { read_log(path("daisy.mat"), names_only); }),
+            path("daisy.mat") + ": --log-columns names the channels but the file has no time t and no rate (Fs, Ts); "
+                                "give --log-rate HZ too; the file holds: robot_arm_dat");
+  LogReadOptions two = o;
+  two.channel_names = {"u", "y"};
+  EXPECT_EQ(input_error([&] { read_log(path("daisy.mat"), two); }),
+            path("daisy.mat") + ": --log-columns gives 2 name(s) but the file holds 3 channel(s) (robot_arm_dat1, "
+                                "robot_arm_dat2, robot_arm_dat3); give one name per channel, in the file's order");
+  {
+    File f(path("withfs.mat"));
+    f.add(num("x", {static_cast<size_t>(n), 3}, m.data()));
+    const double fs = 400.0;
+    f.add(num("Fs", {1, 1}, &fs));
+  }
+  EXPECT_EQ(input_error([&] { read_log(path("withfs.mat"), o); }),
+            path("withfs.mat") + ":Fs: gives the sample rate and so does --log-rate 1024; drop --log-rate");
+  write_matrix(path("named.mat"), {"t", "u", "y1", "y2"}, d, MAT_FT_MAT5, MAT_COMPRESSION_NONE);
+  EXPECT_EQ(input_error([&] { read_log(path("named.mat"), o); }),
+            path("named.mat") + ": the file gives its own time and channel names (data and names); --log-columns and "
+                                "--log-rate are for a file without them (drop them)");
+  write_log(path("log.csv"), {"t", "u", "y1", "y2"}, d);
+  EXPECT_EQ(input_error([&] { read_log(path("log.csv"), o); }),
+            path("log.csv") + ": a CSV log names its channels and its time t in its header; --log-columns and "
+                              "--log-rate are for a .mat file without them (drop them)");
+  LogReadOptions dup = o;
+  dup.channel_names = {"u", "y", "y"};
+  EXPECT_NE(input_error([&] { read_log(path("daisy.mat"), dup); }).find("'y' is given twice"), std::string::npos);
+}
+
+// The DaISy robot arm's raw .mat (one unnamed 1024 x 2 matrix, ../shared/real-data) read
+// with the names and rate its README gives: the same samples as the CSV export made
+// from it independently.
+TEST_F(MatLog, RealDaisyRawFile_WithNamesAndRateReadsAsTheCsvExport) {
+  LPVID_REAL_DATA_OR_SKIP(mat, "daisy_robot_arm/raw/robot_arm_dat.mat");
+  LPVID_REAL_DATA_OR_SKIP(csv, "daisy_robot_arm/robot_arm.csv");
+  const Log exported = read_log(csv);
+  LogReadOptions o;
+  o.sample_rate_hz = 1.0 / exported.sample_period_s;
+  o.channel_names = {"u", "y"};
+  const Log raw = read_log(mat, o);
+  ASSERT_EQ(raw.data.rows(), exported.data.rows());
+  for (const char* name : {"u", "y"}) {
+    const Eigen::VectorXd a = raw.data.col(raw.column(name)), b = exported.data.col(exported.column(name));
+    EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-12 * b.cwiseAbs().maxCoeff()) << name;
+  }
+}
+
 TEST_F(MatLog, BadInput_IsAnInputErrorNamingFileAndVariable) {
   Eigen::MatrixXd d = samples(2000, 3);
   const std::vector<std::string> names = {"t", "v1", "u1", "q1"};
