@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -136,6 +137,38 @@ TEST(RealData, RobotArmMarkovDefaultHorizonComesFromTheDataInSamples) {
                                "--lags, or a --horizon-s of at least 10 s"));
 }
 
+// The DaISy raw .mat as the lab saved it (one unnamed 1024 x 2 matrix, no rate): markov
+// reads it with the names and rate given on the command line and writes the very Markov
+// parameters it writes from the CSV export (the same doubles, made from it by numpy).
+TEST(RealData, RobotArmRawMatWithNamesAndRateOnTheCommandLineGivesTheCsvsMarkovParameters) {
+  LPVID_REAL_DATA_OR_SKIP(mat, "daisy_robot_arm/raw/robot_arm_dat.mat");
+  LPVID_REAL_DATA_OR_SKIP(csv, "daisy_robot_arm/robot_arm.csv");
+  TempDir dir("armmat");
+  const auto bare = run_lpvid("markov --excitation u --output y --out " + (dir / "bare.csv") + " " + mat);
+  EXPECT_EQ(bare.exit_code, 2);
+  EXPECT_THAT(bare.err, HasSubstr("the file holds: robot_arm_dat"));
+  const auto a = run_lpvid("markov --log-columns u,y --log-rate 1 --excitation u --output y --out " + (dir / "a.csv") +
+                           " " + mat);
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const auto b = run_lpvid("markov --excitation u --output y --out " + (dir / "b.csv") + " " + csv);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const MarkovSequence ga = read_markov_csv(dir / "a.csv").g, gb = read_markov_csv(dir / "b.csv").g;
+  ASSERT_EQ(ga.size(), gb.size());
+  double worst = 0, peak = 0;
+  for (std::size_t k = 0; k < ga.size(); ++k) {
+    worst = std::max(worst, (ga[k] - gb[k]).cwiseAbs().maxCoeff());
+    peak = std::max(peak, gb[k].cwiseAbs().maxCoeff());
+  }
+  // The CSV holds the .mat's doubles written bit-exact (README): equal to rounding.
+  EXPECT_LE(worst, 1e-12 * peak);
+  // Names and rate for a file that has its own: refused, nothing written.
+  const auto c = run_lpvid("markov --log-columns u,y --log-rate 1 --excitation u --output y --out " + (dir / "c.csv") +
+                           " " + csv);
+  EXPECT_EQ(c.exit_code, 2);
+  EXPECT_THAT(c.err, HasSubstr("a CSV log names its channels and its time t in its header"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "c.csv"));
+}
+
 // The benchmark's nonlinearity (f16_gvt/README.md, Noël & Schoukens 2017): the wing
 // torsion mode near 7.3 Hz softens and damps as the excitation level rises.  The periodic
 // FRF of level 1 and of level 7 must show it beyond both estimates' own noise: the peak
@@ -176,6 +209,34 @@ TEST(RealData, F16WingTorsionModeSoftensAndDampsFromLevel1ToLevel7) {
     EXPECT_LE(seven[i].hz, one[i].hz - 0.048);  // at least one line (400/8192 Hz) lower
     EXPECT_GT(one[i].magnitude - seven[i].magnitude, 20.0 * std::hypot(one[i].sd, seven[i].sd));
   }
+}
+
+// The DaISy steel subframe (2 forces x 28 accelerometers, 8523 samples): the output-error
+// refinement's full form would need a 7.3e7-entry Jacobian at order 6, so it runs in modal
+// form with C and D eliminated.  Reference: SLICOT n4sid at n = 20 (s = 21) simulates the
+// record with a median fit of 9.0 % over the 28 outputs (the figure).  Measured
+// here at order 6 (73 s): stable, median 13.9 % from zero state (the structured fit alone
+// is far below; the default, order 20, reaches 67.1 % in 11 min: docs/real-data.md).  The
+// bound: above n4sid's figure at more than three times the order.
+TEST(RealData, SteelSubframeRefinedInModalFormBeatsN4sidsFitAtASmallerOrder) {
+  LPVID_REAL_DATA_OR_SKIP(log, "daisy_flexible_structure/flexible_structure.csv");
+  TempDir dir("subframe");
+  const auto r = run_lpvid("identify --open-loop --plant-order 6 --excitation f1,f2 --output a1..a28 --json --out " +
+                           (dir / "out") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["plant"]["stable"], true);
+  const auto& rf = report["refinement"];
+  EXPECT_EQ(rf["kept"], true);
+  EXPECT_EQ(rf["form"], "modal");
+  EXPECT_LT(rf["cost"].get<double>(), rf["start_cost"].get<double>());
+  std::vector<double> fits = report["closed_loop"]["simulation_fit_percent"].get<std::vector<double>>();
+  ASSERT_EQ(fits.size(), 28u);
+  std::sort(fits.begin(), fits.end());
+  const double median = 0.5 * (fits[13] + fits[14]);
+  std::printf("steel subframe, order 6: median simulation fit %.2f %% from zero state (n4sid, n = 20: 9.0 %%); %s\n",
+              median, rf["reason"].get<std::string>().c_str());
+  EXPECT_GT(median, 9.0);
 }
 
 // identify --open-loop on the robot arm with the defaults: a stable plant of order <= 6
