@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "idlib/core/error.h"
+#include "idlib/identify/output_error_detail.h"
 #include "idlib/lti/analysis.h"
 
 namespace lpvid {
@@ -146,18 +147,61 @@ Eigen::MatrixXd gauge_complement(const Layout& l, const Eigen::VectorXd& theta) 
 
 }  // namespace
 
-OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
-                                      const OutputErrorOptions& options) {
+namespace output_error_detail {
+
+void check_arguments(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                     const OutputErrorOptions& options) {
   options.validate();
   start.validate();
   if (!start.is_discrete()) throw InputError("output error: the start model must be discrete");
   if (experiments.empty()) throw InputError("output error: no experiments");
-  const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
-  const auto E = static_cast<Index>(experiments.size());
+  const Index m = start.num_inputs(), p = start.num_outputs();
   for (const auto& e : experiments)
     if (e.excitation.cols() != m || e.output.cols() != p || e.excitation.rows() != e.output.rows())
       throw InputError(fmt::format("output error: a log is {} x {} / {} x {} but the model is {} -> {}",
                                    e.excitation.rows(), e.excitation.cols(), e.output.rows(), e.output.cols(), m, p));
+}
+
+ChannelScales channel_scales(const std::vector<ExperimentView>& experiments) {
+  const Index m = experiments.front().excitation.cols(), p = experiments.front().output.cols();
+  ChannelScales s{Eigen::VectorXd::Zero(m), Eigen::VectorXd::Zero(p)};
+  Index rows = 0;
+  for (const auto& e : experiments) {
+    s.su += (e.excitation.rowwise() - e.excitation.colwise().mean()).colwise().squaredNorm().transpose();
+    s.sy += (e.output.rowwise() - e.output.colwise().mean()).colwise().squaredNorm().transpose();
+    rows += e.excitation.rows();
+  }
+  s.su = (s.su / static_cast<double>(rows)).cwiseSqrt();
+  s.sy = (s.sy / static_cast<double>(rows)).cwiseSqrt();
+  for (Index j = 0; j < m; ++j)
+    if (!(s.su(j) > 0)) s.su(j) = 1;
+  for (Index i = 0; i < p; ++i)
+    if (!(s.sy(i) > 0)) s.sy(i) = 1;
+  return s;
+}
+
+ceres::Solver::Options solver_options(int max_iterations) {
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = max_iterations;
+  so.function_tolerance = 1e-10;
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.num_threads = 1;
+  return so;
+}
+
+}  // namespace output_error_detail
+
+OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                                      const OutputErrorOptions& options) {
+  output_error_detail::check_arguments(experiments, start, options);
+  const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
+  const auto E = static_cast<Index>(experiments.size());
   OutputErrorResult res;
   res.model = start;
   const bool free_d = !start.D.isZero(0.0);
@@ -178,18 +222,7 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
                                     kMaxOutputErrorJacobianEntries);
     return modal;
   }
-  // Channel scales: the RMS of the centred signals over all experiments.
-  Eigen::VectorXd su = Eigen::VectorXd::Zero(m), sy = Eigen::VectorXd::Zero(p);
-  for (const auto& e : experiments) {
-    su += (e.excitation.rowwise() - e.excitation.colwise().mean()).colwise().squaredNorm().transpose();
-    sy += (e.output.rowwise() - e.output.colwise().mean()).colwise().squaredNorm().transpose();
-  }
-  su = (su / static_cast<double>(d.rows)).cwiseSqrt();
-  sy = (sy / static_cast<double>(d.rows)).cwiseSqrt();
-  for (Index j = 0; j < m; ++j)
-    if (!(su(j) > 0)) su(j) = 1;
-  for (Index i = 0; i < p; ++i)
-    if (!(sy(i) > 0)) sy(i) = 1;
+  const auto [su, sy] = output_error_detail::channel_scales(experiments);
   // u as logged (zero before the record, as the Markov estimate takes it); the output's
   // offset is a parameter per experiment (its intercept), started at the mean.
   for (const auto& e : experiments) {
@@ -227,17 +260,7 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
   po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem cp(po);
   cp.AddResidualBlock(new CeresOe(problem, l.P), nullptr, theta.data());
-  ceres::Solver::Options so;
-  so.minimizer_type = ceres::TRUST_REGION;
-  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.function_tolerance = 1e-10;
-  so.gradient_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-12;
-  so.logging_type = ceres::SILENT;
-  so.minimizer_progress_to_stdout = false;
-  so.num_threads = 1;
+  const ceres::Solver::Options so = output_error_detail::solver_options(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &cp, &summary);
   res.iterations = static_cast<int>(summary.iterations.size());

@@ -28,6 +28,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/identify/output_error.h"
+#include "idlib/identify/output_error_detail.h"
 #include "idlib/lti/analysis.h"
 
 namespace lpvid {
@@ -237,16 +238,9 @@ class CostFn final : public ceres::CostFunction {
 
 OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                          const OutputErrorOptions& options) {
-  options.validate();
-  start.validate();
-  if (!start.is_discrete()) throw InputError("output error: the start model must be discrete");
-  if (experiments.empty()) throw InputError("output error: no experiments");
+  output_error_detail::check_arguments(experiments, start, options);
   const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
   const auto E = static_cast<Index>(experiments.size());
-  for (const auto& e : experiments)
-    if (e.excitation.cols() != m || e.output.cols() != p || e.excitation.rows() != e.output.rows())
-      throw InputError(fmt::format("output error: a log is {} x {} / {} x {} but the model is {} -> {}",
-                                   e.excitation.rows(), e.excitation.cols(), e.output.rows(), e.output.cols(), m, p));
   OutputErrorResult res;
   res.model = start;
   res.form = "modal";
@@ -344,17 +338,7 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
   }
   const Eigen::PartialPivLU<Eigen::MatrixXd> Tlu(T);
   // Channel scales as in refine_output_error: each output counts alike.
-  Eigen::VectorXd su = Eigen::VectorXd::Zero(m), sy = Eigen::VectorXd::Zero(p);
-  for (const auto& e : experiments) {
-    su += (e.excitation.rowwise() - e.excitation.colwise().mean()).colwise().squaredNorm().transpose();
-    sy += (e.output.rowwise() - e.output.colwise().mean()).colwise().squaredNorm().transpose();
-  }
-  su = (su / static_cast<double>(d.rows)).cwiseSqrt();
-  sy = (sy / static_cast<double>(d.rows)).cwiseSqrt();
-  for (Index j = 0; j < m; ++j)
-    if (!(su(j) > 0)) su(j) = 1;
-  for (Index i = 0; i < p; ++i)
-    if (!(sy(i) > 0)) sy(i) = 1;
+  const auto [su, sy] = output_error_detail::channel_scales(experiments);
   d.Y.resize(d.rows, p);
   for (Index e = 0; e < E; ++e) {
     const auto& ex = experiments[static_cast<std::size_t>(e)];
@@ -388,17 +372,7 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
   po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem cp(po);
   cp.AddResidualBlock(new CostFn(l, d), nullptr, theta.data());
-  ceres::Solver::Options so;
-  so.minimizer_type = ceres::TRUST_REGION;
-  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.function_tolerance = 1e-10;
-  so.gradient_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-12;
-  so.logging_type = ceres::SILENT;
-  so.minimizer_progress_to_stdout = false;
-  so.num_threads = 1;
+  const ceres::Solver::Options so = output_error_detail::solver_options(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &cp, &summary);
   res.iterations = static_cast<int>(summary.iterations.size());
