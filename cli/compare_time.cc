@@ -51,6 +51,13 @@ nlohmann::json correlation_test_json(const CorrelationTest& t, const std::vector
   return j;
 }
 
+namespace compare_time_defaults {
+// The physical routes' failing-window length (the platform's and the stage's): 0.5 s
+// unless --window-s is given (the model route's default is a twentieth of the record).
+double physical_route_window_s(const TimeCompareCliOptions& o) { return o.window_s > 0 ? o.window_s : 0.5; }
+}  // namespace compare_time_defaults
+using compare_time_defaults::physical_route_window_s;
+
 void add_time_compare_options(CLI::App* app, TimeCompareCliOptions& o) {
   app->add_option("--log", o.log,
                   "time domain: a measured run to predict: the platform's (t, v1..v3, u1..u3, q1..q3, x_b) with its "
@@ -130,7 +137,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
       req.log = o.log;
       req.out_png = o.out_png;
       req.out_json = out_json;
-      req.window_s = o.window_s > 0 ? o.window_s : 0.5;
+      req.window_s = physical_route_window_s(o);
       req.threshold_percent = o.threshold_percent;
       req.json = json;
       return run_stage_time_compare(req);
@@ -166,7 +173,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
 void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParameters& model,
                            const std::string& out_json, bool json) {
   TimeFitOptions fo;
-  fo.window_s = o.window_s > 0 ? o.window_s : 0.5;
+  fo.window_s = physical_route_window_s(o);
   fo.window_threshold_percent = o.threshold_percent;
   fo.max_lag = o.max_lag;
   fo.validate();
