@@ -31,7 +31,19 @@ struct MarkovOptions {
   //   white noise is not a delta (off-peak values ~ 1/sqrt(N)) and the record end
   //   truncates late lags, so expect errors of several percent on typical records;
   //   kept to reproduce the paper.
-  enum class Method { kLeastSquares, kCorrelation } method = Method::kLeastSquares;
+  // kRegularized: the posterior mean under a TC-kernel prior (smooth, exponentially
+  //   decaying g; markov_regularized.h), its hyperparameters per output by marginal
+  //   likelihood on the first `regularized_tuning_lags` lags (dense), the estimate over
+  //   all L lags by conjugate gradients in the prior's whitened coordinates.  For
+  //   excitations so coloured that least squares is ill-posed (its normal equations'
+  //   condition number beyond what PCG resolves: noise amplified by the inverse input
+  //   spectrum where the input has no power) — MATLAB's impulseest default.  Biased
+  //   toward the prior by design; the same intercept as kLeastSquares.
+  enum class Method { kLeastSquares, kCorrelation, kRegularized } method = Method::kLeastSquares;
+
+  // kRegularized: the lags over which the hyperparameters are tuned (a dense m (T + 1)
+  // square Cholesky per likelihood evaluation); min(this, L).  Must be >= 2.
+  Index regularized_tuning_lags = 300;
 
   // Constant offsets (e.g. a sensor bias, a logged equilibrium).
   // kLeastSquares: each experiment's output gets a constant offset c_e that is
@@ -45,7 +57,7 @@ struct MarkovOptions {
   // treated as exactly zero there.
   bool remove_mean = true;
 
-  // kLeastSquares: stop PCG when ||residual|| <= tolerance * ||rhs|| for every output
+  // kLeastSquares (kRegularized: its CG): stop PCG when ||residual|| <= tolerance * ||rhs|| for every output
   // (relative residual of the normal equations).  Must be in (0, 1).
   double tolerance = 1e-10;
 
@@ -92,6 +104,12 @@ struct MarkovResult {
   Eigen::VectorXd output_rms;      // p: RMS of each output over all experiments (after mean removal)
   Index total_samples = 0;         // sum of N over the experiments
   Index iterations = 0;            // PCG iterations (0 for kCorrelation)
+  // kRegularized: per output i and input a, the TC kernel's decay λ = e^(−rate) per lag and
+  // the noise-to-prior ratio γ (p × m each), the marginal likelihood's noise variance per
+  // output (p), and the lags the hyperparameters were tuned on.  Empty otherwise.
+  Eigen::MatrixXd kernel_decay, kernel_gamma;
+  Eigen::VectorXd kernel_noise_variance;
+  Index kernel_tuning_lags = 0;
   Report report;                   // usable == false when PCG did not reach the tolerance
 };
 
