@@ -110,3 +110,26 @@ Eigen::VectorXd simulation_fit_percent(const StateSpace& model, const std::vecto
                                        bool fit_initial_states);
 
 }  // namespace lpvid
+
+namespace lpvid {
+
+// A stable model whose impulse response fits the Markov parameters g[0..L] (e.g. an ERA
+// model that came out unstable on noisy or regularised estimates): the separable modal
+// refinement above (every pole inside the unit circle by construction) on one impulse
+// experiment per input — u = a unit impulse at t = 0 on that input, y = g[0..L]'s column,
+// from rest (no initial state) — so the criterion is Σ_k ‖S⁻¹(g[k] − ĝ[k])‖² plus a
+// constant per experiment and output (the modal form's offsets, here a harmless extra).
+// `grows`: the last quarter of the lags carries more energy than the first (a growing
+// response — or, in a least-squares estimate from a strongly coloured input, amplified
+// noise: so it only informs; the caller judges by the errors, e.g. realize keeps the
+// unstable model when the stable one fits the Markov parameters worse).
+// | g: L + 1 matrices p × m | start: discrete, m → p |
+// @throws InputError  g empty or shapes that differ from the start's.
+struct MarkovStableFit {
+  OutputErrorResult result;
+  bool grows = false;
+  double start_error = 0, error = 0;  // ‖g − ĝ‖_F / ‖g‖_F of the start and of the result
+};
+MarkovStableFit fit_markov_stable(const MarkovSequence& g, const StateSpace& start);
+
+}  // namespace lpvid
