@@ -3,6 +3,7 @@
 #include "idlib/core/eigen_decompositions.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/SVD>
 #include <algorithm>
@@ -670,15 +671,28 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
       // A real structure with more modes than the ladder holds (the DaISy steel subframe:
       // every order 1-20 stays above kOrderAbandonRatio times the floor): the open-loop logs
       // still define a best model of each order; take the ladder's best and say why.
+      // Why no order was usable: every one still far above the floor (screened), or some
+      // came nearer but ended unstable (an open-loop record of a stable plant).
+      std::vector<Index> unstable_near;
+      for (Index n = 1; n <= n_cap; ++n) {
+        const OrderFit& o = fits[static_cast<std::size_t>(n)];
+        if (o.found && !o.screened && !o.fit.closed_loop_stable) unstable_near.push_back(n);
+      }
       chosen = beyond;
       fits[static_cast<std::size_t>(chosen)].fit =
           fit_plant_closed_loop(first, controller, fits[static_cast<std::size_t>(chosen)].fit.plant, fo);
-      why = fmt::format("no order up to {} came within {:g} times the noise floor, so the plant holds more dynamics "
-                        "than {} states (or the logs more than a linear plant and white noise); {} is the ladder's "
-                        "best (cost per degree of freedom {:.4g} after refitting) and is taken -- judge it by the "
-                        "simulation fit below, and give --plant-order above {} to try more states",
-                        n_cap, kOrderAbandonRatio, n_cap, chosen, per_dof(fits[static_cast<std::size_t>(chosen)].fit),
-                        n_cap);
+      const std::string cause =
+          unstable_near.empty()
+              ? fmt::format("no order up to {} came within {:g} times the noise floor, so the plant holds more "
+                            "dynamics than {} states (or the logs more than a linear plant and white noise)",
+                            n_cap, kOrderAbandonRatio, n_cap)
+              : fmt::format("the orders that came within {:g} times the noise floor ({}) ended unstable, which "
+                            "open-loop logs of a running plant do not support, and the others stayed above it",
+                            kOrderAbandonRatio, fmt::join(unstable_near, ", "));
+      why = fmt::format("{}; {} is the ladder's best stable order (cost per degree of freedom {:.4g} after refitting) "
+                        "and is taken -- judge it by the simulation fit below, and give --plant-order above {} to try "
+                        "more states",
+                        cause, chosen, per_dof(fits[static_cast<std::size_t>(chosen)].fit), n_cap);
     } else if (chosen >= 0) {
       why = fmt::format("{} is the first order at the noise floor (cost per degree of freedom {:.4g}) and the next "
                         "order is not better by {:g} sigma",

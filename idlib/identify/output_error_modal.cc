@@ -157,7 +157,7 @@ struct Sensitivity {
 };
 
 std::vector<Sensitivity> sensitivities(const Layout& l, const Data& d, const double* theta, const Eigen::MatrixXd& X) {
-  const Index n = l.n, m = l.m;
+  const Index n = l.n;
   std::vector<Sensitivity> out(static_cast<std::size_t>(l.P));
   std::vector<BlockMatrices> bm;
   for (const Block& b : l.blocks) bm.push_back(block_matrices(b, theta + b.start, l.rho_max));
@@ -201,7 +201,6 @@ std::vector<Sensitivity> sensitivities(const Layout& l, const Data& d, const dou
         if (w == 1) dx(1) = 0.0;
       }
     }
-    (void)m;
   }
   return out;
 }
