@@ -82,14 +82,18 @@ void run(const MarkovCliOptions& o) {
                             shortest, total, excitation.size(), kMaxDefaultMarkovLags)
       : o.lags > 0 ? std::string("--lags")
                    : fmt::format("--horizon-s {:g} s", o.horizon_s);
-  MarkovResult r = estimate_markov(set.views(), options);
+  // auto keeps the correlations, so a fallback does not compute them again.
+  MarkovCorrelations correlations;
+  correlations.max_lag = options.num_lags;
+  const bool keep = o.method == "auto";
+  MarkovResult r = estimate_markov(set.views(), options, keep ? &correlations : nullptr);
   // auto: least squares unless it cannot be solved to its tolerance; then the regularised
   // estimate, with the reason in the summary.
   std::string method = o.method == "auto" ? "ls" : o.method, fallback;
   if (o.method == "auto" && !r.report.usable) {
     fallback = fmt::format("least squares was not solved ({}), so the regularised estimate", r.report.termination);
     options.method = MarkovOptions::Method::kRegularized;
-    r = estimate_markov(set.views(), options);
+    r = estimate_markov(set.views(), options, &correlations);
     method = "regularized";
   }
 

@@ -3,8 +3,6 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include <Eigen/Eigenvalues>
-
 #include "cli/common.h"
 #include "cli/output_set.h"
 #include "cli/registry.h"
@@ -37,8 +35,7 @@ struct RealizeOptions {
 };
 
 double spectral_radius(const StateSpace& model) {
-  return model.order() == 0 ? 0.0
-                            : Eigen::EigenSolver<Eigen::MatrixXd>(model.A, false).eigenvalues().cwiseAbs().maxCoeff();
+  return model.order() == 0 ? 0.0 : poles(model).cwiseAbs().maxCoeff();
 }
 
 void run(const RealizeOptions& o) {
@@ -51,10 +48,10 @@ void run(const RealizeOptions& o) {
   options.order = o.order;
   options.max_order = o.max_order;
   EraResult era = realize_era(file.g, options);
-  // An unstable realisation of a response that does not grow (noise, or the smoothing of a
-  // regularised estimate, moved a pole outside): refit it to the Markov parameters with
-  // every pole inside the unit circle, and say so.  The unstable model stays when the stable
-// one fits the Markov parameters worse (the data then point to an unstable response).
+  // An unstable realisation (noise, or the smoothing of a regularised estimate, moved a pole
+  // outside): refit it to the Markov parameters with every pole inside the unit circle, and
+  // say so.  The unstable model stays when the stable one fits the Markov parameters worse
+  // (the data then point to an unstable response).
   nlohmann::json stabilized = nullptr;
   std::string stabilized_text;
   const double radius = spectral_radius(era.model);
