@@ -56,7 +56,7 @@ void BM_ComparePng_3x3_1024(benchmark::State& state) {
   const ModelErrorModel mem = model_error(c.data, c.model, c.sigma, o);
   std::vector<CompareBandMark> marks;
   for (const auto& b : failing_bands(mem, o)) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
-  const std::vector<CompareSeries> series = {{"", mem.omega_rad_s, mem.data, mem.model, mem.radius, mem.skipped}};
+  const std::vector<CompareSeries> series = {{"", mem.omega_rad_s, mem.data, mem.model, mem.radius, mem.scale, mem.skipped}};
   for (auto _ : state) {
     const auto png = compare_png(series, marks, {});
     benchmark::DoNotOptimize(png.data());

@@ -173,7 +173,7 @@ void report(const CompareCliOptions& o, ErrorReport& r, OutputSet& outputs) {
     std::vector<CompareBandMark> marks;
     for (std::size_t d = 0; d < r.mems.size(); ++d) {
       series.push_back({r.mems.size() > 1 ? r.labels[d] : "", r.mems[d].omega_rad_s, r.mems[d].data, r.mems[d].model,
-                        r.mems[d].radius, r.mems[d].skipped});
+                        r.mems[d].radius, r.mems[d].scale, r.mems[d].skipped});
       for (const auto& b : r.failures[d]) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
     }
     ComparePlotOptions po;

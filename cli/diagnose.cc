@@ -257,7 +257,7 @@ void run(const DiagnoseCliOptions& o) {
       series.push_back({std::isnan(in.data[k].beam_position_m) ? in.data[k].label
                                                                : fmt::format("x_b = {:g} m", in.data[k].beam_position_m),
                         mem.omega_rad_s, mem.data, mem.model,
-                        mem.radius, mem.skipped});
+                        mem.radius, mem.scale, mem.skipped});
     }
     for (const auto& set : d.baseline_failures)
       for (const FailingBand& b : set) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});

@@ -61,18 +61,22 @@ void validate(const std::vector<CompareSeries>& series, const ComparePlotOptions
   for (std::size_t s = 0; s < series.size(); ++s) {
     const auto& c = series[s];
     const std::size_t F = static_cast<std::size_t>(c.omega_rad_s.size());
-    if (F == 0 || c.data.size() != F || c.model.size() != F || c.radius.size() != F ||
+    if (F == 0 || c.data.size() != F || c.model.size() != F || c.radius.size() != F || c.scale.size() != F ||
         (!c.skipped.empty() && c.skipped.size() != F))
-      throw InputError(fmt::format("compare plot: series '{}' has {} frequencies but {} data, {} model and {} band "
-                                   "entries; they must match",
-                                   c.label, F, c.data.size(), c.model.size(), c.radius.size()));
+      throw InputError(fmt::format("compare plot: series '{}' has {} frequencies but {} data, {} model, {} band and "
+                                   "{} scale entries; they must match",
+                                   c.label, F, c.data.size(), c.model.size(), c.radius.size(), c.scale.size()));
     for (std::size_t f = 0; f < F; ++f) {
       if (!std::isfinite(c.omega_rad_s(f)) || c.omega_rad_s(f) <= 0)
         throw InputError(fmt::format("compare plot: series '{}' has frequency {}; the axis is logarithmic, so > 0",
                                      c.label, c.omega_rad_s(f)));
       if (c.data[f].rows() != p || c.data[f].cols() != m || c.model[f].rows() != p || c.model[f].cols() != m ||
-          c.radius[f].rows() != p || c.radius[f].cols() != m)
+          c.radius[f].rows() != p || c.radius[f].cols() != m || c.scale[f].rows() != p || c.scale[f].cols() != m)
         throw InputError(fmt::format("compare plot: series '{}' is not {}x{} at every frequency", c.label, p, m));
+      if (!c.scale[f].allFinite() || (c.scale[f].array() < 0).any())
+        throw InputError(fmt::format("compare plot: series '{}' has a scale that is negative or not finite at "
+                                     "{:g} rad/s; the error figure's scale s_ij is >= 0",
+                                     c.label, c.omega_rad_s(f)));
     }
   }
   if ((!o.input_labels.empty() && static_cast<Index>(o.input_labels.size()) != m) ||
@@ -107,7 +111,38 @@ std::vector<Tick> percent_ticks(const AxisMap& y) {
 
 bool shown(const CompareSeries& s, std::size_t f) { return s.skipped.empty() || !s.skipped[f]; }
 
+// 100 x / s_ij: a size on the error axis (NaN where the scale is 0: not drawn).
+double percent_of_scale(const CompareSeries& s, std::size_t f, Index i, Index j, double x) {
+  const double a = s.scale[f](i, j);
+  return a > 0 ? 100.0 * x / a : kNaN;
+}
+
+CompareErrorAxis error_axis(const std::vector<CompareSeries>& series, Index i, Index j) {
+  double elo = kInf, ehi = 0;
+  for (const auto& s : series)
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      if (!shown(s, f)) continue;
+      const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
+      const double r = percent_of_scale(s, f, i, j, s.radius[f](i, j));
+      for (double v : {e, r})
+        if (std::isfinite(v) && v > 0) elo = std::min(elo, v), ehi = std::max(ehi, v);
+    }
+  if (!std::isfinite(elo)) elo = 1, ehi = 100;
+  elo = std::clamp(std::pow(10.0, std::floor(std::log10(elo))), kErrorFloorPercent, kErrorCeilPercent / 100);
+  ehi = std::clamp(std::pow(10.0, std::ceil(std::log10(ehi))), elo * 100, kErrorCeilPercent);
+  return {elo, ehi};
+}
+
 }  // namespace
+
+CompareErrorAxis compare_error_axis(const std::vector<CompareSeries>& series, Index i, Index j) {
+  ComparePlotOptions o;
+  validate(series, o);
+  const Index p = series.front().data.front().rows(), m = series.front().data.front().cols();
+  if (i < 0 || i >= p || j < 0 || j >= m)
+    throw InputError(fmt::format("compare plot: channel ({}, {}) outside the {}x{} response", i, j, p, m));
+  return error_axis(series, i, j);
+}
 
 cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vector<CompareBandMark>& bands,
                        const ComparePlotOptions& o) {
@@ -140,7 +175,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
   else
     legend.push_back({"model (dashed, colour of its measurement)", plot::kAxisColor, plot::LineStyle::kDashed,
                       plot::Marker::kNone});
-  legend.push_back({"error |E|/|P| (lower axes)", plot::kAxisColor, plot::LineStyle::kSolid, plot::Marker::kNone});
+  legend.push_back({"error |E| / s (lower axes)", plot::kAxisColor, plot::LineStyle::kSolid, plot::Marker::kNone});
   legend.push_back({o.band_label + " (grey)", kNoiseFill, plot::LineStyle::kSolid, plot::Marker::kSquare});
   if (!bands.empty())
     legend.push_back({"failing band (red)", cv::Scalar(150, 150, 250), plot::LineStyle::kSolid, plot::Marker::kSquare});
@@ -162,20 +197,13 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
       // Ranges.
       // Magnitude: the data's range, widened by the model's by at most kModelReachDb
       // (a model that is numerically zero on a channel must not squash the data).
-      double dlo = kInf, dhi = -kInf, elo = kInf, ehi = 0, mlo = kInf, mhi = -kInf;
+      double dlo = kInf, dhi = -kInf, mlo = kInf, mhi = -kInf;
       for (const auto& s : series)
         for (std::size_t f = 0; f < s.data.size(); ++f) {
           if (!shown(s, f)) continue;
           const double vd = db(s.data[f](i, j)), vm = db(s.model[f](i, j));
           if (std::isfinite(vd)) dlo = std::min(dlo, vd), dhi = std::max(dhi, vd);
           if (std::isfinite(vm)) mlo = std::min(mlo, vm), mhi = std::max(mhi, vm);
-          const double a = std::abs(s.data[f](i, j));
-          if (a > 0) {
-            const double e = 100.0 * std::abs(s.data[f](i, j) - s.model[f](i, j)) / a;
-            const double r = 100.0 * s.radius[f](i, j) / a;
-            for (double v : {e, r})
-              if (std::isfinite(v) && v > 0) elo = std::min(elo, v), ehi = std::max(ehi, v);
-          }
         }
       if (std::isfinite(mlo)) {
         if (!std::isfinite(dlo)) dlo = mlo, dhi = mhi;
@@ -189,10 +217,8 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
       const double step = plot::nice_step(span * 1.06, kMaxMagnitudeIntervals);
       const plot::Range mr = plot::snap_outward(mid - 0.53 * span, mid + 0.53 * span, step);
       const AxisMap ym{mr.lo, mr.hi, static_cast<double>(mag.br().y - 1), static_cast<double>(mag.y), false};
-      if (!std::isfinite(elo)) elo = 1, ehi = 100;
-      elo = std::clamp(std::pow(10.0, std::floor(std::log10(elo))), kErrorFloorPercent, kErrorCeilPercent / 100);
-      ehi = std::clamp(std::pow(10.0, std::ceil(std::log10(ehi))), elo * 100, kErrorCeilPercent);
-      const AxisMap ye{elo, ehi, static_cast<double>(err.br().y - 1), static_cast<double>(err.y), true};
+      const CompareErrorAxis ea = error_axis(series, i, j);
+      const AxisMap ye{ea.lo_percent, ea.hi_percent, static_cast<double>(err.br().y - 1), static_cast<double>(err.y), true};
 
       // Grids.
       const std::vector<Tick> xt = frequency_ticks(x);
@@ -211,8 +237,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
         const double base = err.br().y - 1;
         for (std::size_t f = 0; f < s.data.size(); ++f) {
           if (!shown(s, f)) continue;
-          const double a = std::abs(s.data[f](i, j));
-          double r = a > 0 ? 100.0 * s.radius[f](i, j) / a : kInf;
+          const double r = s.scale[f](i, j) > 0 ? percent_of_scale(s, f, i, j, s.radius[f](i, j)) : kInf;
           const double py = std::isfinite(r) ? std::clamp(ye.to_px(std::max(r, ye.lo)), double(err.y), base) : err.y;
           const double px = x.to_px(s.omega_rad_s(f));
           if (poly.empty()) poly.emplace_back(cvRound(px), cvRound(base));
@@ -260,8 +285,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
             pe.emplace_back(kNaN, kNaN);
           } else {
             pd.emplace_back(px, ym.to_px(db(s.data[f](i, j))));
-            const double a = std::abs(s.data[f](i, j));
-            const double e = a > 0 ? 100.0 * std::abs(s.data[f](i, j) - s.model[f](i, j)) / a : kNaN;
+            const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
             pe.emplace_back(px, e > 0 ? ye.to_px(std::max(e, ye.lo)) : kNaN);
           }
           pm.emplace_back(px, ym.to_px(db(s.model[f](i, j))));
@@ -291,7 +315,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
                      VAlign::kCenter);
     }
   const double cy = top + (grid_bottom - top) / 2.0;
-  plot::put_text_vertical(image, "magnitude [dB]  /  error [% of |P measured|]", {kMargin + kYLabelWidth / 2.0, cy},
+  plot::put_text_vertical(image, "magnitude [dB]  /  error [% of the channel scale s]", {kMargin + kYLabelWidth / 2.0, cy},
                           plot::label_text());
   plot::put_text(image, "Frequency [rad/s]", {width / 2.0, grid_bottom + kXTickHeight + 4.0}, plot::label_text(),
                  HAlign::kCenter, VAlign::kTop);

@@ -27,6 +27,7 @@ CompareSeries series() {
     s.data.push_back(d);
     s.model.push_back(m);
     s.radius.push_back(Eigen::MatrixXd::Constant(1, 2, 0.05 * std::abs(p)));
+    s.scale.push_back(Eigen::MatrixXd::Constant(1, 2, std::abs(p)));
   }
   return s;
 }
@@ -62,10 +63,55 @@ TEST(RenderCompare, BadInputIsAnInputError) {
   CompareSeries s = series();
   s.radius.pop_back();
   EXPECT_NE(input_error([&] { render_compare({s}, {}, {}); }).find("they must match"), std::string::npos);
+  s = series();
+  s.scale.pop_back();
+  EXPECT_NE(input_error([&] { render_compare({s}, {}, {}); }).find("band and 199 scale entries; they must match"),
+            std::string::npos);
+  s = series();
+  s.scale[7](0, 1) = -1;
+  EXPECT_NE(input_error([&] { render_compare({s}, {}, {}); }).find("scale that is negative or not finite"),
+            std::string::npos);
+  EXPECT_NE(input_error([&] { compare_error_axis({series()}, 1, 0); }).find("outside the 1x2 response"),
+            std::string::npos);
   ComparePlotOptions o;
   o.input_labels = {"only one"};
   EXPECT_NE(input_error([&] { render_compare({series()}, {}, o); }).find("1 input and 0 output labels"),
             std::string::npos);
+}
+
+// The error axis measures |E| against the channel's scale s_ij, not against the entry
+// itself: an off-diagonal entry a million times below its diagonals, modelled as zero
+// (|E| / |P_ij| = 100 % at every line), is within 1e-4 % of the channel's size, and
+// its axis says so; against |P_ij| (the scale set to |P_ij|, what the plot used to
+// draw) the same curve reads 100 % and its noise band 5 * 10^4 %.  The values are
+// worked out by hand from the series, not by the code under test.
+TEST(RenderCompare, TheErrorAxisIsThePercentOfTheChannelScaleNotOfTheEntry) {
+  CompareSeries s = series();
+  for (std::size_t f = 0; f < s.data.size(); ++f) {
+    const Complex p = s.data[f](0, 0);
+    s.data[f](0, 1) = 1e-6 * p;
+    s.model[f](0, 1) = 0;
+    s.scale[f](0, 1) = std::abs(p);  // sqrt(|P_ii| |P_jj|) of a square plant whose diagonals are both |p|
+  }
+  // |E| / s = 1e-4 %, the band 5 %: decades 1e-4 .. 10 (at least two).
+  CompareErrorAxis a = compare_error_axis({s}, 0, 1);
+  EXPECT_DOUBLE_EQ(a.lo_percent, 1e-2);  // clamped at the axis floor, 0.01 %
+  EXPECT_DOUBLE_EQ(a.hi_percent, 10);
+  // Channel (0, 0): the 20 % error and the 5 % band: 1 .. 100 %.
+  a = compare_error_axis({s}, 0, 0);
+  EXPECT_DOUBLE_EQ(a.lo_percent, 1);
+  EXPECT_DOUBLE_EQ(a.hi_percent, 100);
+  // Measured against the entry itself: 100 % error, a 5 * 10^4 % band.
+  for (std::size_t f = 0; f < s.data.size(); ++f) s.scale[f](0, 1) = std::abs(s.data[f](0, 1));
+  a = compare_error_axis({s}, 0, 1);
+  EXPECT_DOUBLE_EQ(a.lo_percent, 100);
+  EXPECT_DOUBLE_EQ(a.hi_percent, 1e4);  // clamped at the axis ceiling
+  // A zero scale is not drawn (nothing to measure against): the default 1 .. 100 %.
+  for (std::size_t f = 0; f < s.data.size(); ++f) s.scale[f](0, 1) = 0;
+  a = compare_error_axis({s}, 0, 1);
+  EXPECT_DOUBLE_EQ(a.lo_percent, 1);
+  EXPECT_DOUBLE_EQ(a.hi_percent, 100);
+  EXPECT_FALSE(render_compare({s}, {}, {}).empty());
 }
 
 TEST(RenderHistory, OneBarPerFitAndBadValuesAreRejected) {
