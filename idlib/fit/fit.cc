@@ -194,11 +194,18 @@ class Engine {
     // derivatives) instead of a complex LU.  Used when cond(V) (Frobenius estimate)
     // is below kMaxModalCondition, so that round-off stays below ~1e-16·1e6 = 1e-10
     // relative; otherwise (near-defective A, e.g. repeated lag poles or delay
-    // registers) the per-frequency LU route below.
+    // registers) the Schur route: A = Q T Qᴴ (complex Schur, Q unitary, T upper
+    // triangular), so (λI − A)⁻¹ = Q (λI − T)⁻¹ Qᴴ and every frequency costs two
+    // triangular solves, O(n²·(n_in + n_out)), where a complex LU and inverse cost
+    // O(n³); Q being unitary, the transformation adds no round-off beyond the Schur
+    // form's backward error whatever the conditioning of A's eigenvectors.  The
+    // per-frequency LU route remains for a Schur iteration that does not converge.
     constexpr double kMaxModalCondition = 1e6;
     bool modal = n > 0;
+    bool schur = false;
     Eigen::VectorXcd mu;
     Eigen::MatrixXcd V, Vinv, Ch, Bhn, Bho;
+    Eigen::MatrixXcd Tq;  // the Schur route's triangular factor (Ch, Bhn, Bho: C Q, Qᴴ B)
     // Derivatives in modal coordinates, stacked over the parameters (q-th block):
     // dAv (n·p × n) = [V⁻¹ dA_q V], dBv (n·p × n_in) = [V⁻¹ dB_q], dCv (n_out·p × n) = [dC_q V],
     // so that every frequency needs three GEMMs for all parameters at once.
@@ -230,13 +237,25 @@ class Engine {
           Bho = Vinv * Bo.cast<Cx>();
         }
       }
+      if (!modal) {
+        const Eigen::ComplexSchur<Eigen::MatrixXd> cs(A);
+        schur = cs.info() == Eigen::Success && cs.matrixT().allFinite();
+        if (schur) {
+          V = cs.matrixU();
+          Vinv = V.adjoint();
+          Tq = cs.matrixT().triangularView<Eigen::Upper>();
+          Ch = C.cast<Cx>() * V;
+          Bhn = Vinv * Bn.cast<Cx>();
+          Bho = Vinv * Bo.cast<Cx>();
+        }
+      }
     }
     if (dT != nullptr && p > 0) {
       // Stacked derivatives: in modal coordinates (V⁻¹ dA_q V, V⁻¹ dB_q, dC_q V) on the
       // modal route; untransformed on the resolvent route, where with X = (λI − A)⁻¹ B_z
       // and Y = C (λI − A)⁻¹ every frequency likewise needs three GEMMs for all parameters.
-      const Eigen::MatrixXcd Vr = modal ? V : Eigen::MatrixXcd::Identity(n, n);
-      const Eigen::MatrixXcd Vl = modal ? Vinv : Eigen::MatrixXcd::Identity(n, n);
+      const Eigen::MatrixXcd Vr = modal || schur ? V : Eigen::MatrixXcd::Identity(n, n);
+      const Eigen::MatrixXcd Vl = modal || schur ? Vinv : Eigen::MatrixXcd::Identity(n, n);
       dAv.resize(n * n_inner, n);
       dBvn.resize(n * n_inner, ni);
       if (any_old) dBvo.resize(n * n_inner, ni);
@@ -294,6 +313,25 @@ class Engine {
           }
           if (n_outer > 0) S.noalias() = dCv * Bhd;
         }
+      } else if (schur) {
+        // X = (λI − T)⁻¹ Qᴴ B_z and Y = C Q (λI − T)⁻¹ by back substitution; then as
+        // on the resolvent route below, in Schur coordinates.
+        Z = -Tq;
+        Z.diagonal().array() += lambda;
+        Bhz = any_old ? Eigen::MatrixXcd(Bhn + Bho * zinv) : Bhn;
+        X = Z.triangularView<Eigen::Upper>().solve(Bhz);
+        if (dT != nullptr && p > 0) {
+          Y = Z.triangularView<Eigen::Upper>().solve<Eigen::OnTheRight>(Ch);
+          if (n_inner > 0) {
+            U.noalias() = dAv * X;
+            U += dBvn;
+            if (any_old) U += dBvo * zinv;
+            R.noalias() = Y * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
+          }
+          if (n_outer > 0) S.noalias() = dCv * X;
+        }
+        dPm.noalias() = Ch * X;
+        P = dPm + Dc * dcol.asDiagonal();
       } else {
         Z = -Ac;
         Z.diagonal().array() += lambda;

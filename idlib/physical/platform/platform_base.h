@@ -59,9 +59,12 @@ void platform_matrices(const PlatformIndices& L, const T* p, double x_b, T M[3][
   D[0][0] = p[L.d_psi];
   D[1][1] = p[L.d_theta];
   D[2][2] = p[L.d_z];
-  D[0][1] = D[1][0] = p[L.rho_pt] * sqrt(D[0][0] * D[1][1]);
-  D[0][2] = D[2][0] = p[L.rho_pz] * sqrt(D[0][0] * D[2][2]);
-  D[1][2] = D[2][1] = p[L.rho_tz] * sqrt(D[1][1] * D[2][2]);
+  // + 1e-300 (as for the bending coupling below): an undamped axis (a levitated stage
+  // whose user sets a damping and its lower bound to 0) would otherwise give the Jet's
+  // sqrt an infinite slope at 0, and its derivatives NaN (0 · ∞).
+  D[0][1] = D[1][0] = p[L.rho_pt] * sqrt(D[0][0] * D[1][1] + T(1e-300));
+  D[0][2] = D[2][0] = p[L.rho_pz] * sqrt(D[0][0] * D[2][2] + T(1e-300));
+  D[1][2] = D[2][1] = p[L.rho_tz] * sqrt(D[1][1] * D[2][2] + T(1e-300));
   // The rods' designed bending (eq 4 rows with rod angles): bend axis t_j in (psi, theta).
   T Kb[2][2] = {{zero, zero}, {zero, zero}};
   const T k_low = p[L.k_low];
