@@ -278,6 +278,18 @@ class Engine {
     // work space, allocated once per evaluation
     Eigen::MatrixXcd Z(n, n), Chd(no, n), Bhd(n, ni), Bhz(n, ni), X, Y, Bz, tmp(n, ni), dPm(no, ni);
     Eigen::MatrixXcd U, R, S;  // stacked derivative products
+    // With X = (λI − A)⁻¹ B_z and Y = C (λI − A)⁻¹ in the route's coordinates (modal,
+    // Schur or none): U = [dA_q X + dB_q] (n·p_in × n_in, inner q); R = Y U reshaped
+    // (n_out × n_in·p_in, column j·p_in + q); S = [dC_q X] (n_out·p_out × n_in).
+    const auto stacked_products = [&](const Eigen::MatrixXcd& Yk, const Eigen::MatrixXcd& Xk, const Cx zinv) {
+      if (n_inner > 0) {
+        U.noalias() = dAv * Xk;
+        U += dBvn;
+        if (any_old) U += dBvo * zinv;
+        R.noalias() = Yk * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
+      }
+      if (n_outer > 0) S.noalias() = dCv * Xk;
+    };
     for (std::size_t k = 0; k < F; ++k) {
       const double w = d.omega[k];
       const Cx lambda = ts > 0.0 ? std::exp(Cx(0.0, w * ts)) : Cx(0.0, w);
@@ -303,15 +315,7 @@ class Engine {
         P = dPm + Dc * dcol.asDiagonal();
         if (dT != nullptr && p > 0) {
           for (Index a = 0; a < n; ++a) Bhd.row(a) = Bhz.row(a) / (lambda - mu(a));
-          // U = [dAh_q Λ Bh + dBh_q] (n·p_in × n_in, inner q); R = Ch Λ U reshaped
-          // (n_out × n_in·p_in, column j·p_in + q); S = [dCh_q Λ Bh] (n_out·p_out × n_in)
-          if (n_inner > 0) {
-            U.noalias() = dAv * Bhd;
-            U += dBvn;
-            if (any_old) U += dBvo * zinv;
-            R.noalias() = Chd * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
-          }
-          if (n_outer > 0) S.noalias() = dCv * Bhd;
+          stacked_products(Chd, Bhd, zinv);  // X = Λ Bh, Y = Ch Λ
         }
       } else if (schur) {
         // X = (λI − T)⁻¹ Qᴴ B_z and Y = C Q (λI − T)⁻¹ by back substitution; then as
@@ -322,13 +326,7 @@ class Engine {
         X = Z.triangularView<Eigen::Upper>().solve(Bhz);
         if (dT != nullptr && p > 0) {
           Y = Z.triangularView<Eigen::Upper>().solve<Eigen::OnTheRight>(Ch);
-          if (n_inner > 0) {
-            U.noalias() = dAv * X;
-            U += dBvn;
-            if (any_old) U += dBvo * zinv;
-            R.noalias() = Y * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
-          }
-          if (n_outer > 0) S.noalias() = dCv * X;
+          stacked_products(Y, X, zinv);
         }
         dPm.noalias() = Ch * X;
         P = dPm + Dc * dcol.asDiagonal();
@@ -343,15 +341,7 @@ class Engine {
           const Eigen::MatrixXcd Rz = lu.inverse();
           X = Rz * Bz;
           Y = Cc * Rz;
-          // U = [dA_q X + dB_q] (n·p_in × n_in); R = Y U reshaped (n_out × n_in·p_in,
-          // column j·p_in + q); S = [dC_q X] (n_out·p_out × n_in)
-          if (n_inner > 0) {
-            U.noalias() = dAv * X;
-            U += dBvn;
-            if (any_old) U += dBvo * zinv;
-            R.noalias() = Y * Eigen::Map<const Eigen::MatrixXcd>(U.data(), n, ni * n_inner);
-          }
-          if (n_outer > 0) S.noalias() = dCv * X;
+          stacked_products(Y, X, zinv);
         }
         P = Cc * X + Dc * dcol.asDiagonal();
       }
