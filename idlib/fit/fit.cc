@@ -252,8 +252,9 @@ class Engine {
     }
     if (dT != nullptr && p > 0) {
       // Stacked derivatives: in modal coordinates (V⁻¹ dA_q V, V⁻¹ dB_q, dC_q V) on the
-      // modal route; untransformed on the resolvent route, where with X = (λI − A)⁻¹ B_z
-      // and Y = C (λI − A)⁻¹ every frequency likewise needs three GEMMs for all parameters.
+      // modal route, in Schur coordinates (Qᴴ dA_q Q, Qᴴ dB_q, dC_q Q) on the Schur route;
+      // untransformed on the resolvent route, where with X = (λI − A)⁻¹ B_z and
+      // Y = C (λI − A)⁻¹ every frequency likewise needs three GEMMs for all parameters.
       const Eigen::MatrixXcd Vr = modal || schur ? V : Eigen::MatrixXcd::Identity(n, n);
       const Eigen::MatrixXcd Vl = modal || schur ? Vinv : Eigen::MatrixXcd::Identity(n, n);
       dAv.resize(n * n_inner, n);
