@@ -38,6 +38,9 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
                  "(FRD .csv/.mat on exactly the data's frequency lines); for G and S");
   app.add_option("--rate-hz", o.rate_hz, "sample rate of the data's experiment: fit the sampled (ZOH) response")
       ->check(positive_up_to(kMaxRateHz, "the sample rate in Hz (omit it to use the data's or controller's)"));
+  app.add_flag("--measured-input", o.measured_input,
+               "the data's input was measured (a force at an impedance head, a current), not a held command: fit "
+               "the continuous response (no ZOH); excludes --rate-hz");
   app.add_option("--averages", o.averages,
                  "independent averages behind the data's coherence, when the files do not state it ('# averages: K')")
       ->check(number_in(1, 1e9, "the number of averages"));
@@ -141,6 +144,10 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   options.max_iterations = o.max_iterations;
   options.seed = o.seed;
   const double rate = pick(o.rate_hz, m.rate_hz);
+  if (o.measured_input && !std::isnan(rate))
+    throw InputError(fmt::format("--measured-input and {} {}: a measured input is fitted with the continuous response, "
+                                 "a held command with the sampled one at its rate; give one of them",
+                                 std::isnan(o.rate_hz) ? o.datasets + ": rate_hz" : "--rate-hz", rate));
   if (!std::isnan(rate) && !(rate > 0 && rate <= kMaxRateHz))
     throw InputError(fmt::format("{} {}: give the sample rate in Hz (> 0, at most {:g}), or omit it",
                                  std::isnan(o.rate_hz) ? o.datasets + ": rate_hz" : "--rate-hz", rate, kMaxRateHz));
@@ -275,7 +282,7 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   // Without a rate the continuous model stands in for data of a sampled loop.  Said
   // once, after every input check (a bad input stays a one-line error): the recorded
   // rate when some file has one, else the measured controller's missing rate.
-  if (ts == 0.0 && !recorded.empty())
+  if (ts == 0.0 && !recorded.empty() && !o.measured_input)
     std::fprintf(stderr, "%s\n",
                  recorded_rate_warning(recorded.front().path, recorded.front().rate_hz, recorded.size() - 1).c_str());
   else if (controller_used && ts == 0.0)

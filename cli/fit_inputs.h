@@ -37,6 +37,9 @@ struct FitInputOptions {
   int starts = 8, max_iterations = 200;
   unsigned seed = 1;
   bool no_global = false;
+  // the plant's input was measured (a force at an impedance head), not a held command:
+  // the continuous response is the right one, and the ZOH warning does not apply
+  bool measured_input = false;
 };
 
 // Declares --model, --data, --datasets, --target, --controller, --rate-hz,

@@ -290,6 +290,9 @@ TEST_F(BadInput, ZeroMeansAutomaticNoMore_AndRangesSayWhatToGive) {
   refused("fit --model " + at("start.json") + " --data " + at("G.json") + "@0 --rate-hz 0 --out f.json",
           "--rate-hz: '0' is out of range");
   refused("model export --model " + at("start.json") + " --xb 0 --rate-hz 0 --out x.json", "--rate-hz: '0'");
+  // a measured input is fitted continuous, a held command sampled: not both
+  refused("fit --model " + at("start.json") + " --data " + at("G.json") + "@0 --rate-hz 1000 --measured-input --out f.json",
+          "--measured-input and --rate-hz 1000: a measured input is fitted with the continuous response");
   refused("bode --min -1 --out b.png " + at("G.json"), "--min: '-1' is out of range");
   refused("bode --min 0x10 --out b.png " + at("G.json"), "--min: '0x10' is not a number");
   refused("bode --max nan --out b.png " + at("G.json"), "--max: 'nan' is not a number");
