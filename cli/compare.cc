@@ -296,7 +296,8 @@ void run_model_error(const CompareCliOptions& o) {
                                    on.num_outputs(), on.num_inputs()));
     std::string source;
     bool known = false;
-    const std::vector<Eigen::MatrixXd> sigma = data_sigma(*data.frd, o.noise, &source, &known);
+    std::vector<Eigen::MatrixXd> scales;
+    const std::vector<Eigen::MatrixXd> sigma = data_sigma(*data.frd, o.noise, &source, &known, &scales);
     if (!known)
       throw InputError(fmt::format("compare: '{}': the noise of the data is not known ({}); give --averages N (the "
                                    "independent averages behind its coherence) or --noise-level X (the relative rms "
@@ -311,7 +312,7 @@ void run_model_error(const CompareCliOptions& o) {
           banded.flagged[static_cast<std::size_t>(k)] = true;
       }
     }
-    r.mems.push_back(model_error(banded, on.response, sigma, o.mem));
+    r.mems.push_back(model_error(banded, on.response, sigma, o.mem, &scales));
     r.failures.push_back(failing_bands(r.mems.back(), o.mem, static_cast<Index>(d)));
     r.noise.push_back(source);
     r.data_names.push_back(o.data[d]);

@@ -3,8 +3,10 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <Eigen/QR>
 #include <algorithm>
 #include <optional>
 #include <atomic>
@@ -13,6 +15,7 @@
 #include <limits>
 #include <mutex>
 #include <thread>
+#include <tuple>
 
 #include "idlib/core/error.h"
 #include "idlib/core/progress.h"
@@ -63,16 +66,72 @@ Eigen::MatrixXcd plant_residual(const PhysicalModel& model, const FitDataset& ds
   return Pd - Pm;
 }
 
-// The (frequency, damping) of a single real-residue mode r_ij/(wm² − w² + 2j zeta wm w)
-// that best fits the residual ΔP of the first phenomenon's data set, relative to the
-// data (each entry weighted by 1/|P_data|), over the failing bands' frequencies: a
-// linear least-squares fit of the real residues at each candidate (wm, zeta) on a log
-// grid inside the bounds; nothing when there is no residual to scan.
-std::optional<std::pair<double, double>> mode_scan(const PhysicalModel& baseline,
-                                                   const std::vector<Phenomenon>& phenomena,
-                                                   const std::vector<FitDataset>& data, const FitOptions& fit,
-                                                   std::pair<double, double> bounds) {
-  if (phenomena.empty()) return std::nullopt;
+// A mode seeded from the residual: its frequency, damping and shape (one entry per DOF;
+// empty when the residual does not fix it).
+struct ScannedMode {
+  double omega_rad_s = 0.0, zeta = 0.0;
+  Eigen::VectorXd shape;
+};
+
+// The shape φ whose mode residues C_q φ φᵀ B_w best match the residues R (real,
+// n_out × n_in), each entry weighted by W: a start from the pseudo-inverse's largest
+// column (exact when R is such a rank-one product with C_q, B_w of full rank), then
+// Levenberg-Marquardt on the n_dof entries.  Empty when R carries nothing.
+Eigen::VectorXd shape_from_residues(const Eigen::MatrixXd& R, const Eigen::MatrixXd& W, const ModeMaps& maps) {
+  const Index nd = maps.Cq.cols(), no = R.rows(), ni = R.cols();
+  const Eigen::MatrixXd S = maps.Cq.completeOrthogonalDecomposition().pseudoInverse() * R *
+                            maps.Bw.completeOrthogonalDecomposition().pseudoInverse();  // ≈ φφᵀ
+  Index col = 0;
+  for (Index j = 1; j < nd; ++j)
+    if (S.col(j).norm() > S.col(col).norm()) col = j;
+  if (!(std::abs(S(col, col)) > 0)) return {};
+  Eigen::VectorXd phi = S.col(col) / std::sqrt(std::abs(S(col, col)));
+  auto residual = [&](const Eigen::VectorXd& f) {
+    const Eigen::MatrixXd E = (maps.Cq * f) * (maps.Bw.transpose() * f).transpose() - R;
+    return Eigen::VectorXd(W.cwiseSqrt().cwiseProduct(E).reshaped());
+  };
+  double lambda = 1e-3;
+  Eigen::VectorXd r = residual(phi);
+  for (int it = 0; it < 50; ++it) {
+    Eigen::MatrixXd J(no * ni, nd);  // d/dφ_k of C φ φᵀ B = C e_k (Bᵀφ)ᵀ + (Cφ)(Bᵀ e_k)ᵀ
+    const Eigen::VectorXd cphi = maps.Cq * phi, bphi = maps.Bw.transpose() * phi;
+    for (Index k = 0; k < nd; ++k) {
+      const Eigen::MatrixXd dE = maps.Cq.col(k) * bphi.transpose() + cphi * maps.Bw.row(k);
+      J.col(k) = W.cwiseSqrt().cwiseProduct(dE).reshaped();
+    }
+    Eigen::MatrixXd H = J.transpose() * J;
+    const Eigen::VectorXd g = J.transpose() * r;
+    H.diagonal() *= 1.0 + lambda;
+    const Eigen::VectorXd step = H.ldlt().solve(-g);
+    if (!step.allFinite()) break;
+    const Eigen::VectorXd r2 = residual(phi + step);
+    if (r2.squaredNorm() < r.squaredNorm()) {
+      phi += step;
+      const bool done = r.squaredNorm() - r2.squaredNorm() < 1e-12 * r.squaredNorm();
+      r = r2;
+      lambda *= 0.3;
+      if (done) break;
+    } else {
+      lambda *= 10;
+    }
+  }
+  return phi.allFinite() ? phi : Eigen::VectorXd();
+}
+
+// The mode r_ij (jω)^d_i/(wm² − w² + 2j zeta wm w) (d_i the derivative output i
+// measures) with real residues that best fits the residual ΔP of the first
+// phenomenon's data set, each entry weighted by 1/σ as the fit weighs it, over the
+// failing bands' frequencies: at each candidate (wm, zeta) the residues are a linear
+// least-squares fit; wm runs over the data's own lines near the bands (a lightly
+// damped peak sits between two of them, at a spacing a log grid misses) and a log grid
+// inside the bounds, away from the modes the model has, zeta over light to moderate
+// dampings.  The shape then factors the
+// best residues as C_q φ φᵀ B_w (shape_from_residues).  Nothing when there is no
+// residual to scan.
+std::vector<ScannedMode> mode_scan(const PhysicalModel& baseline, const std::vector<Phenomenon>& phenomena,
+                                   const std::vector<FitDataset>& data, const FitOptions& fit,
+                                   std::pair<double, double> bounds) {
+  if (phenomena.empty()) return {};
   const Index set = phenomena.front().bands.front().data_index;
   const FitDataset& ds = data[static_cast<std::size_t>(set)];
   double lo = INFINITY, hi = 0;
@@ -82,61 +141,115 @@ std::optional<std::pair<double, double>> mode_scan(const PhysicalModel& baseline
         lo = std::min(lo, b.lo_rad_s);
         hi = std::max(hi, b.hi_rad_s);
       }
-  if (!(hi > lo)) return std::nullopt;
+  if (!(hi > lo)) return {};
   std::vector<double> w;
-  std::vector<Eigen::MatrixXcd> rel;  // ΔP / |P_data|, entry by entry
-  std::vector<Eigen::MatrixXd> weight;
+  std::vector<Eigen::MatrixXcd> rel;  // ΔP, entry by entry
+  std::vector<Eigen::MatrixXd> weight;  // 1/σ of the entry (the fit's weights)
+  ModeMaps maps;
   try {
+    maps = mode_maps(baseline, ds.beam_position_m);
+    const std::vector<Eigen::MatrixXd> sigma = data_sigma(ds.response, fit.noise);
     for (Index k = 0; k < ds.response.num_frequencies(); ++k) {
       const double wk = ds.response.omega_rad_s(k);
       if (wk < lo || wk > hi) continue;
       const Eigen::MatrixXcd dP = plant_residual(baseline, ds, k, fit);
-      const Eigen::MatrixXd mag = ds.response.response[static_cast<std::size_t>(k)].cwiseAbs();
-      Eigen::MatrixXd wt = Eigen::MatrixXd::Zero(mag.rows(), mag.cols());
-      for (Index i = 0; i < mag.rows(); ++i)
-        for (Index j = 0; j < mag.cols(); ++j)
-          if (mag(i, j) > 0) wt(i, j) = 1.0 / mag(i, j);
-      if (dP.rows() != wt.rows() || dP.cols() != wt.cols()) return std::nullopt;  // an S or G target
+      const Eigen::MatrixXd& sg = sigma[static_cast<std::size_t>(k)];
+      Eigen::MatrixXd wt = Eigen::MatrixXd::Zero(sg.rows(), sg.cols());
+      for (Index i = 0; i < sg.rows(); ++i)
+        for (Index j = 0; j < sg.cols(); ++j)
+          if (sg(i, j) > 0 && std::isfinite(sg(i, j))) wt(i, j) = 1.0 / sg(i, j);
+      if (dP.rows() != wt.rows() || dP.cols() != wt.cols()) return {};  // an S or G target
       w.push_back(wk);
       rel.push_back(dP);
       weight.push_back(wt);
     }
   } catch (const std::exception&) {
-    return std::nullopt;
+    return {};
   }
-  if (w.size() < 3) return std::nullopt;
-  constexpr int kGrid = 60;                                // log-spaced candidate frequencies
-  constexpr double kDampings[] = {0.005, 0.02, 0.08};      // light to moderate
+  if (w.size() < 3) return {};
+  const Index rows = rel.front().rows(), cols = rel.front().cols();
+  if (maps.Cq.rows() != rows || maps.Bw.cols() != cols) return {};
+  constexpr int kGrid = 60;  // log-spaced candidate frequencies
+  constexpr double kDampings[] = {0.002, 0.005, 0.01, 0.02, 0.04, 0.08};  // light to moderate
   const double glo = std::max(lo / 1.5, bounds.first), ghi = std::min(hi * 1.5, bounds.second);
-  if (!(ghi > glo)) return std::nullopt;
-  double best = INFINITY;
-  std::pair<double, double> pick{0, 0};
-  for (int g = 0; g < kGrid; ++g) {
-    const double wm = glo * std::pow(ghi / glo, g / (kGrid - 1.0));
-    for (double z : kDampings) {
-      // per entry: min over real r of Σ_k wt² |ΔP − r h_k|²  =  Σ wt²|ΔP|² − (Σ wt² Re(conj(h) ΔP))² / Σ wt² |h|²
-      double cost = 0;
-      const Index rows = rel.front().rows(), cols = rel.front().cols();
-      for (Index i = 0; i < rows; ++i)
-        for (Index j = 0; j < cols; ++j) {
-          double a = 0, hh = 0, pp = 0;
-          for (std::size_t k = 0; k < w.size(); ++k) {
-            const Complex h = 1.0 / Complex(wm * wm - w[k] * w[k], 2.0 * z * wm * w[k]);
-            const double q = weight[k](i, j) * weight[k](i, j);
-            a += q * (std::conj(h) * rel[k](i, j)).real();
-            hh += q * std::norm(h);
-            pp += q * std::norm(rel[k](i, j));
-          }
-          cost += hh > 0 ? pp - a * a / hh : pp;
-        }
-      if (cost < best) {
-        best = cost;
-        pick = {wm, z};
-      }
-    }
+  if (!(ghi > glo)) return {};
+  // Not on a mode the model has: the residual there is that mode's misfit, which the
+  // refit moves, not a mode of its own (within 3 half-power bandwidths, at least 1 %).
+  std::vector<std::pair<double, double>> taken;  // (frequency, half-width ratio)
+  for (const std::string& name : baseline.effects)
+    if (const EffectInfo* e = baseline.effect_info(name))
+      for (const Block& blk : e->blocks)
+        if (blk.kind == BlockKind::kMode)
+          taken.emplace_back(baseline.parameter(blk.parameters[0]).value,
+                             std::max(3.0 * baseline.parameter(blk.parameters[1]).value, 0.01));
+  auto free_of_modes = [&](double wm) {
+    for (const auto& [f, r] : taken)
+      if (std::abs(wm / f - 1.0) < r) return false;
+    return true;
+  };
+  std::vector<double> candidates;
+  for (int g = 0; g < kGrid; ++g) candidates.push_back(glo * std::pow(ghi / glo, g / (kGrid - 1.0)));
+  for (Index k = 0; k < ds.response.num_frequencies(); ++k) {
+    const double wk = ds.response.omega_rad_s(k);
+    if (wk >= glo && wk <= ghi) candidates.push_back(wk);
   }
-  if (!(pick.first > 0)) return std::nullopt;
-  return pick;
+  candidates.erase(std::remove_if(candidates.begin(), candidates.end(), [&](double c) { return !free_of_modes(c); }),
+                   candidates.end());
+  auto kernel = [&](double wm, double z, double wk, Index row) {
+    const Complex h = 1.0 / Complex(wm * wm - wk * wk, 2.0 * z * wm * wk);
+    const int d = maps.output_derivative[static_cast<std::size_t>(row)];
+    return d == 0 ? h : d == 1 ? Complex(0.0, wk) * h : -wk * wk * h;
+  };
+  // per entry: min over real r of Σ_k wt² |ΔP − r h_k|²  =  Σ wt²|ΔP|² − (Σ wt² Re(conj(h) ΔP))² / Σ wt² |h|²
+  auto fit_residues = [&](double wm, double z, Eigen::MatrixXd* R, Eigen::MatrixXd* W) {
+    double cost = 0;
+    for (Index i = 0; i < rows; ++i)
+      for (Index j = 0; j < cols; ++j) {
+        double a = 0, hh = 0, pp = 0;
+        for (std::size_t k = 0; k < w.size(); ++k) {
+          const Complex h = kernel(wm, z, w[k], i);
+          const double q = weight[k](i, j) * weight[k](i, j);
+          a += q * (std::conj(h) * rel[k](i, j)).real();
+          hh += q * std::norm(h);
+          pp += q * std::norm(rel[k](i, j));
+        }
+        cost += hh > 0 ? pp - a * a / hh : pp;
+        if (R != nullptr) {
+          (*R)(i, j) = hh > 0 ? a / hh : 0.0;
+          (*W)(i, j) = hh;
+        }
+      }
+    return cost;
+  };
+  // the best (frequency, damping) of each candidate frequency, best first
+  std::vector<std::tuple<double, double, double>> scored;  // cost, wm, zeta
+  for (double wm : candidates) {
+    std::tuple<double, double, double> b{INFINITY, wm, 0.0};
+    for (double z : kDampings) {
+      const double cost = fit_residues(wm, z, nullptr, nullptr);
+      if (cost < std::get<0>(b)) b = {cost, wm, z};
+    }
+    if (std::isfinite(std::get<0>(b))) scored.push_back(b);
+  }
+  std::sort(scored.begin(), scored.end());
+  // the best few at distinct frequencies (a residual with several resonances: two
+  // close modes fit by one broad one scan best, the narrow ones next)
+  constexpr std::size_t kPicks = 3;
+  constexpr double kDistinct = 0.05;  // relative frequency
+  std::vector<ScannedMode> out;
+  for (const auto& [cost, wm, z] : scored) {
+    if (out.size() == kPicks) break;
+    bool distinct = true;
+    for (const ScannedMode& m : out) distinct = distinct && std::abs(wm / m.omega_rad_s - 1.0) > kDistinct;
+    if (!distinct) continue;
+    ScannedMode pick{wm, z, {}};
+    Eigen::MatrixXd R(rows, cols), W(rows, cols);
+    fit_residues(wm, z, &R, &W);
+    if (W.maxCoeff() > 0) W /= W.maxCoeff();
+    pick.shape = shape_from_residues(R, W, maps);
+    out.push_back(std::move(pick));
+  }
+  return out;
 }
 
 std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectInfo& effect,
@@ -166,8 +279,24 @@ std::vector<std::vector<std::pair<std::string, double>>> seeds_for(const EffectI
       // residual over the failing bands.  A phenomenon's own frequency is where the
       // error is largest, which for a mode seen through a rolling-off base (a load's
       // response falling as 1/w²) lies well above the mode (2200 rad/s seen at 3270).
-      if (const auto scanned = mode_scan(baseline, phenomena, data, fit, bounds(b.parameters[0])))
-        out.push_back({{b.parameters[0], scanned->first}, {b.parameters[1], scanned->second}});
+      const std::vector<ScannedMode> scanned = mode_scan(baseline, phenomena, data, fit, bounds(b.parameters[0]));
+      for (std::size_t k = 0; k < scanned.size(); ++k) {
+        const auto [zlo, zhi] = bounds(b.parameters[1]);
+        const std::vector<std::pair<std::string, double>> at{
+            {b.parameters[0], scanned[k].omega_rad_s}, {b.parameters[1], std::clamp(scanned[k].zeta, zlo, zhi)}};
+        if (k == 0) out.push_back(at);  // the shape from the library's default (as before the shape was scanned)
+        // with the scanned shape: a mode whose shape starts far off can be pulled to a
+        // damping bound before the shape finds it
+        if (scanned[k].shape.size() == static_cast<Index>(b.parameters.size()) - 2) {
+          auto with_shape = at;
+          for (Index i = 0; i < scanned[k].shape.size(); ++i) {
+            const std::string& q = b.parameters[static_cast<std::size_t>(2 + i)];
+            const auto [slo, shi] = bounds(q);
+            with_shape.emplace_back(q, std::clamp(scanned[k].shape(i), slo, shi));
+          }
+          out.push_back(std::move(with_shape));
+        }
+      }
       for (const Phenomenon* p : strongest_within(b.parameters[0])) {
         const Phenomenon& ph = *p;
         std::vector<std::pair<std::string, double>> seed{{b.parameters[0], ph.omega_rad_s},
@@ -241,6 +370,10 @@ std::vector<std::pair<std::string, double>> library_defaults(const PhysicalModel
   for (const std::string& e : m.effects)
     if (const EffectInfo* info = m.effect_info(e)) add_from(info->parameters);
   return out;
+}
+
+bool is_mode_effect(const std::string& name) {
+  return name == "structural_mode" || name.rfind("structural_mode_", 0) == 0;
 }
 
 void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const std::vector<Phenomenon>& phenomena,
@@ -359,6 +492,8 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
   ev.excess_share = c.excess_share;
   ev.band_share = c.band_share;
   ev.pinned = std::move(pinned);
+  // a single mode of a base that offers several (diagnose.h)
+  ev.one_of_several = c.fit.model.base_info().max_modes > 1 && c.members.size() == 1 && is_mode_effect(c.members.front());
   CandidateJudgement j = judge_candidate(ev, ctx.options);
   c.significant = j.significant;
   c.verdict = std::move(j.verdict);
@@ -376,9 +511,6 @@ namespace {
 
 std::string joined(const std::vector<std::string>& members) { return fmt::format("{}", fmt::join(members, " + ")); }
 
-bool is_mode_effect(const std::string& name) {
-  return name == "structural_mode" || name.rfind("structural_mode_", 0) == 0;
-}
 
 // Modes are interchangeable: {structural_mode_2} is the candidate {structural_mode},
 // {structural_mode, structural_mode_3} the candidate {structural_mode, structural_mode_2}.
@@ -569,12 +701,16 @@ CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOpt
   const bool bic = e.delta_bic < -options.significance_delta_bic;
   // a localized phenomenon (failing bands, the error as a whole within the floor)
   // is judged by the bands it removes
-  const bool excess = !e.global_excess || e.excess_share >= options.min_excess_share;
+  const double min_share = e.one_of_several ? options.min_mode_excess_share : options.min_excess_share;
+  const bool excess = !e.global_excess || e.excess_share >= min_share;
   const bool to_floor = e.global_excess && e.error <= options.explained_ratio * e.floor;
-  const bool bands = !e.has_band_points || to_floor || e.band_share >= options.min_band_share;
+  const bool bands = e.one_of_several || !e.has_band_points || to_floor || e.band_share >= options.min_band_share;
   CandidateJudgement j;
   j.significant = e.something && e.pinned.empty() && !raises && bic && excess && bands;
-  if (j.significant) {
+  if (j.significant && e.one_of_several && e.global_excess && !to_floor) {
+    j.verdict = fmt::format("significant: one of several modes (explains {:.0f} % of the excess; more is missing)",
+                            100.0 * e.excess_share);
+  } else if (j.significant) {
     j.verdict = "significant";
   } else if (!e.something) {
     j.verdict = "not significant: nothing beyond the noise to explain";
@@ -587,7 +723,7 @@ CandidateJudgement judge_candidate(const CandidateEvidence& e, const DiagnoseOpt
     j.verdict = fmt::format("not significant: ΔBIC {:.1f} above −{:g}", e.delta_bic, options.significance_delta_bic);
   } else if (!excess) {
     j.verdict = fmt::format("not significant: explains {:.0f} % of the excess (needs {:.0f} %)", 100.0 * e.excess_share,
-                            100.0 * options.min_excess_share);
+                            100.0 * min_share);
   } else {
     j.verdict = fmt::format("not significant: removes {:.0f} % of the failing-band points (needs {:.0f} %)",
                             100.0 * e.band_share, 100.0 * options.min_band_share);

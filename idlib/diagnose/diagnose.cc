@@ -32,6 +32,8 @@ void DiagnoseOptions::validate() const {
   if (!(std::isfinite(significance_delta_bic) && significance_delta_bic > 0.0))
     throw InputError(fmt::format("diagnose: the ΔBIC threshold must be finite and > 0 (e.g. 10), got {}",
                                  significance_delta_bic));
+  if (!(min_mode_excess_share > 0.0 && min_mode_excess_share <= 1.0))
+    throw InputError(fmt::format("diagnose: min_mode_excess_share must be in (0, 1], got {}", min_mode_excess_share));
   if (!(min_excess_share > 0.0 && min_excess_share <= 1.0))
     throw InputError(fmt::format("diagnose: the share of the excess error a candidate must explain must be in (0, 1] "
                                  "(e.g. 0.5), got {}",
@@ -65,9 +67,10 @@ ModelErrorSet model_errors(const PhysicalModel& model, const std::vector<FitData
     for (Index k = 0; k < r.num_frequencies(); ++k)
       if (r.omega_rad_s(k) < fit.band_min_rad_s || r.omega_rad_s(k) > fit.band_max_rad_s)
         r.flagged[static_cast<std::size_t>(k)] = true;
-    const std::vector<Eigen::MatrixXd> sigma = data_sigma(data[d].response, fit.noise);
+    std::vector<Eigen::MatrixXd> scales;
+    const std::vector<Eigen::MatrixXd> sigma = data_sigma(data[d].response, fit.noise, nullptr, nullptr, &scales);
     const FrequencyResponse predicted = target_response(model, data[d].beam_position_m, r.omega_rad_s, fit);
-    ModelErrorModel mem = model_error(r, predicted.response, sigma, options);
+    ModelErrorModel mem = model_error(r, predicted.response, sigma, options, &scales);
     out.failures.push_back(failing_bands(mem, options, static_cast<Index>(d)));
     for (std::size_t k = 0; k < mem.sigma.size(); ++k) {
       if (mem.skipped[k]) continue;

@@ -111,6 +111,18 @@ void check_period(double sample_period_s) {
 
 }  // namespace
 
+ModeMaps mode_maps(const PhysicalModel& model, double schedule) {
+  const ModelLayout L(model);
+  check_schedule(model, schedule);
+  const Eigen::VectorXd p = model.values();
+  Eigen::MatrixXd M, Dm, K, F;
+  ModeMaps out;
+  if (!base_matrices<double>(L, p.data(), schedule, M, Dm, K, out.Bw, F, out.Cq)) not_positive_definite(model, schedule);
+  if (out.Cq.size() == 0) out.Cq = Eigen::MatrixXd::Identity(L.n_out, L.n_dof);
+  out.output_derivative = L.mechanical ? L.mechanical->output_derivative : std::vector<int>(static_cast<std::size_t>(L.n_out), 0);
+  return out;
+}
+
 PhysicalStateSpace physical_state_space(const PhysicalModel& model, double schedule, double sample_period_s) {
   const ModelLayout L(model);
   check_schedule(model, schedule);

@@ -200,21 +200,21 @@ Lti<T> block_chain(const std::vector<ModelLayout::CompiledBlock>& blocks, Index 
 
 }  // namespace physical_detail
 
-// Continuous (A, B, C, D) of the model at the scheduling value (x_b for the
-// platform), delays apart.  Returns false when the base's mass matrix is not
-// positive definite there (no model).  Shapes: A n×n, B n×n_in, C n_out×n, D n_out×n_in.
+// The base's second-order matrices at the scheduling value: M, D, K (n_dof²); Bw,
+// its input map (w -> generalised force; identity for the platform); F, velocity
+// feedback into the input chain (w -> w − F q'), empty when none; Cq, its output map
+// (body coordinates -> what the sensors see), empty when the identity.  False when
+// the base cannot be built there (stage6_matrices' reasons).
 template <class T>
-bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT<T>& A, MatrixT<T>& B, MatrixT<T>& C,
-                      MatrixT<T>& D) {
-  using physical_detail::Lti;
-  const T zero(0.0), one(1.0);
+bool base_matrices(const ModelLayout& L, const T* p, double schedule, MatrixT<T>& M, MatrixT<T>& Dm, MatrixT<T>& K,
+                   MatrixT<T>& Bw, MatrixT<T>& F, MatrixT<T>& Cq) {
   const Index nd = L.n_dof;
-  MatrixT<T> M(nd, nd), Dm(nd, nd), K(nd, nd);
-  // Bw: the base's input map (w -> generalised force; identity for the platform);
-  // F: velocity feedback into the input chain (w -> w − F q'), empty when none.
-  // Cq: the base's output map (body coordinates -> what the sensors see), empty
-  // when the identity.
-  MatrixT<T> Bw = MatrixT<T>::Identity(nd, L.n_in), F, Cq;
+  M.resize(nd, nd);
+  Dm.resize(nd, nd);
+  K.resize(nd, nd);
+  Bw = MatrixT<T>::Identity(nd, L.n_in);
+  F.resize(0, 0);
+  Cq.resize(0, 0);
   if (L.stage6) {
     if (!stage6_matrices<T>(*L.stage6, p, schedule, &ScalarValue<T>::of, M, Dm, K, Bw, F, Cq)) return false;
     if (L.stage6->com[0] < 0) Cq.resize(0, 0);
@@ -233,6 +233,25 @@ bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT
   } else {
     LPVID_ASSERT(false);  // every base has its branch here
   }
+  return true;
+}
+
+// Continuous (A, B, C, D) of the model at the scheduling value (x_b for the
+// platform), delays apart.  Returns false when the base's mass matrix is not
+// positive definite there (no model).  Shapes: A n×n, B n×n_in, C n_out×n, D n_out×n_in.
+template <class T>
+bool build_continuous(const ModelLayout& L, const T* p, double schedule, MatrixT<T>& A, MatrixT<T>& B, MatrixT<T>& C,
+                      MatrixT<T>& D) {
+  using physical_detail::Lti;
+  const T zero(0.0), one(1.0);
+  const Index nd = L.n_dof;
+  MatrixT<T> M(nd, nd), Dm(nd, nd), K(nd, nd);
+  // Bw: the base's input map (w -> generalised force; identity for the platform);
+  // F: velocity feedback into the input chain (w -> w − F q'), empty when none.
+  // Cq: the base's output map (body coordinates -> what the sensors see), empty
+  // when the identity.
+  MatrixT<T> Bw, F, Cq;
+  if (!base_matrices<T>(L, p, schedule, M, Dm, K, Bw, F, Cq)) return false;
   MatrixT<T> Mi;
   if (!physical_detail::spd_inverse<T>(M, Mi)) return false;
   const Index nm = static_cast<Index>(L.modes.size());
@@ -443,6 +462,18 @@ PhysicalStateSpace physical_state_space(const PhysicalModel& model, double sched
 // @throws InputError  as physical_state_space; an ω not finite.
 std::vector<Eigen::MatrixXcd> physical_response(const PhysicalModel& model, double schedule,
                                                 const Eigen::VectorXd& omega_rad_s, double sample_period_s = 0.0);
+
+// What a structural mode of shape φ adds to the base's response, the input and output
+// blocks apart: C_q φ φᵀ B_w (jω)^d_i / (ω_m² − ω² + 2jζω_m ω) in output row i, d_i the
+// derivative that output measures (0 position; a mechanical base's velocity or
+// acceleration sensors).  C_q (n_out × n_dof) and B_w (n_dof × n_in) at the model's
+// values and the scheduling value (diagnose seeds a mode's shape from them).
+// @throws InputError  as physical_state_space.
+struct ModeMaps {
+  Eigen::MatrixXd Cq, Bw;
+  std::vector<int> output_derivative;
+};
+ModeMaps mode_maps(const PhysicalModel& model, double schedule);
 
 // @throws InputError  the scheduling value is outside the base's range (the
 //   platform: |x_b| > beam_stroke_m) or not finite.

@@ -50,7 +50,8 @@ double confidence_radius(double confidence) {
 }
 
 ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eigen::MatrixXcd>& model,
-                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options) {
+                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options,
+                            const std::vector<Eigen::MatrixXd>* given_scales) {
   options.validate();
   const std::size_t F = data.response.size();
   if (F == 0) throw InputError("model error: the data hold no frequencies");
@@ -67,7 +68,9 @@ ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eig
   r.model = model;
   r.k = confidence_radius(options.confidence);
   r.skipped.assign(F, false);
-  const std::vector<Eigen::MatrixXd> scales = response_scales(data.response);
+  const std::vector<Eigen::MatrixXd> scales = given_scales != nullptr ? *given_scales : response_scales(data.response);
+  if (scales.size() != F)
+    throw InputError(fmt::format("model error: {} scale matrices for {} frequencies", scales.size(), F));
   for (std::size_t f = 0; f < F; ++f) {
     if (data.response[f].rows() != p || data.response[f].cols() != m || model[f].rows() != p ||
         model[f].cols() != m || sigma[f].rows() != p || sigma[f].cols() != m)

@@ -146,8 +146,11 @@ struct FailingBand {
 // | sigma    | F matrices p x m: σ_c per real part (> 0, +inf allowed) |
 // @throws InputError  bad options; no frequencies; model or sigma count or shapes
 //                     differ from the data's; a non-finite entry.
+// `scales`: the s_ij of each frequency as the fit measures errors (idlib/fit's
+// data_sigma); null: response_scales of the data.
 ModelErrorModel model_error(const FrequencyResponse& data, const std::vector<Eigen::MatrixXcd>& model,
-                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options);
+                            const std::vector<Eigen::MatrixXd>& sigma, const ModelErrorOptions& options,
+                            const std::vector<Eigen::MatrixXd>* scales = nullptr);
 
 // The failing bands of every channel, ordered by channel (output, then input) and
 // frequency; data_index is copied into each.

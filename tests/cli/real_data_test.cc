@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -209,6 +210,80 @@ TEST(RealData, F16WingTorsionModeSoftensAndDampsFromLevel1ToLevel7) {
     EXPECT_LE(seven[i].hz, one[i].hz - 0.048);  // at least one line (400/8192 Hz) lower
     EXPECT_GT(one[i].magnitude - seven[i].magnitude, 20.0 * std::hypot(one[i].sd, seven[i].sd));
   }
+}
+
+// The model-error loop on the F-16 (issue 26): a mechanical base described by the user
+// (samples/mechanical/f16_gvt.json: the driving point's mass line, accelerometers) fitted
+// to the periodic FRF with its own variance; diagnose names one structural mode at a
+// time.  Truth from outside the code: the benchmark's wing-torsion mode "around 7.3 Hz"
+// (Noël & Schoukens 2017) and the FRF's own peak, 7.324 Hz at level 1 (f16_gvt/README.md,
+// computed with numpy).  Measured: the first mode named is the torsion mode, 46.00 rad/s
+// (7.32 Hz), zeta 0.0045-0.0056; the error 79.2 % -> 62.9 % -> 56.3 % with the second
+// (57.6 rad/s, 9.17 Hz; the torsion mode then 46.01 ± 0.01 rad/s, zeta 0.0051 ± 0.0002).
+// That model refitted to level 7 puts the torsion mode at 45.02 ± 0.13 rad/s (7.17 Hz)
+// with zeta 0.026 ± 0.003: softened and damped, the benchmark's nonlinearity, far beyond
+// both fits' standard errors.  Not reached (said in
+// docs/real-data.md): the loop stops at the third mode, whose best fit is a broad patch
+// over the close pair at 3.3/3.8 Hz; the floor (1.5 %) is not approached.
+TEST(RealData, F16LoopNamesTheTorsionModeThenTheNextAndTheModeSoftensAtLevel7) {
+  LPVID_REAL_DATA_OR_SKIP(low, "f16_gvt/f16_fullmsine_level1.csv");
+  LPVID_REAL_DATA_OR_SKIP(high, "f16_gvt/f16_fullmsine_level7.csv");
+  TempDir dir("f16loop");
+  const std::string p1 = dir / "P1.csv", p7 = dir / "P7.csv";
+  for (const auto& [log, out] : {std::pair{low, p1}, std::pair{high, p7}}) {
+    const auto r = run_lpvid("frf " + kF16Layout + kF16Channels + "--out " + out + " " + log);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const std::string description = std::string(LPVID_SOURCE_DIR) + "/samples/mechanical/f16_gvt.json";
+  auto r = run_lpvid("model init --base mechanical --from " + description + " --out " + (dir / "start.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // the force is measured at an impedance head, not a held command: the continuous response
+  const std::string data = " --data " + p1 + " --measured-input";
+  auto fit = [&](const std::string& model, const std::string& out, const std::string& d) {
+    const auto f = run_lpvid("fit --model " + model + d + " --out " + out);
+    EXPECT_EQ(f.exit_code, 0) << f.err;
+    EXPECT_THAT(f.err, ::testing::Not(HasSubstr("ZOH")));
+    return nlohmann::json::parse(std::ifstream(out))["fit"];
+  };
+  auto estimate = [](const nlohmann::json& f, const std::string& name) {
+    for (const auto& [key, p] : f["parameters"].items())
+      if (key == name) return std::pair<double, double>{p["estimate"].get<double>(), p["std_error"].get<double>()};
+    ADD_FAILURE() << "no parameter " << name;
+    return std::pair<double, double>{NAN, NAN};
+  };
+  const auto f0 = fit(dir / "start.json", dir / "fit0.json", data);
+  r = run_lpvid("diagnose --model " + (dir / "fit0.json") + data + " --out " + (dir / "step1.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  EXPECT_THAT(r.out, HasSubstr("missing: structural_mode "));
+  EXPECT_THAT(r.out, HasSubstr("one of several modes"));
+  const auto f1 = fit(dir / "step1.json", dir / "fit1.json", data);
+  const auto [w1, sw1] = estimate(f1, "mode_frequency_rad_s");
+  const auto [z1, sz1] = estimate(f1, "mode_damping");
+  std::printf("F-16 level 1: torsion mode %.4f ± %.4f rad/s (%.4f Hz), zeta %.4f ± %.4f; error %.2f %% -> %.2f %%\n",
+              w1, sw1, w1 / (2 * std::numbers::pi), z1, sz1, 100 * f0["error"].get<double>(),
+              100 * f1["error"].get<double>());
+  // the benchmark's "around 7.3 Hz", within two lines (0.1 Hz) of the FRF's 7.324 Hz peak
+  EXPECT_NEAR(w1 / (2 * std::numbers::pi), 7.324, 0.1);
+  EXPECT_LT(z1, 0.02);  // lightly damped (the FRF's half-power width is ~0.08 Hz)
+  EXPECT_LT(f1["error"].get<double>(), f0["error"].get<double>());
+  r = run_lpvid("diagnose --model " + (dir / "fit1.json") + data + " --out " + (dir / "step2.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  EXPECT_THAT(r.out, HasSubstr("missing: structural_mode_2 "));
+  const auto f2 = fit(dir / "step2.json", dir / "fit2.json", data);
+  const auto [w2, sw2] = estimate(f2, "mode_frequency_rad_s");
+  const auto [z2, sz2] = estimate(f2, "mode_damping");
+  std::printf("F-16 level 1: second mode %.4f rad/s; error %.2f %%; torsion mode %.4f ± %.4f rad/s, zeta %.4f ± %.4f\n",
+              estimate(f2, "mode_2_frequency_rad_s").first, 100 * f2["error"].get<double>(), w2, sw2, z2, sz2);
+  EXPECT_LT(f2["error"].get<double>(), f1["error"].get<double>());
+  // level 7: the level-1 model of step 2 refitted (with one mode only, the torsion mode
+  // also stands in for the 9.2 Hz one and comes out at zeta 0.068)
+  const auto f7 = fit(dir / "fit2.json", dir / "fit7.json", " --data " + p7 + " --measured-input");
+  const auto [w7, sw7] = estimate(f7, "mode_frequency_rad_s");
+  const auto [z7, sz7] = estimate(f7, "mode_damping");
+  std::printf("F-16 level 7: torsion mode %.4f ± %.4f rad/s (%.4f Hz), zeta %.4f ± %.4f\n", w7, sw7,
+              w7 / (2 * std::numbers::pi), z7, sz7);
+  EXPECT_LT(w7, w2 - 3 * std::hypot(sw2, sw7));  // softened beyond 3 standard errors
+  EXPECT_GT(z7, z2 + 3 * std::hypot(sz2, sz7));  // and more damped
 }
 
 // The DaISy steel subframe (2 forces x 28 accelerometers, 8523 samples): the output-error

@@ -551,4 +551,26 @@ TEST(CandidateJudgement, TheOtherTestsInOrder) {
   EXPECT_FALSE(lpvid::judge_candidate(ev, o).significant);
 }
 
+// One of several modes (a base that offers several, diagnose.h): the F-16's torsion mode,
+// ΔBIC −1608, took a model with no mode from 79.2 % to 62.9 % against a 1.48 % floor —
+// 37 % of the excess, and no failing-band point removed while the other modes are missing.
+TEST(CandidateJudgement, OneOfSeveralModesNeedsATenthOfTheExcessAndNoBands) {
+  const lpvid::DiagnoseOptions o;
+  lpvid::CandidateEvidence ev = evidence(0.792, 0.629, 0.0148, -1608.0, 0.0);
+  EXPECT_FALSE(lpvid::judge_candidate(ev, o).significant);  // any other effect: half the excess
+  ev.one_of_several = true;
+  const lpvid::CandidateJudgement j = lpvid::judge_candidate(ev, o);
+  EXPECT_TRUE(j.significant) << j.verdict;
+  EXPECT_THAT(j.verdict, testing::HasSubstr("one of several modes (explains 37 % of the excess; more is missing)"));
+  // the other tests still hold: a mode that raises the error, or explains too little
+  EXPECT_FALSE(lpvid::judge_candidate(evidence(0.563, 0.993, 0.0148, -1315.0, 0.0), o).significant);
+  ev = evidence(0.792, 0.78, 0.0148, -200.0, 0.0);  // 3 % of the excess
+  ev.one_of_several = true;
+  EXPECT_THAT(lpvid::judge_candidate(ev, o).verdict, testing::HasSubstr("of the excess (needs 10 %)"));
+  // the last mode, to the floor: plain "significant"
+  ev = evidence(0.05, 0.02, 0.0148, -500.0, 0.0);
+  ev.one_of_several = true;
+  EXPECT_EQ(lpvid::judge_candidate(ev, o).verdict, "significant");
+}
+
 }  // namespace diagnose_test
