@@ -125,8 +125,8 @@ Eigen::VectorXd shape_from_residues(const Eigen::MatrixXd& R, const Eigen::Matri
 // least-squares fit; wm runs over the data's own lines near the bands (a lightly
 // damped peak sits between two of them, at a spacing a log grid misses) and a log grid
 // inside the bounds, away from the modes the model has, zeta over light to moderate
-// dampings.  The shape then factors the
-// best residues as C_q φ φᵀ B_w (shape_from_residues).  Nothing when there is no
+// dampings.  The best three at distinct frequencies, each with the shape that factors
+// its residues as C_q φ φᵀ B_w (shape_from_residues).  Nothing when there is no
 // residual to scan.
 std::vector<ScannedMode> mode_scan(const PhysicalModel& baseline, const std::vector<Phenomenon>& phenomena,
                                    const std::vector<FitDataset>& data, const FitOptions& fit,

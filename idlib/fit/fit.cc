@@ -651,9 +651,8 @@ NoiseTable noise_table(const FrequencyResponse& f, const NoiseOptions& noise, do
         }
         // Measured noise (variance, coherence): an entry is never measured against
         // less than kNoiseScaleRatio × its own noise rms √2σ.  Below that its relative
-        // error measures the noise: one line of a deep antiresonance (the F-16's acc3
-        // at 5.6 Hz, |H| at its noise) owned the figure at 404 % for a model whose
-        // only misfit there was the tail of one mode (fit.h, "Error").
+        // error measures the noise (the F-16's acc3 at 5.66 Hz, |H| at twice its noise;
+        // fit.h, "noise model", with the local-level floor that does most of the work).
         if ((var || (coh && n_d > 0)) && std::isfinite(sigma))
           s(i, j) = std::max(s(i, j), kNoiseScaleRatio * std::sqrt(2.0) * sigma);
         sg(i, j) = std::max(sigma, noise.sigma_floor * s(i, j));
