@@ -11,6 +11,7 @@
 #include "cli/common.h"
 #include "cli/stage6_time.h"
 #include "cli/fit_inputs.h"
+#include "cli/mechanical_time.h"
 #include "formats/io/history.h"
 #include "cli/output_set.h"
 #include "cli/progress_line.h"
@@ -50,12 +51,16 @@ output row or input column (--out-effect writes that user-defined effect for 'lp
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).
 Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
-  lpvid diagnose --model stage.json --log exp/exp_stage6.csv)";
+  lpvid diagnose --model stage.json --log exp/exp_stage6.csv
+Time domain (a mechanical base): coulomb_friction, force_offset and the pair, judged against
+the force error's noise floor (docs/math.md, "Force-error route"):
+  lpvid diagnose --model axis.json --log run.csv --out next.json --report report.json)";
 
 struct DiagnoseCliOptions {
   FitInputOptions in;
   std::string candidates, out, png, out_effect, report;
   std::string log;  // the stage's time-domain route (cli/stage6_time.h)
+  double window_s = 0.0;  // a mechanical base's force-error route (cli/mechanical_time.h)
   double delta_bic = 10.0;
   bool json = false;
 };
@@ -110,6 +115,20 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.log.empty()) {
     if (!o.in.data.empty() || !o.in.datasets.empty())
       throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+    PhysicalModel model = read_physical_model(o.in.model);
+    if (model.user_base != nullptr) {
+      if (!o.png.empty() || !o.out_effect.empty())
+        throw InputError("diagnose --log: --png and --out-effect are for the frequency route; the force-error route "
+                         "writes --out (the named effect fitted) and --report");
+      MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
+                                                          o.in.measured_input, o.json);
+      req.report = o.report;
+      if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
+      req.delta_bic = o.delta_bic;
+      return run_mechanical_time_diagnose(req);
+    }
+    if (o.window_s > 0.0)
+      throw InputError("diagnose --window-s: the smoothing window is the force-error route's (a mechanical base)");
     if (!o.png.empty() || !o.out_effect.empty() || !o.report.empty())
       throw InputError("diagnose --log: --png, --out-effect and --report are for the frequency route; see where the model "
                        "fails in time with lpvid compare --log RUN.csv --model MODEL.json --out-png F.png");
@@ -347,6 +366,7 @@ Command make_diagnose_command() {
             app->add_option("--log", o->log,
                             "time domain (base stage6): diagnose on a closed-loop log (t, v1..v6, u1..u6, q1..q6) "
                             "by the equation error's BIC");
+            add_window_option(app, &o->window_s);
             app->add_option("--candidates", o->candidates, "effects to try, comma separated (default: all it lacks)");
             app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs besides (default 10)")
                 ->check(positive_up_to(1e9, "the BIC decrease"));

@@ -11,6 +11,7 @@
 
 #include "cli/common.h"
 #include "cli/fit_inputs.h"
+#include "cli/mechanical_time.h"
 #include "cli/output_set.h"
 #include "cli/progress_line.h"
 #include "cli/registry.h"
@@ -49,12 +50,16 @@ The fitted model file gets a "fit" section (estimates, standard errors, correlat
 per-channel figures, cost, AIC/BIC).  --bands writes the model's magnitude and phase with
 their delta-method standard deviations at the data frequencies; the plot shows +-2 sigma.
 Time domain (base stage6): fit to a closed-loop log by output error (--method equation|both):
-  lpvid fit --model stage.json --log exp/exp_stage6.csv --out fitted.json)";
+  lpvid fit --model stage.json --log exp/exp_stage6.csv --out fitted.json
+Time domain (a mechanical base: every DOF's position logged with the inputs): the force
+error M q'' + D q' + K q + friction + offset = B_w w, sample by sample (docs/math.md):
+  lpvid fit --model axis.json --log run.csv --out fitted.json [--window-s 0.02])";
 
 struct FitCliOptions {
   FitInputOptions in;
   std::string out, plot, bands;
   std::string log, method;  // the stage's time-domain route (cli/stage6_time.h)
+  double window_s = 0.0;     // a mechanical base's force-error route (cli/mechanical_time.h)
   bool json = false;
 };
 
@@ -69,6 +74,15 @@ void run(const FitCliOptions& o) {
     if (!o.plot.empty() || !o.bands.empty())
       throw InputError("fit --log: --plot and --bands are for the frequency route; see where the fitted model fails "
                        "in time with lpvid compare --log RUN.csv --model FITTED.json --out-png F.png");
+    PhysicalModel model = read_physical_model(o.in.model);
+    if (model.user_base != nullptr) {
+      if (!o.method.empty())
+        throw InputError("fit --method: a mechanical base's time route has one method, the force error; drop --method");
+      return run_mechanical_time_fit(mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
+                                                             o.in.measured_input, o.json));
+    }
+    if (o.window_s > 0.0)
+      throw InputError("fit --window-s: the smoothing window is the force-error route's (a mechanical base)");
     StageTimeFitRequest req;
     {
       OutputSet guard;  // the model is an input: never overwritten by --out
@@ -299,8 +313,9 @@ Command make_fit_command() {
             add_fit_input_options(*app, o->in);
             app->add_option("--out", o->out, "fitted model file to write (JSON, with a \"fit\" section)")->required();
             app->add_option("--log", o->log,
-                            "time domain (base stage6): fit to a closed-loop log (t, v1..v6, u1..u6, q1..q6) instead "
-                            "of responses");
+                            "time domain: fit to a log instead of responses (base stage6: t, v1..v6, u1..u6, q1..q6; a "
+                            "mechanical base: t and its input and output columns, the force-error route)");
+            add_window_option(app, &o->window_s);
             app->add_option("--method", o->method,
                             "with --log: output (default; output error started from the equation error, unbiased "
                             "with sensor noise, standard errors), equation, or both (prints the two, writes output)");

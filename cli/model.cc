@@ -314,7 +314,8 @@ void run_effects(const ModelCliOptions& o) {
                       b.default_effects.empty() ? std::string("no effect") : fmt::format("{}", fmt::join(b.default_effects, ", ")));
   for (const auto& e : m.library()) {
     nlohmann::json params = nlohmann::json::array();
-    text += fmt::format("{}: {}\n  changes: {}\n  residual signature: {}\n", e.name, e.description, e.changes,
+    text += fmt::format("{}{}: {}\n  changes: {}\n  residual signature: {}\n", e.name,
+                        e.time_only ? " (time domain only: fit --log, diagnose --log)" : "", e.description, e.changes,
                         e.signature);
     for (const auto& p : e.parameters) {
       params.push_back({{"name", p.name}, {"unit", p.unit}, {"value", p.value}, {"lower", p.lower},
@@ -323,7 +324,8 @@ void run_effects(const ModelCliOptions& o) {
                           p.free ? " (free)" : " (fixed)");
     }
     list.push_back({{"name", e.name}, {"description", e.description}, {"changes", e.changes},
-                    {"signature", e.signature}, {"physics_of_the_base", e.blocks.empty()}, {"parameters", params}});
+                    {"signature", e.signature}, {"physics_of_the_base", e.blocks.empty() && !e.time_only},
+                    {"time_only", e.time_only}, {"parameters", params}});
   }
   text += "\nuser-defined effects: building blocks delay, first_order, second_order, resonance, gain, coupling, mode "
           "(docs/effects.md; lpvid model define)\n";

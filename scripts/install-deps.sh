@@ -14,7 +14,7 @@ pkgs=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libpng-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev libfast-float-dev
   libfftw3-dev libmatio-dev zlib1g-dev libspectra-dev libopenblas-dev liblapacke-dev
-  fonts-dejavu-core
+  fonts-dejavu-core python3
 )
 for set in "$@"; do
   case "$set" in

@@ -28,3 +28,7 @@ echo "lab workflow: $root/samples/lab/ (where-it-fails.png, history.png)"
 # response with two flexible modes the description lacks (samples/mechanical-loop.sh).
 bash "$root/samples/mechanical-loop.sh"
 echo "your own stage: $root/samples/mechanical/out/ (where-it-fails.png, fit2.png)"
+# A positioning axis with friction, logged in closed loop: the loop in the time domain
+# (force error) names Coulomb friction, then the offset (samples/friction-loop.sh).
+bash "$root/samples/friction-loop.sh"
+echo "friction loop: $root/samples/mechanical/out-friction/ (report1.json, report2.json)"

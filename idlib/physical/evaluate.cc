@@ -31,6 +31,11 @@ ModelLayout::ModelLayout(const PhysicalModel& model) {
   delays.assign(static_cast<std::size_t>(n_in), {});
   for (const std::string& name : model.effects) {
     const EffectInfo* e = model.effect_info(name);
+    if (e->time_only)
+      throw InputError(fmt::format(
+          "the model has {}, a nonlinear time-domain effect with no frequency response: fit and diagnose it on a "
+          "log (lpvid fit --log RUN.csv), or remove it for this command (lpvid model remove {} --model MODEL.json)",
+          name, name));
     for (const Block& blk : e->blocks) {
       CompiledBlock c{blk.kind, blk.side, {}, {}};
       const auto& names = blk.side == BlockSide::kOutput ? b.output_names : b.input_names;

@@ -357,10 +357,17 @@ const EffectInfo* PhysicalModel::effect_info(const std::string& name) const {
   return nullptr;
 }
 
+std::vector<std::string> PhysicalModel::absent_time_effects() const {
+  std::vector<std::string> out;
+  for (const EffectInfo& e : library())
+    if (e.time_only && !has_effect(e.name)) out.push_back(e.name);
+  return out;
+}
+
 std::vector<std::string> PhysicalModel::absent_effects() const {
   std::vector<std::string> out;
   for (const EffectInfo& e : library()) {
-    if (has_effect(e.name)) continue;
+    if (has_effect(e.name) || e.time_only) continue;
     // structural_mode_k (k >= 2) once the mode before it is in the model: modes are
     // added one at a time, each candidate a new one
     if (e.name.rfind("structural_mode_", 0) == 0) {

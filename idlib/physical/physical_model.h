@@ -96,6 +96,11 @@ struct EffectInfo {
   // that the effect carries what goes beyond the design (rod_twist: the tilt
   // stiffness beyond the rods' designed bending).  Removing the effect frees them.
   std::vector<std::string> holds;
+  // A nonlinear effect with no frequency response (Coulomb friction, a constant force
+  // offset): only the time-domain force-error route uses it (idlib/fit/force_error.h;
+  // `lpvid fit --log`, `lpvid diagnose --log` on a mechanical base).  The frequency
+  // routes refuse a model that has one (ModelLayout) and never propose one.
+  bool time_only = false;
 };
 
 // What a base is: its parameters and channels.  The physics is in the base's
@@ -174,8 +179,11 @@ struct PhysicalModel {
 
   // The library entry or user definition of an effect name, or nullptr.
   const EffectInfo* effect_info(const std::string& name) const;
-  // Every effect the model could add (library + definitions) that it lacks.
+  // Every effect the model could add (library + definitions) that it lacks, the
+  // frequency routes' candidates: time-only effects are not among them.
   std::vector<std::string> absent_effects() const;
+  // The time-only effects (EffectInfo::time_only) of its library that it lacks.
+  std::vector<std::string> absent_time_effects() const;
 
   // Adds the effect (library or definition) with its default parameters, and holds
   // the base parameters it names in `holds` at their design values.

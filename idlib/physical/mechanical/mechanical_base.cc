@@ -29,6 +29,46 @@ LinearExpression normalised(const LinearExpression& e) {
   return out;
 }
 
+// The force unit on a DOF of that unit, and its suffix in parameter names.
+std::pair<std::string, std::string> force_unit(const std::string& dof_unit) {
+  if (dof_unit == "m") return {"N", "_N"};
+  if (dof_unit == "rad") return {"N·m", "_Nm"};
+  return {"force on " + dof_unit, ""};
+}
+
+// The nonlinear time-domain effects of a mechanical base (EffectInfo::time_only):
+// one parameter per DOF, entering M q'' + D q' + K q + f = B_w w as a generalised
+// force (idlib/fit/force_error.h).
+std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
+  EffectInfo coulomb{"coulomb_friction",
+                     "Coulomb (dry) friction on each DOF: a force of constant size against the motion",
+                     "adds F_c sign(q') to the DOF's force balance (time domain only: no frequency response)",
+                     "a force residual that steps with the sign of the velocity (correlated with sign(q'))",
+                     {},
+                     {},
+                     false,
+                     {},
+                     true};
+  EffectInfo offset{"force_offset",
+                    "a constant force on each DOF (gravity on an inclined axis, a cable carrier, an amplifier "
+                    "offset)",
+                    "adds F_0 to the DOF's force balance (time domain only)",
+                    "a force residual with a nonzero mean, whatever the motion",
+                    {},
+                    {},
+                    false,
+                    {},
+                    true};
+  for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
+    const auto [unit, suffix] = force_unit(b.dof_units[i]);
+    PhysicalParameter c{"coulomb_" + b.dof_names[i] + suffix, unit, 0.0, 0.0, 1e9, true};
+    PhysicalParameter f{"offset_" + b.dof_names[i] + suffix, unit, 0.0, -1e9, 1e9, true};
+    coulomb.parameters.push_back(c);
+    offset.parameters.push_back(f);
+  }
+  return {coulomb, offset};
+}
+
 }  // namespace
 
 LinearExpression parse_linear_expression(const std::string& text) {
@@ -240,6 +280,7 @@ std::shared_ptr<const UserBase> make_mechanical_base(const MechanicalDescription
   b.mode_upper_rad_s = 1e6;
   b.max_modes = kMaxMechanicalModes;
   base->library = physical_detail::shared_block_effects(b);
+  for (EffectInfo& e : mechanical_time_effects(b)) base->library.push_back(std::move(e));
   // M positive definite at the design values
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(nd, nd);
   for (Index i = 0; i < nd; ++i)

@@ -1,0 +1,43 @@
+// The time-domain route of a mechanical base (a positioning axis, a gantry, any stage
+// the user describes): `lpvid fit --log RUN.csv` and `lpvid diagnose --log RUN.csv`
+// on a model of base "mechanical" fit the equation of motion sample by sample (the
+// force-error route, idlib/fit/force_error.h) and run the model-error loop over its
+// time-domain effects (coulomb_friction, force_offset).  The log is a CSV log (or
+// .mat) with a time column and one column per base input and output, named as the
+// description names them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "idlib/physical/physical_model.h"
+
+namespace CLI {
+class App;
+}
+
+namespace lpvid::cli {
+
+struct MechanicalTimeRequest {
+  PhysicalModel model;
+  std::string model_label, log, out, report;
+  std::string history_from;  // fit: the start model's history (continued beside --out)
+  std::vector<std::string> candidates;  // diagnose
+  double delta_bic = 10.0;
+  double window_s = 0.0;      // 0: the default (idlib/fit/force_error.h)
+  bool measured_input = false;
+  bool json = false;
+};
+
+// The request for a model file on a log: the label is the path, the history the
+// model's own (continued beside --out).
+MechanicalTimeRequest mechanical_time_request(PhysicalModel model, const std::string& model_path,
+                                              const std::string& log, const std::string& out, double window_s,
+                                              bool measured_input, bool json);
+// Declares --window-s (fit and diagnose).
+void add_window_option(CLI::App* app, double* window_s);
+
+void run_mechanical_time_fit(const MechanicalTimeRequest& r);
+void run_mechanical_time_diagnose(const MechanicalTimeRequest& r);
+
+}  // namespace lpvid::cli
