@@ -200,7 +200,9 @@ void run(const FitCliOptions& o) {
     std::vector<std::vector<double>> rows;
     for (const auto& d : data) {
       const ResponseBand band = response_band(r.model, r.covariance, d.beam_position_m, d.response.omega_rad_s, options);
-      const std::string tag = fmt::format("x_b = {} m", d.beam_position_m);
+      // a base without a scheduling variable: the data set's name (as diagnose's figure)
+      const std::string tag =
+          std::isnan(d.beam_position_m) ? d.label : fmt::format("x_b = {:g} m", d.beam_position_m);
       BodeSeries measured{tag + " data", d.response, BodeSeries::Style::kMarkers};
       BodeSeries model{tag + " model", band.response, BodeSeries::Style::kLine};
       BodeSeries lower{tag + " model -2 sigma", band.response, BodeSeries::Style::kDashed};
