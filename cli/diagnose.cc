@@ -53,7 +53,7 @@ model fails (data and model, the error over the noise band, failing bands red).
 Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
   lpvid diagnose --model stage.json --log exp/exp_stage6.csv
 Time domain (a mechanical base): coulomb_friction, force_offset and the pair, judged against
-the force error's noise floor (docs/math.md, "Force-error route"):
+the force error's noise floor (docs/math.md 9b):
   lpvid diagnose --model axis.json --log run.csv --out next.json --report report.json)";
 
 struct DiagnoseCliOptions {

@@ -414,6 +414,10 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
       }
       if (model.has_effect(c))
         throw InputError(fmt::format("diagnose: the model already has effect '{}'; try the others", c));
+      if (model.effect_info(c)->time_only)
+        throw InputError(fmt::format("diagnose: '{}' is a nonlinear time-domain effect with no frequency response; "
+                                     "diagnose it on a log (lpvid diagnose --model MODEL.json --log RUN.csv)",
+                                     c));
     }
   }
 

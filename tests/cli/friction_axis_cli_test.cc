@@ -70,6 +70,9 @@ TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
   friction_axis::write_csv(friction_axis::simulate(friction_axis::Truth{}, e), dir / "run.csv");
   const std::string m0 = dir / "axis.json";
   ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", sample(), m0)).exit_code, 0);
+  ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", sample(), dir / "axis2.json"))
+                .exit_code,
+            0);
   ASSERT_EQ(run_lpvid(fmt::format("model add coulomb_friction --model {}", m0)).exit_code, 0);
   const std::string before = slurp(m0);
   auto one_line = [](const lpvid::testing::RunResult& r) {
@@ -83,6 +86,11 @@ TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
                                        dir / "f.json"));
   one_line(a);
   EXPECT_THAT(a.err, HasSubstr("coulomb_friction, a nonlinear time-domain effect"));
+  // nor takes one as a candidate
+  const auto a2 = run_lpvid(fmt::format("diagnose --model {} --data {} --noise-level 0.01 --candidates force_offset",
+                                        dir / "axis2.json", dir / "P.csv"));
+  one_line(a2);
+  EXPECT_THAT(a2.err, HasSubstr("'force_offset' is a nonlinear time-domain effect"));
   // a log without the base's output column
   std::ofstream(dir / "wrong.csv") << "t,i,x\n0,0,0\n0.001,0,0\n0.002,0,0\n";
   const auto b = run_lpvid(fmt::format("fit --model {} --log {} --out {}", m0, dir / "wrong.csv", dir / "f.json"));
