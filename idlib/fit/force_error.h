@@ -91,6 +91,7 @@ struct ForceErrorData {
   // at rest the friction holds any force up to F_c, which no sign law predicts.  The
   // rows above are the samples kept (not contiguous when standstill > 0).
   Index standstill = 0;
+  Eigen::Matrix<Index, Eigen::Dynamic, 1> sample;  // each row's sample number in the log (0-based)
   Index n() const { return q.rows(); }
 };
 
@@ -117,6 +118,7 @@ struct ForceErrorFit {
   double n_eff = 0.0;                           // effective samples (all DOFs)
   double bic = 0.0;
   Eigen::MatrixXd residual;                     // n × n_dof, in force units
+  Eigen::MatrixXd applied;                      // n × n_dof, the actuators' force B_w w (smoothed)
   // Parameters the log cannot separate, one sentence each ("m_kg and k_f_N_per_A
   // move together: ..."); empty when all are determined.
   std::vector<std::string> unidentifiable;
@@ -161,5 +163,20 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
                                          const ForceErrorDiagnoseOptions& options = {});
 
 inline constexpr double kForceErrorExplainedRatio = 1.5;
+
+// Where in time the fit fails: windows of window_s (every half window, by the log's
+// sample numbers; a window mostly at standstill is skipped) whose residual rms exceeds
+// 1.5× the larger of the noise floor's force and the record's own residual rms — the
+// places where the model fails more than it does on average (a model failing evenly
+// everywhere marks nothing: its residual panel shows the shape).  Merged when they
+// overlap; t from the log's first sample.
+struct ForceErrorWindow {
+  Index dof = 0;
+  double t_start_s = 0.0, t_end_s = 0.0;
+  double rms = 0.0;  // the worst window's residual rms, in force units
+};
+// @throws InputError  the fit is not of these data; window_s not > 0.
+std::vector<ForceErrorWindow> force_error_failing_windows(const ForceErrorFit& f, const ForceErrorData& d,
+                                                         double window_s = 0.25);
 
 }  // namespace lpvid

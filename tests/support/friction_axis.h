@@ -26,6 +26,12 @@ namespace lpvid::friction_axis {
 
 struct Truth {
   double m_kg = 4.2, c_Ns_per_m = 35.0, coulomb_N = 6.5, offset_N = 2.8, k_f_N_per_A = 10.0;
+  // Effects the library does NOT have (0: absent), as a real axis shows them:
+  //  - Stribeck: the friction rises by stribeck_N towards standstill,
+  //    (F_c + F_s exp(−(v/v_s)²)) sign v, and at rest holds up to F_c + F_s;
+  //  - a force ripple periodic in position (cogging, the screw's lead error):
+  //    ripple_N sin(2π x / ripple_period_m).
+  double stribeck_N = 0.0, stribeck_v = 0.005, ripple_N = 0.0, ripple_period_m = 0.01;
 };
 
 struct Experiment {
@@ -33,14 +39,50 @@ struct Experiment {
   double encoder_m = 1e-6;           // quantisation step
   double current_noise_A = 0.005;    // the logged current's sensor noise (std)
   bool both_ways = true;             // false: a ramp that never reverses
+  // true: point-to-point moves between fixed positions with rests between them
+  // (minimum-jerk profiles of 0.6–1.1 s, rests of 0.25–0.45 s; the cycle of 12.2 s
+  // ends where it starts), as an industrial
+  // axis is exercised; overrides both_ways.
+  bool point_to_point = false;
+  // The controller: false a PD on the encoder (the current is the command); true a
+  // drive's cascade, a P position loop (5 Hz) around a PI velocity loop (20 Hz) on
+  // the differenced, low-passed encoder: the integrator makes the axis hunt through
+  // the friction at rest (stick–slip), as a real drive does.
+  bool cascade = false;
   unsigned seed = 7;
 };
 
 struct Log {
   Eigen::VectorXd t, r, i, x;
+  // The simulator's own account of the forces the library cannot model (Stribeck and
+  // ripple), averaged over each sample, and the motor force k_f i (the command, no
+  // sensor noise): the truth a fit of viscous + Coulomb + offset cannot go below.
+  Eigen::VectorXd unmodelled_N, motor_N, velocity;
 };
 
+// The point-to-point reference: minimum-jerk moves between these positions (m).
+inline double point_to_point_reference(double t) {
+  static const double stops[] = {0.0, 0.15, 0.04, 0.2, 0.1, 0.18, 0.0, 0.12, 0.05, 0.2, 0.0};
+  static const double moves[] = {0.8, 0.7, 1.1, 0.6, 0.9, 1.0, 0.75, 0.85, 1.05, 0.95};
+  static const double rests[] = {0.3, 0.4, 0.25, 0.45, 0.35, 0.3, 0.4, 0.25, 0.35, 0.45};
+  constexpr int kMoves = 10;
+  double cycle = 0.0;
+  for (int k = 0; k < kMoves; ++k) cycle += moves[k] + rests[k];
+  double tau = std::fmod(t, cycle);
+  for (int k = 0; k < kMoves; ++k) {
+    if (tau < rests[k]) return stops[k];
+    tau -= rests[k];
+    if (tau < moves[k]) {
+      const double s = tau / moves[k];
+      return stops[k] + (stops[k + 1] - stops[k]) * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s);
+    }
+    tau -= moves[k];
+  }
+  return stops[kMoves];
+}
+
 inline double reference(const Experiment& e, double t) {
+  if (e.point_to_point) return point_to_point_reference(t);
   if (e.both_ways) return 0.1 * std::sin(2.0 * M_PI * 0.4 * t) + 0.03 * std::sin(2.0 * M_PI * 1.3 * t + 1.0);
   return 0.05 * t + 0.01 * std::sin(2.0 * M_PI * 0.7 * t);  // velocity 0.05 ± 0.044 m/s: never reverses
 }
@@ -59,43 +101,63 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   // PD at 30 Hz bandwidth, ζ 0.7 on the nominal mass; derivative filtered at 300 Hz
   const double wc = 2.0 * M_PI * 30.0, kp = p.m_kg * wc * wc, kd = 2.0 * 0.7 * p.m_kg * wc;
   const double alpha = std::exp(-2.0 * M_PI * 300.0 * ts);
+  // cascade: velocity PI at 20 Hz (integral corner 4 Hz), position P at 5 Hz,
+  // velocity estimate low-passed at 200 Hz
+  const double kv = p.m_kg * 2.0 * M_PI * 20.0, ki = kv * 2.0 * M_PI * 4.0, kx = 2.0 * M_PI * 5.0;
+  const double alpha_v = std::exp(-2.0 * M_PI * 200.0 * ts);
   std::mt19937 rng(e.seed);
   std::normal_distribution<double> n01(0.0, 1.0);
   Log log;
-  log.t.resize(n);
-  log.r.resize(n);
-  log.i.resize(n);
-  log.x.resize(n);
-  double x = reference(e, 0.0), v = 0.0, e_prev = 0.0, d_filt = 0.0;
+  for (Eigen::VectorXd* v : {&log.t, &log.r, &log.i, &log.x, &log.unmodelled_N, &log.motor_N, &log.velocity})
+    v->resize(n);
+  double x = reference(e, 0.0), v = 0.0, e_prev = 0.0, d_filt = 0.0, enc_prev = 0.0, v_est = 0.0, integ = 0.0;
+  auto stribeck = [&](double speed) { return p.stribeck_N * std::exp(-(speed * speed) / (p.stribeck_v * p.stribeck_v)); };
   for (Eigen::Index k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * ts;
     const double enc = std::round(x / e.encoder_m) * e.encoder_m;
     const double r = reference(e, t);
     const double err = r - enc;
-    d_filt = alpha * d_filt + (1.0 - alpha) * (k == 0 ? 0.0 : (err - e_prev) / ts);
-    e_prev = err;
-    // feedforward of the offset the designer knows roughly (2 N), not exactly
-    const double current = (kp * err + kd * d_filt + 2.0) / p.k_f_N_per_A;
+    double current;
+    if (e.cascade) {
+      v_est = alpha_v * v_est + (1.0 - alpha_v) * (k == 0 ? 0.0 : (enc - enc_prev) / ts);
+      enc_prev = enc;
+      const double v_err = kx * err - v_est;
+      integ += ki * v_err * ts;
+      current = (kv * v_err + integ) / p.k_f_N_per_A;
+    } else {
+      d_filt = alpha * d_filt + (1.0 - alpha) * (k == 0 ? 0.0 : (err - e_prev) / ts);
+      e_prev = err;
+      // feedforward of the offset the designer knows roughly (2 N), not exactly
+      current = (kp * err + kd * d_filt + 2.0) / p.k_f_N_per_A;
+    }
     log.t(k) = t;
     log.r(k) = r;
     log.i(k) = current + e.current_noise_A * n01(rng);
     log.x(k) = enc;
+    log.motor_N(k) = p.k_f_N_per_A * current;
+    log.velocity(k) = v;
     const int sub = 100;
     const double h = ts / sub;
+    double unmodelled = 0.0;
     for (int s = 0; s < sub; ++s) {
-      const double applied = p.k_f_N_per_A * current - p.c_Ns_per_m * v - p.offset_N;
+      const double ripple = p.ripple_N * std::sin(2.0 * M_PI * x / p.ripple_period_m);
+      const double applied = p.k_f_N_per_A * current - p.c_Ns_per_m * v - p.offset_N - ripple;
       double v_new;
-      if (v == 0.0) {  // stuck: moves only when the net force beats the friction
-        v_new = std::abs(applied) <= p.coulomb_N
-                    ? 0.0
-                    : h * (applied - std::copysign(p.coulomb_N, applied)) / p.m_kg;
+      double friction_extra = 0.0;
+      if (v == 0.0) {  // stuck: moves only when the net force beats the static friction
+        const double stat = p.coulomb_N + stribeck(0.0);
+        v_new = std::abs(applied) <= stat ? 0.0 : h * (applied - std::copysign(stat, applied)) / p.m_kg;
+        friction_extra = v_new == 0.0 ? 0.0 : std::copysign(stribeck(0.0), applied);
       } else {
-        v_new = v + h * (applied - std::copysign(p.coulomb_N, v)) / p.m_kg;
+        friction_extra = std::copysign(stribeck(v), v);
+        v_new = v + h * (applied - std::copysign(p.coulomb_N, v) - friction_extra) / p.m_kg;
         if (v_new * v < 0.0) v_new = 0.0;  // the friction stops it within the substep
       }
+      unmodelled += (ripple + friction_extra) / sub;
       x += 0.5 * h * (v + v_new);
       v = v_new;
     }
+    log.unmodelled_N(k) = unmodelled;
   }
   return log;
 }
