@@ -117,12 +117,14 @@ void run(const DiagnoseCliOptions& o) {
       throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
     PhysicalModel model = read_physical_model(o.in.model);
     if (model.user_base != nullptr) {
-      if (!o.png.empty() || !o.out_effect.empty())
-        throw InputError("diagnose --log: --png and --out-effect are for the frequency route; the force-error route "
-                         "writes --out (the named effect fitted) and --report");
+      if (!o.out_effect.empty())
+        throw InputError("diagnose --log: --out-effect is for the frequency route; the force-error route writes --out "
+                         "(the named effect fitted), --report and --png");
       MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
                                                           o.in.measured_input, o.json);
       req.report = o.report;
+      req.png = o.png;
+      req.png_flag = "--png";
       if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
       req.delta_bic = o.delta_bic;
       return run_mechanical_time_diagnose(req);
@@ -373,7 +375,9 @@ Command make_diagnose_command() {
             app->add_option("--out", o->out, "write the winning candidate's fitted model here");
             app->add_option("--out-effect", o->out_effect,
                             "write the user-defined effect describing an unexplained residual (JSON)");
-            app->add_option("--png", o->png, "figure: data and model per x_b, the error over the noise band, failing bands in red");
+            app->add_option("--png", o->png, "figure: data and model per x_b, the error over the noise band, failing bands in red; with "
+                            "--log on a mechanical base, the force and the model's over time and the residual, "
+                            "failing windows shaded");
             app->add_option("--report", o->report,
                             "also write the report as JSON here (for model add --from-diagnosis)");
             app->add_flag("--json", o->json, "print the report as JSON");

@@ -71,16 +71,21 @@ void run(const FitCliOptions& o) {
       throw InputError("fit --method: the method is for the time-domain fit; give --log RUN.csv (a stage6 model)");
     if (!o.in.data.empty() || !o.in.datasets.empty())
       throw InputError("fit: give either --log (time domain) or --data/--datasets (frequency domain), not both");
-    if (!o.plot.empty() || !o.bands.empty())
-      throw InputError("fit --log: --plot and --bands are for the frequency route; see where the fitted model fails "
-                       "in time with lpvid compare --log RUN.csv --model FITTED.json --out-png F.png");
     PhysicalModel model = read_physical_model(o.in.model);
     if (model.user_base != nullptr) {
       if (!o.method.empty())
         throw InputError("fit --method: a mechanical base's time route has one method, the force error; drop --method");
-      return run_mechanical_time_fit(mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
-                                                             o.in.measured_input, o.json));
+      if (!o.bands.empty())
+        throw InputError("fit --log: --bands is for the frequency route; the force-error route shows where the fit "
+                         "fails in time with --plot F.png");
+      MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
+                                                          o.in.measured_input, o.json);
+      req.png = o.plot;
+      return run_mechanical_time_fit(req);
     }
+    if (!o.plot.empty() || !o.bands.empty())
+      throw InputError("fit --log: --plot and --bands are for the frequency route; see where the fitted model fails "
+                       "in time with lpvid compare --log RUN.csv --model FITTED.json --out-png F.png");
     if (o.window_s > 0.0)
       throw InputError("fit --window-s: the smoothing window is the force-error route's (a mechanical base)");
     StageTimeFitRequest req;
@@ -321,7 +326,8 @@ Command make_fit_command() {
             app->add_option("--method", o->method,
                             "with --log: output (default; output error started from the equation error, unbiased "
                             "with sensor noise, standard errors), equation, or both (prints the two, writes output)");
-            app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data");
+            app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data; with --log on a mechanical base, the "
+                            "force and the model's over time and the residual, failing windows shaded");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o] { run(*o); });

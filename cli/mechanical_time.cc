@@ -10,8 +10,10 @@
 #include "cli/common.h"
 #include "cli/logs.h"
 #include "cli/output_set.h"
+#include "formats/io/atomic_file.h"
 #include "formats/io/history.h"
 #include "formats/io/physical_model_json.h"
+#include "formats/plot/time_plot.h"
 #include "idlib/core/error.h"
 #include "idlib/fit/force_error.h"
 
@@ -84,6 +86,38 @@ std::string data_text(const MechanicalTimeRequest& r, const Loaded& l) {
                      r.measured_input ? "measured" : "held over each sample");
 }
 
+// Where the model fails in time (fit --plot, diagnose --png): per DOF the actuators'
+// force B_w w and the model's force (both smoothed by the route's kernel), then the
+// force residual with the windows failing beyond 1.5x the larger of the floor and the
+// record's rms shaded; samples left out near standstill are gaps.
+std::vector<unsigned char> force_overlay_png(const ForceErrorFit& f, const ForceErrorData& d, const BaseInfo& b,
+                                             const std::string& title) {
+  const Index nd = f.residual.cols();
+  const Index first = d.sample(0), last = d.sample(d.n() - 1), N = last - first + 1;
+  FitOverlay ov;
+  ov.t_s.resize(N);
+  for (Index k = 0; k < N; ++k) ov.t_s(k) = static_cast<double>(first + k) * d.sample_period_s;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  ov.measured = Eigen::MatrixXd::Constant(N, nd, nan);
+  ov.predicted = ov.measured;
+  ov.residual = ov.measured;
+  for (Index r = 0; r < d.n(); ++r) {
+    const Index k = d.sample(r) - first;
+    ov.measured.row(k) = f.applied.row(r);
+    ov.predicted.row(k) = f.applied.row(r) - f.residual.row(r);
+    ov.residual.row(k) = f.residual.row(r);
+  }
+  for (Index i = 0; i < nd; ++i) {
+    const std::string& dof = b.dof_names[static_cast<std::size_t>(i)];
+    ov.value_labels.push_back(fmt::format("{}: force B_w w", dof));
+    ov.residual_labels.push_back(fmt::format("{}: residual", dof));
+  }
+  for (const auto& w : force_error_failing_windows(f, d))
+    ov.failures.push_back({static_cast<std::size_t>(w.dof), w.t_start_s, w.t_end_s});
+  ov.title = title;
+  return fit_overlay_png(ov);
+}
+
 // The fitted model and its history line, staged (not committed).
 void stage_fitted(OutputSet& outputs, const MechanicalTimeRequest& r, const ForceErrorFit& f, const BaseInfo& b,
                   const std::string& note, nlohmann::json section) {
@@ -120,6 +154,7 @@ void register_out(OutputSet& outputs, const MechanicalTimeRequest& r) {
                      "(or --json to print the fit)");
   outputs.input(r.log);
   outputs.file("--out", r.out);
+  outputs.file(r.png_flag, r.png);
   if (!r.out.empty()) {
     if (!r.history_from.empty()) outputs.input(r.history_from);
     if (r.history_from == history_path_for(r.out))
@@ -168,11 +203,17 @@ void run_mechanical_time_fit(const MechanicalTimeRequest& r) {
   std::string text = fmt::format("fit ({}: {}; force error, idlib/fit/force_error.h) to {}:\n  {}\n", r.model_label,
                                  effects_text(r.model), r.log, data_text(r, l)) +
                      fit_text(f, b);
+  if (!r.png.empty()) {
+    outputs.stage(r.png, force_overlay_png(f, l.data, b,
+                                           fmt::format("fit, {}: force error {:.3g} % (floor {:.3g} %)",
+                                                       effects_text(f.model), f.error, f.floor)));
+    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
+  }
   if (!r.out.empty()) {
     stage_fitted(outputs, r, f, b, fmt::format("lpvid fit --log {} (force error)", r.log), summary);
-    outputs.commit();
     text += fmt::format("wrote {} (history: {})\n", r.out, history_path_for(r.out));
   }
+  outputs.commit();
   print_log_findings(l.set);
   print_summary(r.json, summary, text);
 }
@@ -248,6 +289,12 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
     }
   }
   if (!r.report.empty()) outputs.stage(r.report, summary.dump(2) + "\n");
+  if (!r.png.empty()) {
+    outputs.stage(r.png, force_overlay_png(d.baseline, l.data, b,
+                                           fmt::format("{}: force error {:.3g} % (floor {:.3g} %)", effects_text(r.model),
+                                                       d.baseline.error, d.baseline.floor)));
+    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
+  }
   outputs.commit();
   print_log_findings(l.set);
   print_summary(r.json, summary, text);

@@ -21,6 +21,8 @@ namespace lpvid::cli {
 struct MechanicalTimeRequest {
   PhysicalModel model;
   std::string model_label, log, out, report;
+  std::string png;  // the force overlay: fit --plot (the fitted model), diagnose --png (the model as given)
+  std::string png_flag = "--plot";
   std::string history_from;  // fit: the start model's history (continued beside --out)
   std::vector<std::string> candidates;  // diagnose
   double delta_bic = 10.0;

@@ -6,7 +6,8 @@
 # reference (mechanical/make_axis_log.py writes the log: Coulomb friction and a constant
 # force the description lacks, a 1 µm encoder, a noisy current sensor).
 #   init -> diagnose --log names Coulomb friction -> diagnose --log names the offset ->
-#   fit --log: the error falls to the noise floor.  Then a motion that never reverses:
+#   fit --log: the error falls to the noise floor (where1.png, fit3.png: the force, the
+#   model's and the residual over time).  Then a motion that never reverses:
 #   diagnose says the two cannot be separated and what to record.
 # Writes samples/mechanical/out-friction/.  LPVID overrides the program's path.
 set -euo pipefail
@@ -20,8 +21,8 @@ python3 ../make_axis_log.py one_way.csv --one-way
 
 run model init --base mechanical --from ../ball_screw_axis.json --out start.json
 run fit --model start.json --log run.csv --out fit1.json
-run diagnose --model fit1.json --log run.csv --out step2.json --report report1.json
+run diagnose --model fit1.json --log run.csv --out step2.json --report report1.json --png where1.png
 run diagnose --model step2.json --log run.csv --out step3.json --report report2.json
-run fit --model step3.json --log run.csv --out fit3.json
+run fit --model step3.json --log run.csv --out fit3.json --plot fit3.png
 run history --model fit3.json
 run diagnose --model start.json --log one_way.csv

@@ -8,6 +8,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <matio.h>
+
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -24,6 +26,91 @@ using lpvid::testing::slurp;
 using lpvid::testing::TempDir;
 
 std::string sample() { return std::string(LPVID_SOURCE_DIR) + "/samples/mechanical/ball_screw_axis.json"; }
+
+// A lab's .mat: one top-level column vector per signal and t (docs/formats.md, layout (a)).
+void write_signals_mat(const std::string& path, const std::vector<std::pair<std::string, Eigen::VectorXd>>& signals) {
+  mat_t* mat = Mat_CreateVer(path.c_str(), nullptr, MAT_FT_MAT5);
+  ASSERT_NE(mat, nullptr);
+  for (const auto& [name, v] : signals) {
+    std::size_t dims[2] = {static_cast<std::size_t>(v.size()), 1};
+    matvar_t* var = Mat_VarCreate(name.c_str(), MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, const_cast<double*>(v.data()), 0);
+    ASSERT_NE(var, nullptr);
+    ASSERT_EQ(Mat_VarWrite(mat, var, MAT_COMPRESSION_NONE), 0);
+    Mat_VarFree(var);
+  }
+  Mat_Close(mat);
+}
+
+// A real axis is never the model, and its log is the lab's: an industrial drive's
+// cascade, point-to-point moves with rests, a Stribeck rise and a position ripple the
+// library lacks (the idlib test's axis, tests/idlib/fit/force_error_test.cc), the drive's
+// command in volts with the amplifier's gain fixed in the description, one .mat variable
+// per signal.  The loop names Coulomb friction, then the offset, then says what is left
+// is not in the library and where it sits (low speed); --png and --plot draw where the
+// model fails.
+TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
+  const TempDir dir("friction_real");
+  friction_axis::Truth truth;
+  truth.k_f_N_per_A = 35.15;  // N/V: the drive's gain, from its datasheet
+  truth.coulomb_N = 3.0;
+  truth.offset_N = -0.8;
+  truth.stribeck_N = 1.5;
+  truth.stribeck_v = 0.01;
+  truth.ripple_N = 0.4;
+  truth.ripple_period_m = 0.02;
+  friction_axis::Experiment e;
+  e.point_to_point = true;
+  e.cascade = true;
+  e.encoder_m = 0.2e-6;
+  e.current_noise_A = 0.0;
+  e.seconds = 25.0;
+  const auto log = friction_axis::simulate(truth, e);
+  write_signals_mat(dir / "run.mat", {{"t", log.t}, {"qm", log.x}, {"qg", log.r}, {"vir", log.i}});
+  std::ofstream(dir / "axis.json") << R"({
+  "format": "lpvid-mechanical-base", "version": 1, "name": "lab_axis",
+  "dofs": [{"name": "x", "unit": "m"}],
+  "inputs": [{"name": "vir", "unit": "V"}],
+  "outputs": [{"name": "qm", "unit": "m"}],
+  "parameters": {
+    "M_kg": {"value": 3.0, "unit": "kg", "lower": 0.1, "upper": 1000, "free": true},
+    "Fv_Ns_per_m": {"value": 10.0, "unit": "N·s/m", "lower": 0, "upper": 10000, "free": true},
+    "gtau_N_per_V": {"value": 35.15, "unit": "N/V", "lower": 1, "upper": 100, "free": false}
+  },
+  "mass": [["M_kg"]], "damping": [["Fv_Ns_per_m"]], "stiffness": [[0]],
+  "input_map": [["gtau_N_per_V"]], "output_map": [[1]]
+})";
+  ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", dir / "axis.json",
+                                  dir / "m0.json"))
+                .exit_code,
+            0);
+  const auto r1 = run_lpvid(fmt::format("diagnose --model {} --log {} --out {} --png {} --json", dir / "m0.json",
+                                        dir / "run.mat", dir / "m1.json", dir / "d1.png"));
+  ASSERT_EQ(r1.exit_code, 0) << r1.err;
+  EXPECT_EQ(nlohmann::json::parse(r1.out)["named"], nlohmann::json::array({"coulomb_friction"}));
+  const auto r2 = run_lpvid(fmt::format("diagnose --model {} --log {} --out {} --json", dir / "m1.json",
+                                        dir / "run.mat", dir / "m2.json"));
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  EXPECT_EQ(nlohmann::json::parse(r2.out)["named"], nlohmann::json::array({"force_offset"}));
+  const auto r3 = run_lpvid(fmt::format("diagnose --model {} --log {}", dir / "m2.json", dir / "run.mat"));
+  ASSERT_EQ(r3.exit_code, 0) << r3.err;
+  std::printf("%s\n", r3.out.c_str());
+  EXPECT_THAT(r3.out, HasSubstr("what is left is not in the library"));
+  EXPECT_THAT(r3.out, HasSubstr("Stribeck"));
+  const auto f = run_lpvid(fmt::format("fit --model {} --log {} --plot {} --out {} --json", dir / "m2.json",
+                                       dir / "run.mat", dir / "f.png", dir / "m3.json"));
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  const nlohmann::json j = nlohmann::json::parse(f.out);
+  // the idlib test's bounds (tolerances explained there): the offset to 0.15 N
+  for (const auto& p : j["parameters"])
+    if (p["name"] == "offset_x_N") {
+      EXPECT_NEAR(p["value"].get<double>(), truth.offset_N, 0.15);
+    }
+  for (const std::string png : {"d1.png", "f.png"}) {
+    const std::string bytes = slurp(dir / png);
+    ASSERT_GT(bytes.size(), 8u) << png;
+    EXPECT_EQ(bytes.substr(1, 3), "PNG") << png;
+  }
+}
 
 TEST(FrictionAxisCli, TheLoopNamesCoulombThenTheOffsetAndTheFitReachesTheFloor) {
   const TempDir dir("friction_cli");
@@ -110,6 +197,15 @@ TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
   const auto g = run_lpvid(fmt::format("diagnose --model {} --log {} --candidates actuator_lag", m0, dir / "run.csv"));
   one_line(g);
   EXPECT_THAT(g.err, HasSubstr("force-error route tries coulomb_friction, force_offset"));
+  // --bands is the frequency route's; a figure in a directory that does not exist
+  const auto h = run_lpvid(fmt::format("fit --model {} --log {} --bands {} --out {}", m0, dir / "run.csv",
+                                       dir / "b.csv", dir / "f.json"));
+  one_line(h);
+  EXPECT_THAT(h.err, HasSubstr("--plot F.png"));
+  const auto k = run_lpvid(fmt::format("diagnose --model {} --log {} --png {} --out {}", m0, dir / "run.csv",
+                                       dir / "no/d.png", dir / "f.json"));
+  one_line(k);
+  EXPECT_THAT(k.err, HasSubstr("--png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "f.json"));
   EXPECT_FALSE(std::filesystem::exists(dir / "f.json.history.jsonl"));
   EXPECT_EQ(slurp(m0), before);
