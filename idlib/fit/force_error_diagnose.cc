@@ -1,0 +1,221 @@
+// lpvid — the force-error route's model-error loop (diagnose_force_error) and where a
+// force-error fit fails in time (force_error_failing_windows); idlib/fit/force_error.h,
+// docs/math.md §9b.  The data and the fit: idlib/fit/force_error.cc.
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "idlib/core/error.h"
+#include "idlib/fit/force_error.h"
+#include "idlib/fit/force_error_detail.h"
+
+namespace lpvid {
+
+namespace {
+
+using Eigen::VectorXd;
+using force_error_detail::is_time_effect;
+using force_error_detail::rms;
+using force_error_detail::time_effect_names;
+
+// Where in speed the residual sits: its rms over the slowest quarter of the samples
+// against the fastest half.  Viscous and Coulomb friction leave no speed pattern once
+// fitted; a residual that grows towards standstill is a friction the library lacks
+// (the Stribeck rise of static friction above the Coulomb level).
+// The reading (Stribeck) is offered only for a model that has Coulomb friction: without
+// it a viscous term stands in for the missing constant force and leaves a residual that
+// grows at low speed by itself (measured: 3.7x on a one-way ramp with Coulomb friction and
+// an offset missing).
+std::string low_speed_signature(const VectorXd& r, const VectorXd& v, const std::string& dof,
+                                const std::string& unit, bool has_coulomb) {
+  std::vector<double> speed(static_cast<std::size_t>(v.size()));
+  for (Index k = 0; k < v.size(); ++k) speed[static_cast<std::size_t>(k)] = std::abs(v(k));
+  std::vector<double> sorted = speed;
+  const auto at = [&](double f) {
+    const auto k = static_cast<std::ptrdiff_t>(f * static_cast<double>(sorted.size() - 1));
+    std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+    return sorted[static_cast<std::size_t>(k)];
+  };
+  const double slow = at(0.25), fast = at(0.5);
+  double s2 = 0.0, f2 = 0.0;
+  Index ns = 0, nf = 0;
+  for (Index k = 0; k < r.size(); ++k) {
+    const double a = speed[static_cast<std::size_t>(k)];
+    if (a <= slow) s2 += r(k) * r(k), ++ns;
+    if (a >= fast) f2 += r(k) * r(k), ++nf;
+  }
+  if (ns == 0 || nf == 0 || !(f2 > 0.0)) return fmt::format("{}: too few samples to see where in speed the residual sits", dof);
+  const double ratio = std::sqrt((s2 / static_cast<double>(ns)) / (f2 / static_cast<double>(nf)));
+  return fmt::format("{}: the residual's rms is {:.2f}x as large at low speed (the slowest quarter of the samples, "
+                     "|v| < {:.3g} {}/s) as in the fastest half{}",
+                     dof, ratio, slow, unit,
+                     ratio > 2.0 && has_coulomb
+                         ? ": a friction that rises towards standstill (Stribeck: static friction above the "
+                                   "Coulomb level) or another low-speed effect the library lacks"
+                                 : "");
+}
+
+}  // namespace
+
+ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const ForceErrorData& d,
+                                         const ForceErrorDiagnoseOptions& options) {
+  std::vector<std::string> names = options.candidates;
+  if (names.empty()) names = model.absent_time_effects();
+  for (const std::string& c : names) {
+    const EffectInfo* e = model.effect_info(c);
+    if (e == nullptr || !e->time_only || !is_time_effect(c))
+      throw InputError(fmt::format("--candidates: '{}' is not a time-domain effect of this base; the force-error "
+                                   "route tries {}",
+                                   c, fmt::join(time_effect_names(), ", ")));
+    if (model.has_effect(c))
+      throw InputError(fmt::format("--candidates: the model already has '{}'; name an effect it lacks", c));
+  }
+  ForceErrorDiagnosis out;
+  out.baseline = fit_force_error(model, d);
+  const ForceErrorFit& base = out.baseline;
+  out.baseline_explained = base.error <= kForceErrorExplainedRatio * base.floor;
+  const double excess = base.error * base.error - base.floor * base.floor;
+  auto judge = [&](std::vector<std::string> effects) {
+    ForceErrorCandidate c;
+    c.effects = effects;
+    PhysicalModel m = model;
+    for (const auto& e : effects) m.add_effect(e);
+    c.fit = fit_force_error(m, d);
+    c.delta_bic = base.bic - c.fit.bic;
+    c.excess_share = excess > 0.0 ? (base.error * base.error - c.fit.error * c.fit.error) / excess : 0.0;
+    c.explained = c.fit.error <= kForceErrorExplainedRatio * c.fit.floor;
+    bool own_at_bound = false;
+    for (const auto& q : c.fit.parameters)
+      for (const auto& e : effects)
+        for (const auto& ep : m.effect_info(e)->parameters)
+          if (ep.name == q.name && q.at_bound) own_at_bound = true;
+    c.significant = !out.baseline_explained && c.delta_bic > options.delta_bic &&
+                    c.excess_share >= options.min_excess_share && !own_at_bound;
+    if (out.baseline_explained)
+      c.verdict = "not needed: the model fits within the noise";
+    else if (own_at_bound)
+      c.verdict = "not significant: a parameter of its own ends on its bound";
+    else if (!c.significant)
+      c.verdict = fmt::format("not significant (ΔBIC {:.1f}, {:.0f} % of the excess)", c.delta_bic,
+                              100.0 * c.excess_share);
+    else if (c.explained)
+      c.verdict = fmt::format("significant: explained (error within {}x the floor)", kForceErrorExplainedRatio);
+    else
+      c.verdict = fmt::format("significant: explains {:.0f} % of the excess; more is missing", 100.0 * c.excess_share);
+    return c;
+  };
+  std::vector<ForceErrorCandidate> singles, pairs;
+  for (const auto& c : names) singles.push_back(judge({c}));
+  for (std::size_t a = 0; a < names.size(); ++a)
+    for (std::size_t b = a + 1; b < names.size(); ++b) pairs.push_back(judge({names[a], names[b]}));
+  auto by_bic = [](const ForceErrorCandidate& x, const ForceErrorCandidate& y) { return x.delta_bic > y.delta_bic; };
+  std::sort(singles.begin(), singles.end(), by_bic);
+  std::sort(pairs.begin(), pairs.end(), by_bic);
+  out.candidates = singles;
+  for (auto& c : pairs) {
+    // a pair is named only when each member is needed beyond the other alone
+    bool each_needed = c.significant;
+    for (const auto& s : singles)
+      if (std::find(c.effects.begin(), c.effects.end(), s.effects[0]) != c.effects.end() &&
+          c.delta_bic - s.delta_bic <= options.delta_bic)
+        each_needed = false;
+    if (c.significant && !each_needed) c.verdict += " (one member is enough)";
+    c.significant = each_needed;
+    out.candidates.push_back(c);
+  }
+  for (Index k = 0; k < static_cast<Index>(out.candidates.size()); ++k)
+    if (out.candidates[static_cast<std::size_t>(k)].significant) {
+      // a single ahead of any pair (the loop adds one effect at a time when one is enough)
+      out.named = k;
+      break;
+    }
+
+  // What the baseline's residual shows, and what this log cannot separate
+  const BaseInfo& info = model.base_info();
+  for (Index i = 0; i < base.residual.cols(); ++i) {
+    const VectorXd r = base.residual.col(i);
+    const VectorXd s = d.sign_v.col(i);
+    const double rr = rms(r), rs = rms(s);
+    if (!(rr > 0.0)) continue;
+    const double mean = r.mean();
+    const double rho = rs > 0.0 ? r.dot(s) / (r.norm() * s.norm()) : 0.0;
+    const std::string& dof = info.dof_names[static_cast<std::size_t>(i)];
+    out.signatures.push_back(fmt::format(
+        "{}: the force residual correlates with sign(velocity) at {:+.2f} (Coulomb friction's signature) and has a "
+        "mean of {:+.2f} of its rms (an offset's)",
+        dof, rho, mean / rr));
+    const std::string unit =
+        static_cast<std::size_t>(i) < info.dof_units.size() ? info.dof_units[static_cast<std::size_t>(i)] : "unit";
+    out.signatures.push_back(low_speed_signature(r, d.qd.col(i), dof, unit, model.has_effect("coulomb_friction")));
+    const double one_sign = rs > 0.0 ? std::abs(s.mean()) / rs : 1.0;
+    const bool both = (model.has_effect("coulomb_friction") ||
+                       std::find(names.begin(), names.end(), "coulomb_friction") != names.end()) &&
+                      (model.has_effect("force_offset") ||
+                       std::find(names.begin(), names.end(), "force_offset") != names.end());
+    if (both && one_sign > 0.95)
+      out.cannot_separate.push_back(fmt::format(
+          "on {} the velocity keeps one sign (the mean of sign(velocity) is {:.2f} of its rms): Coulomb friction and "
+          "a constant offset are the same force on this log; record a motion that moves both ways to separate them",
+          dof, one_sign));
+  }
+  if (out.baseline_explained) {
+    out.summary = fmt::format("nothing is missing: the error {:.3g} % is within {}x the noise floor {:.3g} %",
+                              base.error, kForceErrorExplainedRatio, base.floor);
+  } else if (out.named >= 0) {
+    const ForceErrorCandidate& c = out.candidates[static_cast<std::size_t>(out.named)];
+    out.summary = fmt::format("missing: {} (error {:.3g} % -> {:.3g} %, floor {:.3g} %; {})",
+                              fmt::join(c.effects, " + "), base.error, c.fit.error, c.fit.floor, c.verdict);
+    if (!out.cannot_separate.empty())
+      out.summary += "; but this log cannot tell Coulomb friction from an offset (below): either names the same force";
+  } else if (names.empty()) {
+    out.summary = fmt::format("not explained: the model has every time-domain effect of the library and its error "
+                              "{:.3g} % is {:.1f}x the noise floor {:.3g} %; what is left is not in the library (the "
+                              "residual's signatures are below)",
+                              base.error, base.error / std::max(base.floor, 1e-300), base.floor);
+  } else {
+    out.summary = fmt::format("not explained: no time-domain effect of the library lowers the error {:.3g} % "
+                              "(floor {:.3g} %) significantly; the residual's signatures are below",
+                              base.error, base.floor);
+  }
+  return out;
+}
+
+std::vector<ForceErrorWindow> force_error_failing_windows(const ForceErrorFit& f, const ForceErrorData& d,
+                                                         double window_s) {
+  if (!(window_s > 0.0) || !(d.sample_period_s > 0.0) || f.residual.rows() != d.n() || d.sample.size() != d.n())
+    throw InputError("force_error_failing_windows: the fit and the data do not match");
+  std::vector<ForceErrorWindow> out;
+  const Index nd = f.residual.cols();
+  const Index span = std::max<Index>(2, static_cast<Index>(std::llround(window_s / d.sample_period_s)));
+  for (Index i = 0; i < nd; ++i) {
+    const double scale = rms(f.applied.col(i));
+    const double floor = f.floor_per_dof(i) / 100.0 * scale, record = rms(f.residual.col(i));
+    const double limit = kForceErrorExplainedRatio * std::max(floor, record);
+    // windows by the log's sample numbers (the kept rows are not contiguous), every half window
+    Index row = 0;
+    const Index last = d.n() > 0 ? d.sample(d.n() - 1) : 0;
+    for (Index start = d.n() > 0 ? d.sample(0) : 0; d.n() > 0 && start <= last; start += span / 2) {
+      while (row < d.n() && d.sample(row) < start) ++row;
+      double s2 = 0.0;
+      Index count = 0;
+      for (Index k = row; k < d.n() && d.sample(k) < start + span; ++k, ++count) s2 += f.residual(k, i) * f.residual(k, i);
+      if (count < span / 4) continue;  // mostly at standstill
+      const double w_rms = std::sqrt(s2 / static_cast<double>(count));
+      if (!(w_rms > limit)) continue;
+      const double t0 = static_cast<double>(start) * d.sample_period_s;
+      const double t1 = static_cast<double>(std::min(start + span - 1, last)) * d.sample_period_s;
+      if (!out.empty() && out.back().dof == i && t0 <= out.back().t_end_s) {
+        out.back().t_end_s = t1;
+        out.back().rms = std::max(out.back().rms, w_rms);
+      } else {
+        out.push_back({i, t0, t1, w_rms});
+      }
+    }
+  }
+  return out;
+}
+}  // namespace lpvid
