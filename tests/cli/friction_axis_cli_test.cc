@@ -50,21 +50,9 @@ void write_signals_mat(const std::string& path, const std::vector<std::pair<std:
 // model fails.
 TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   const TempDir dir("friction_real");
-  friction_axis::Truth truth;
+  friction_axis::Truth truth = friction_axis::realistic_truth();
   truth.k_f_N_per_A = 35.15;  // N/V: the drive's gain, from its datasheet
-  truth.coulomb_N = 3.0;
-  truth.offset_N = -0.8;
-  truth.stribeck_N = 1.5;
-  truth.stribeck_v = 0.01;
-  truth.ripple_N = 0.4;
-  truth.ripple_period_m = 0.02;
-  friction_axis::Experiment e;
-  e.point_to_point = true;
-  e.cascade = true;
-  e.encoder_m = 0.2e-6;
-  e.current_noise_A = 0.0;
-  e.seconds = 25.0;
-  const auto log = friction_axis::simulate(truth, e);
+  const auto log = friction_axis::simulate(truth, friction_axis::realistic_experiment());
   write_signals_mat(dir / "run.mat", {{"t", log.t}, {"qm", log.x}, {"qg", log.r}, {"vir", log.i}});
   std::ofstream(dir / "axis.json") << R"({
   "format": "lpvid-mechanical-base", "version": 1, "name": "lab_axis",

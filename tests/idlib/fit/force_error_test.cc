@@ -109,19 +109,8 @@ TEST(ForceError, LoopNamesCoulombThenTheOffsetAndReachesTheFloor) {
 // reach (its own account of the unmodelled forces), and say that the rest is not in
 // the library and where the residual sits (at low speed).
 TEST(ForceError, ARealisticAxisNamesCoulombThenTheOffsetAndSaysWhatIsLeft) {
-  Truth truth;
-  truth.coulomb_N = 3.0;
-  truth.offset_N = -0.8;
-  truth.stribeck_N = 1.5;
-  truth.stribeck_v = 0.01;
-  truth.ripple_N = 0.4;
-  truth.ripple_period_m = 0.02;
-  Experiment exp;
-  exp.point_to_point = true;
-  exp.cascade = true;
-  exp.encoder_m = 0.2e-6;
-  exp.current_noise_A = 0.0;  // the drive's command is logged, as a drive logs it
-  exp.seconds = 25.0;
+  const Truth truth = friction_axis::realistic_truth();
+  const Experiment exp = friction_axis::realistic_experiment();
   const auto log = friction_axis::simulate(truth, exp);
   // The simulator's account: the unmodelled force over the moving samples, against the
   // motor force there (the best the simple model can do, before smoothing)
