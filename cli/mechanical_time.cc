@@ -6,11 +6,11 @@
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include "cli/common.h"
 #include "cli/logs.h"
 #include "cli/output_set.h"
-#include "formats/io/atomic_file.h"
 #include "formats/io/history.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/plot/time_plot.h"
