@@ -236,12 +236,12 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
   if (!d.candidates.empty()) {
     text += fmt::format("candidates (each refitted; ΔBIC > {} and at least {:.0f} % of the excess over the floor):\n",
                         r.delta_bic, 100.0 * ForceErrorDiagnoseOptions{}.min_excess_share);
-    text += fmt::format("  {:<34} {:>9} {:>9} {:>9} {:>7}  verdict\n", "effects", "error %", "floor %", "ΔBIC",
+    text += fmt::format("  {:<38} {:>9} {:>9} {:>9} {:>7}  verdict\n", "effects", "error %", "floor %", "ΔBIC",
                         "excess");
   }
   for (const auto& c : d.candidates) {
     const std::string name = fmt::format("{}", fmt::join(c.effects, " + "));
-    text += fmt::format("  {:<34} {:>9.3g} {:>9.3g} {:>9.1f} {:>6.0f}%  {}\n", name, c.fit.error, c.fit.floor,
+    text += fmt::format("  {:<38} {:>9.3g} {:>9.3g} {:>9.1f} {:>6.0f}%  {}\n", name, c.fit.error, c.fit.floor,
                         c.delta_bic, 100.0 * c.excess_share, c.verdict);
     nlohmann::json j = fit_json(c.fit, b);
     j["effects"] = c.effects;

@@ -50,7 +50,7 @@ VectorXd filter(const VectorXd& h, const VectorXd& x, Index from, Index to) {
 
 // Where each parameter enters the force balance of each DOF, per sample:
 // r_i = Σ terms (coefficient × θ_param or × 1) × signal.
-enum class Signal { kW, kQdd, kQd, kQ, kSign, kOne };
+enum class Signal { kW, kQdd, kQd, kQ, kSign, kOne, kStribeck };
 struct Term {
   Index param = -1;  // -1: a constant coefficient
   double coefficient = 0.0;
@@ -60,12 +60,43 @@ struct Term {
 
 struct Balance {
   std::vector<std::vector<Term>> rows;  // per DOF
+  // stribeck_friction: per DOF the index of its velocity scale v_s (-1: none), and the
+  // regressor k ∗ (sign q' exp(−(q'/v_s)²)) at the values given to set_stribeck
+  std::vector<Index> stribeck_v;
+  MatrixXd stribeck;
 };
+
+// The Stribeck regressor of DOF i at velocity scale v_s, per kept row: the sign of the
+// unsmoothed velocity (clipped at v_eps, as Coulomb's) times exp(−(q'/v_s)²), smoothed
+// by the route's kernel like every term.
+VectorXd stribeck_regressor(const ForceErrorData& d, Index i, double v_s) {
+  const VectorXd v = d.v_raw.col(i);
+  VectorXd s(v.size());
+  for (Index k = 0; k < v.size(); ++k) {
+    const double x = v(k) / v_s;
+    s(k) = std::clamp(v(k) / d.v_eps(i), -1.0, 1.0) * std::exp(-x * x);
+  }
+  // k ∗ s at each kept row only (s(j) is sample H + j; row r is sample d.sample(r)): a
+  // profile search on a subsample of the rows pays for those rows alone
+  const Index H = d.kernel_reach, half = (d.kernel.size() - 1) / 2;
+  VectorXd out(d.n());
+  for (Index r = 0; r < d.n(); ++r) out(r) = d.kernel.dot(s.segment(d.sample(r) - H - half, d.kernel.size()));
+  return out;
+}
+
+void set_stribeck(Balance& b, const ForceErrorData& d, const VectorXd& p) {
+  const Index nd = static_cast<Index>(b.rows.size());
+  b.stribeck = MatrixXd::Zero(d.n(), nd);
+  for (Index i = 0; i < nd; ++i)
+    if (b.stribeck_v[static_cast<std::size_t>(i)] >= 0)
+      b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[static_cast<std::size_t>(i)]));
+}
 
 Balance balance_of(const PhysicalModel& model) {
   const MechanicalIndices L(model);
   Balance b;
   b.rows.assign(static_cast<std::size_t>(L.n_dof), {});
+  b.stribeck_v.assign(static_cast<std::size_t>(L.n_dof), -1);
   auto add = [&](const std::vector<MechanicalIndices::Entry>& entries, Signal s, double sign) {
     for (const auto& e : entries)
       b.rows[static_cast<std::size_t>(e.row)].push_back({e.parameter, sign * e.coefficient, s, e.col});
@@ -82,18 +113,25 @@ Balance balance_of(const PhysicalModel& model) {
           "frequency-route effect: remove it (lpvid model remove {} --model MODEL.json) or fit it on a measured "
           "response (fit --data)",
           name, name));
-    if (name != "coulomb_friction" && name != "force_offset")
+    if (!is_time_effect(name))
       throw InputError(fmt::format("the force-error route has no form for the effect {}", name));
-    const Signal s = name == "coulomb_friction" ? Signal::kSign : Signal::kOne;
-    for (Index i = 0; i < L.n_dof; ++i)
+    const Signal s = name == "coulomb_friction" ? Signal::kSign
+                     : name == "force_offset"   ? Signal::kOne
+                                                : Signal::kStribeck;
+    for (Index i = 0; i < L.n_dof; ++i) {
       b.rows[static_cast<std::size_t>(i)].push_back(
           {model.index_of(e->parameters[static_cast<std::size_t>(i)].name), -1.0, s, i});
+      if (s == Signal::kStribeck)  // its parameters: F_s per DOF, then v_s per DOF
+        b.stribeck_v[static_cast<std::size_t>(i)] =
+            model.index_of(e->parameters[static_cast<std::size_t>(L.n_dof + i)].name);
+    }
   }
   return b;
 }
 
-double signal_at(const ForceErrorData& d, Signal s, Index channel, Index k) {
+double signal_at(const ForceErrorData& d, const Balance& b, Signal s, Index channel, Index k) {
   switch (s) {
+    case Signal::kStribeck: return b.stribeck(k, channel);
     case Signal::kW: return d.w(k, channel);
     case Signal::kQdd: return d.qdd(k, channel);
     case Signal::kQd: return d.qd(k, channel);
@@ -112,7 +150,7 @@ MatrixXd residual_at(const Balance& b, const ForceErrorData& d, const VectorXd& 
     for (const Term& t : b.rows[static_cast<std::size_t>(i)]) {
       const double c = t.coefficient * (t.param >= 0 ? p(t.param) : 1.0);
       if (c == 0.0) continue;
-      for (Index k = 0; k < d.n(); ++k) r(k, i) += c * signal_at(d, t.signal, t.channel, k);
+      for (Index k = 0; k < d.n(); ++k) r(k, i) += c * signal_at(d, b, t.signal, t.channel, k);
     }
   return r;
 }
@@ -293,7 +331,7 @@ double rms(const Eigen::VectorXd& x) {
 }
 
 const std::vector<std::string>& time_effect_names() {
-  static const std::vector<std::string> names{"coulomb_friction", "force_offset"};
+  static const std::vector<std::string> names{"coulomb_friction", "force_offset", "stribeck_friction"};
   return names;
 }
 
@@ -383,6 +421,9 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   d.w.resize(n, n_in);
   d.q_noise.resize(n_dof);
   d.v_eps.resize(n_dof);
+  d.v_raw.resize(N - 2 * H, n_dof);
+  d.kernel = k0;
+  d.kernel_reach = H;
   d.w_noise.resize(n_in);
   const Index inner = N - 2 * h;  // [h, N − h): the cubic's residuals
   MatrixXd q_hf(inner, n_dof);
@@ -416,6 +457,7 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
       if (k > H && v_raw(k - H) * v_raw(k - H - 1) < 0.0)
         still[static_cast<std::size_t>(k)] = still[static_cast<std::size_t>(k - 1)] = 1;
     }
+    d.v_raw.col(i) = v_raw;
     const VectorXd s = (v_raw / d.v_eps(i)).cwiseMax(-1.0).cwiseMin(1.0);
     d.sign_v.col(i) = filter(k0, s, H, s.size() - H);  // s(0) is sample H
     d.q.col(i) = filter(k0, qi, 2 * H, N - 2 * H);
@@ -476,9 +518,12 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   return d;
 }
 
-ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& d) {
+namespace force_error_detail {
+
+ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorData& d) {
   start.validate();
-  const Balance bal = balance_of(start);
+  Balance bal = balance_of(start);
+  set_stribeck(bal, d, start.values());
   const std::vector<Index> free = start.free_indices();
   if (free.empty()) throw InputError("the model has no free parameter to fit (lpvid model set --free NAME)");
   const Index P = static_cast<Index>(start.parameters.size()), nf = static_cast<Index>(free.size());
@@ -525,7 +570,7 @@ ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& 
       row.setZero();
       double c = 0.0;
       for (const Term& t : terms) {
-        const double s = t.coefficient * signal_at(d, t.signal, t.channel, k) * weight(i);
+        const double s = t.coefficient * signal_at(d, bal, t.signal, t.channel, k) * weight(i);
         const Index f = t.param >= 0 ? slot[static_cast<std::size_t>(t.param)] : -1;
         if (f >= 0)
           row(f) += s;
@@ -623,5 +668,14 @@ ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& 
   }
   return fit;
 }
+
+std::vector<Index> stribeck_scales(const PhysicalModel& model) {
+  std::vector<Index> out;
+  for (const Index v : balance_of(model).stribeck_v)
+    if (v >= 0) out.push_back(v);
+  return out;
+}
+
+}  // namespace force_error_detail
 
 }  // namespace lpvid

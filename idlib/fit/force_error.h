@@ -19,6 +19,9 @@
 // exactly by the user's refit of diagnose's promise.  No controller model is needed:
 // w is logged, so closed loop or open loop is the same computation.
 //
+// stribeck_friction (F_s, v_s per DOF) adds F_s exp(−(q'/v_s)²) sign q': a friction that
+// rises towards standstill above the Coulomb level.
+//
 // sign q' is q'/v_eps clipped to [−1, 1], q' the unsmoothed central difference (the
 // smoothed velocity crosses zero late at a reversal), v_eps = 3× its noise: standstill
 // does not flip the friction with the noise.  Samples within the kernel's reach of a
@@ -92,6 +95,12 @@ struct ForceErrorData {
   // rows above are the samples kept (not contiguous when standstill > 0).
   Index standstill = 0;
   Eigen::Matrix<Index, Eigen::Dynamic, 1> sample;  // each row's sample number in the log (0-based)
+  // For terms built at fit time (stribeck_friction's, whose shape depends on a fitted
+  // velocity scale): the unsmoothed central-difference velocity per DOF, row j the log's
+  // sample kernel_reach + j, and the smoothing kernel k (half-width kernel_reach − 1).
+  Eigen::MatrixXd v_raw;
+  Eigen::VectorXd kernel;
+  Index kernel_reach = 0;
   Index n() const { return q.rows(); }
 };
 
@@ -125,6 +134,11 @@ struct ForceErrorFit {
 };
 
 // Fits the model's free parameters (base and time-only effects; priors honoured).
+// Linear in every parameter but stribeck_friction's velocity scales v_s: a free v_s is
+// found by a profile search (the linear fit at each v_s; a log-spaced grid from 2 v_eps
+// to the median moving speed, then golden section; DOFs in turn, twice), its standard
+// error from the profile's curvature; a v_s on the search range's edge is reported on
+// its bound (docs/math.md §9b).
 // @throws InputError  the model has a block effect (delay, lag, gain, mode: those
 //   are the frequency route's; remove them) or no free parameter.
 ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& data);

@@ -31,7 +31,7 @@ using force_error_detail::time_effect_names;
 // grows at low speed by itself (measured: 3.7x on a one-way ramp with Coulomb friction and
 // an offset missing).
 std::string low_speed_signature(const VectorXd& r, const VectorXd& v, const std::string& dof,
-                                const std::string& unit, bool has_coulomb) {
+                                const std::string& unit, bool has_coulomb, bool has_stribeck) {
   std::vector<double> speed(static_cast<std::size_t>(v.size()));
   for (Index k = 0; k < v.size(); ++k) speed[static_cast<std::size_t>(k)] = std::abs(v(k));
   std::vector<double> sorted = speed;
@@ -54,9 +54,11 @@ std::string low_speed_signature(const VectorXd& r, const VectorXd& v, const std:
                      "|v| < {:.3g} {}/s) as in the fastest half{}",
                      dof, ratio, slow, unit,
                      ratio > 2.0 && has_coulomb
-                         ? ": a friction that rises towards standstill (Stribeck: static friction above the "
-                                   "Coulomb level) or another low-speed effect the library lacks"
-                                 : "");
+                         ? (has_stribeck ? ": a low-speed effect beyond the model's Stribeck curve, which the library "
+                                           "lacks"
+                                         : ": a friction that rises towards standstill (stribeck_friction: static "
+                                           "friction above the Coulomb level)")
+                         : "");
 }
 
 }  // namespace
@@ -150,7 +152,8 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
         dof, rho, mean / rr));
     const std::string unit =
         static_cast<std::size_t>(i) < info.dof_units.size() ? info.dof_units[static_cast<std::size_t>(i)] : "unit";
-    out.signatures.push_back(low_speed_signature(r, d.qd.col(i), dof, unit, model.has_effect("coulomb_friction")));
+    out.signatures.push_back(low_speed_signature(r, d.qd.col(i), dof, unit, model.has_effect("coulomb_friction"),
+                                                 model.has_effect("stribeck_friction")));
     const double one_sign = rs > 0.0 ? std::abs(s.mean()) / rs : 1.0;
     const bool both = (model.has_effect("coulomb_friction") ||
                        std::find(names.begin(), names.end(), "coulomb_friction") != names.end()) &&

@@ -58,6 +58,7 @@ struct Log {
   // ripple), averaged over each sample, and the motor force k_f i (the command, no
   // sensor noise): the truth a fit of viscous + Coulomb + offset cannot go below.
   Eigen::VectorXd unmodelled_N, motor_N, velocity;
+  Eigen::VectorXd ripple_force_N;  // the ripple's part of unmodelled_N (the rest is the Stribeck rise)
 };
 
 // A realistic axis (tests of the force-error route on what a real axis has and the
@@ -132,7 +133,8 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   std::mt19937 rng(e.seed);
   std::normal_distribution<double> n01(0.0, 1.0);
   Log log;
-  for (Eigen::VectorXd* v : {&log.t, &log.r, &log.i, &log.x, &log.unmodelled_N, &log.motor_N, &log.velocity})
+  for (Eigen::VectorXd* v :
+       {&log.t, &log.r, &log.i, &log.x, &log.unmodelled_N, &log.motor_N, &log.velocity, &log.ripple_force_N})
     v->resize(n);
   double x = reference(e, 0.0), v = 0.0, e_prev = 0.0, d_filt = 0.0, enc_prev = 0.0, v_est = 0.0, integ = 0.0;
   auto stribeck = [&](double speed) { return p.stribeck_N * std::exp(-(speed * speed) / (p.stribeck_v * p.stribeck_v)); };
@@ -162,7 +164,7 @@ inline Log simulate(const Truth& p, const Experiment& e) {
     log.velocity(k) = v;
     const int sub = 100;
     const double h = ts / sub;
-    double unmodelled = 0.0;
+    double unmodelled = 0.0, rippled = 0.0;
     for (int s = 0; s < sub; ++s) {
       const double ripple = p.ripple_N * std::sin(2.0 * M_PI * x / p.ripple_period_m);
       const double applied = p.k_f_N_per_A * current - p.c_Ns_per_m * v - p.offset_N - ripple;
@@ -178,10 +180,12 @@ inline Log simulate(const Truth& p, const Experiment& e) {
         if (v_new * v < 0.0) v_new = 0.0;  // the friction stops it within the substep
       }
       unmodelled += (ripple + friction_extra) / sub;
+      rippled += ripple / sub;
       x += 0.5 * h * (v + v_new);
       v = v_new;
     }
     log.unmodelled_N(k) = unmodelled;
+    log.ripple_force_N(k) = rippled;
   }
   return log;
 }

@@ -59,14 +59,33 @@ std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
                     false,
                     {},
                     true};
+  EffectInfo stribeck{"stribeck_friction",
+                      "Stribeck friction on each DOF: the friction rises towards standstill above the Coulomb level "
+                      "(static friction, breakaway)",
+                      "adds F_s exp(-(q'/v_s)^2) sign(q') to the DOF's force balance (time domain only); v_s is found "
+                      "by a profile search over the log's low speeds",
+                      "a force residual against the motion that is largest at low speed and fades with speed",
+                      {},
+                      {},
+                      false,
+                      {},
+                      true};
   for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
     const auto [unit, suffix] = force_unit(b.dof_units[i]);
     PhysicalParameter c{"coulomb_" + b.dof_names[i] + suffix, unit, 0.0, 0.0, 1e9, true};
     PhysicalParameter f{"offset_" + b.dof_names[i] + suffix, unit, 0.0, -1e9, 1e9, true};
+    PhysicalParameter s{"stribeck_" + b.dof_names[i] + suffix, unit, 0.0, 0.0, 1e9, true};
     coulomb.parameters.push_back(c);
     offset.parameters.push_back(f);
+    stribeck.parameters.push_back(s);
   }
-  return {coulomb, offset};
+  // the velocity scales after the forces (idlib/fit/force_error.cc reads them so)
+  for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
+    const std::string& u = b.dof_units[i];
+    const std::string suffix = u == "m" ? "_m_per_s" : u == "rad" ? "_rad_per_s" : "";
+    stribeck.parameters.push_back({"stribeck_v_" + b.dof_names[i] + suffix, u + "/s", 0.01, 1e-9, 1e6, true});
+  }
+  return {coulomb, offset, stribeck};
 }
 
 }  // namespace
