@@ -107,6 +107,81 @@ TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   }
 }
 
+// Scale is not a tolerance: a heavy axis (110 kg on a ball screw, friction of tens of
+// newtons) under a drive's P/P cascade whose command is limited at 10 V, logged as the
+// lab logs it (the command in volts, one .mat variable per signal), with a design 45 %
+// light and viscous friction 3.6x low.  Every threshold of the route is relative (to the
+// force's rms, to the floor, to the speeds the log holds), so the loop must name the
+// same effects as on the 4 kg axis and reach the floor.
+TEST(FrictionAxisCli, AHeavyAxisWithAVoltageLimitNamesTheSameEffectsAndReachesTheFloor) {
+  const TempDir dir("friction_heavy");
+  friction_axis::Truth truth;
+  truth.m_kg = 110.0;
+  truth.c_Ns_per_m = 180.0;
+  truth.coulomb_N = 18.0;
+  truth.offset_N = -4.5;
+  truth.k_f_N_per_A = 35.15;  // N/V
+  friction_axis::Experiment e;
+  e.point_to_point = true;
+  e.cascade = true;
+  e.kx_per_s = 160.0;
+  e.kv_N_per_mps = 243.45 * 35.15;
+  e.integral_corner_hz = 0.0;
+  e.saturation_N = 6.0 * 35.15;  // 6 V: the hardest accelerations reach it
+  e.encoder_m = 0.5e-6;
+  e.current_noise_A = 0.0;
+  e.seconds = 24.8;
+  const auto log = friction_axis::simulate(truth, e);
+  // the limit is reached (the logged command is the limited one, as the drive applies it)
+  ASSERT_GT((log.i.array().abs() >= 6.0 - 1e-12).count(), 100);
+  write_signals_mat(dir / "run.mat", {{"t", log.t}, {"qm", log.x}, {"qg", log.r}, {"vir", log.i}});
+  std::ofstream(dir / "axis.json") << R"({
+  "format": "lpvid-mechanical-base", "version": 1, "name": "heavy_axis",
+  "dofs": [{"name": "x", "unit": "m"}],
+  "inputs": [{"name": "vir", "unit": "V"}],
+  "outputs": [{"name": "qm", "unit": "m"}],
+  "parameters": {
+    "M_kg": {"value": 60.0, "unit": "kg", "lower": 1, "upper": 1000, "free": true},
+    "Fv_Ns_per_m": {"value": 50.0, "unit": "N·s/m", "lower": 0, "upper": 10000, "free": true},
+    "gtau_N_per_V": {"value": 35.15, "unit": "N/V", "lower": 1, "upper": 100, "free": false}
+  },
+  "mass": [["M_kg"]], "damping": [["Fv_Ns_per_m"]], "stiffness": [[0]],
+  "input_map": [["gtau_N_per_V"]], "output_map": [[1]]
+})";
+  ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", dir / "axis.json",
+                                  dir / "m0.json"))
+                .exit_code,
+            0);
+  std::vector<std::string> named;
+  std::string model = dir / "m0.json", last_out;
+  for (int round = 1; round <= 4; ++round) {
+    const std::string next = dir / fmt::format("m{}.json", round);
+    const auto r = run_lpvid(fmt::format("diagnose --model {} --log {} --out {} --json", model, dir / "run.mat", next));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    if (j["named"].empty()) {
+      last_out = j["summary"].get<std::string>();
+      break;
+    }
+    for (const auto& n : j["named"]) named.push_back(n.get<std::string>());
+    model = next;
+  }
+  EXPECT_EQ(named, (std::vector<std::string>{"coulomb_friction", "force_offset"}));
+  EXPECT_THAT(last_out, HasSubstr("nothing is missing"));
+  const auto f = run_lpvid(fmt::format("fit --model {} --log {} --out {} --json", model, dir / "run.mat",
+                                       dir / "fitted.json"));
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  EXPECT_THAT(f.err, HasSubstr("channel vir sits at its minimum -6"));  // the limit, said with its rows
+  const nlohmann::json j = nlohmann::json::parse(f.out);
+  EXPECT_LE(j["error_percent"].get<double>(), 1.5 * j["noise_floor_percent"].get<double>());
+  const PhysicalModel m = read_physical_model(dir / "fitted.json");
+  // the light axis's tolerances (0.2 % mass, 0.5 % forces: tests/idlib/fit/force_error_test.cc)
+  EXPECT_NEAR(m.parameter("M_kg").value, truth.m_kg, 0.002 * truth.m_kg);
+  EXPECT_NEAR(m.parameter("Fv_Ns_per_m").value, truth.c_Ns_per_m, 0.005 * truth.c_Ns_per_m);
+  EXPECT_NEAR(m.parameter("coulomb_x_N").value, truth.coulomb_N, 0.005 * truth.coulomb_N);
+  EXPECT_NEAR(m.parameter("offset_x_N").value, truth.offset_N, 0.005 * std::abs(truth.offset_N));
+}
+
 TEST(FrictionAxisCli, TheLoopNamesCoulombThenTheOffsetAndTheFitReachesTheFloor) {
   const TempDir dir("friction_cli");
   const friction_axis::Truth truth;

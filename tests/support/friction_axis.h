@@ -13,6 +13,7 @@
 // Used by tests/idlib/fit/force_error_test.cc and tests/cli/friction_axis_cli_test.cc.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <fstream>
@@ -49,6 +50,13 @@ struct Experiment {
   // the differenced, low-passed encoder: the integrator makes the axis hunt through
   // the friction at rest (stick–slip), as a real drive does.
   bool cascade = false;
+  // The cascade's gains when a drive's are given (0: the defaults above, from the
+  // nominal mass): the position loop's P (1/s), the velocity loop's P (N per m/s) and
+  // the integral's corner (Hz; 0 a P velocity loop, as some drives ship).
+  double kx_per_s = 0.0, kv_N_per_mps = 0.0, integral_corner_hz = 4.0;
+  // The drive's limit on the force it commands (N; 0 none): the logged command is the
+  // limited one, as a drive logs the value it applies.
+  double saturation_N = 0.0;
   unsigned seed = 7;
 };
 
@@ -128,7 +136,9 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   const double alpha = std::exp(-2.0 * M_PI * 300.0 * ts);
   // cascade: velocity PI at 20 Hz (integral corner 4 Hz), position P at 5 Hz,
   // velocity estimate low-passed at 200 Hz
-  const double kv = p.m_kg * 2.0 * M_PI * 20.0, ki = kv * 2.0 * M_PI * 4.0, kx = 2.0 * M_PI * 5.0;
+  const double kv = e.kv_N_per_mps > 0.0 ? e.kv_N_per_mps : p.m_kg * 2.0 * M_PI * 20.0;
+  const double ki = kv * 2.0 * M_PI * e.integral_corner_hz;
+  const double kx = e.kx_per_s > 0.0 ? e.kx_per_s : 2.0 * M_PI * 5.0;
   const double alpha_v = std::exp(-2.0 * M_PI * 200.0 * ts);
   std::mt19937 rng(e.seed);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -155,6 +165,10 @@ inline Log simulate(const Truth& p, const Experiment& e) {
       e_prev = err;
       // feedforward of the offset the designer knows roughly (2 N), not exactly
       current = (kp * err + kd * d_filt + 2.0) / p.k_f_N_per_A;
+    }
+    if (e.saturation_N > 0.0) {
+      const double limit = e.saturation_N / p.k_f_N_per_A;
+      current = std::clamp(current, -limit, limit);
     }
     log.t(k) = t;
     log.r(k) = r;
