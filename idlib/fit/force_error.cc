@@ -61,9 +61,13 @@ struct Term {
 struct Balance {
   std::vector<std::vector<Term>> rows;  // per DOF
   // stribeck_friction: per DOF the index of its velocity scale v_s (-1: none), and the
-  // regressor k ∗ (sign q' exp(−(q'/v_s)²)) at the values given to set_stribeck
+  // regressor k ∗ (sign q' exp(−(q'/v_s)²)) at the values given to set_shapes
   std::vector<Index> stribeck_v;
   MatrixXd stribeck;
+  // input_saturation: per input the index of its limit w_max (-1: none), and the input's
+  // column k ∗ hold(clip(w, ±w_max)) at the values given to set_shapes, in place of d.w's
+  std::vector<Index> saturation;
+  MatrixXd w_sat;
 };
 
 // The Stribeck regressor of DOF i at velocity scale v_s, per kept row: the sign of the
@@ -84,19 +88,42 @@ VectorXd stribeck_regressor(const ForceErrorData& d, Index i, double v_s) {
   return out;
 }
 
-void set_stribeck(Balance& b, const ForceErrorData& d, const VectorXd& p) {
+// Input j as the actuator applies it under a limit: the logged command clipped at
+// ±limit, then held and smoothed as d.w is, per kept row.
+VectorXd saturated_input(const ForceErrorData& d, Index j, double limit) {
+  VectorXd c = d.w_log.col(j).cwiseMax(-limit).cwiseMin(limit);
+  if (d.held_input)
+    for (Index k = c.size() - 1; k > 0; --k) c(k) = 0.5 * (c(k) + c(k - 1));
+  const Index half = (d.kernel.size() - 1) / 2;
+  VectorXd out(d.n());
+  for (Index r = 0; r < d.n(); ++r) out(r) = d.kernel.dot(c.segment(d.sample(r) - half, d.kernel.size()));
+  return out;
+}
+
+// The terms whose shape depends on a parameter (Stribeck's v_s, a limit w_max), built at p.
+void set_shapes(Balance& b, const ForceErrorData& d, const VectorXd& p) {
   const Index nd = static_cast<Index>(b.rows.size());
   b.stribeck = MatrixXd::Zero(d.n(), nd);
   for (Index i = 0; i < nd; ++i)
     if (b.stribeck_v[static_cast<std::size_t>(i)] >= 0)
       b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[static_cast<std::size_t>(i)]));
+  b.w_sat.resize(0, 0);
+  for (std::size_t j = 0; j < b.saturation.size(); ++j)
+    if (b.saturation[j] >= 0) {
+      if (b.w_sat.rows() == 0) b.w_sat = d.w;
+      b.w_sat.col(static_cast<Index>(j)) = saturated_input(d, static_cast<Index>(j), p(b.saturation[j]));
+    }
 }
+
+// The actuators' input j as the balance sees it (clipped when the model has a limit on it).
+const MatrixXd& inputs_of(const Balance& b, const ForceErrorData& d) { return b.w_sat.rows() > 0 ? b.w_sat : d.w; }
 
 Balance balance_of(const PhysicalModel& model) {
   const MechanicalIndices L(model);
   Balance b;
   b.rows.assign(static_cast<std::size_t>(L.n_dof), {});
   b.stribeck_v.assign(static_cast<std::size_t>(L.n_dof), -1);
+  b.saturation.assign(static_cast<std::size_t>(L.n_in), -1);
   auto add = [&](const std::vector<MechanicalIndices::Entry>& entries, Signal s, double sign) {
     for (const auto& e : entries)
       b.rows[static_cast<std::size_t>(e.row)].push_back({e.parameter, sign * e.coefficient, s, e.col});
@@ -115,6 +142,11 @@ Balance balance_of(const PhysicalModel& model) {
           name, name));
     if (!is_time_effect(name))
       throw InputError(fmt::format("the force-error route has no form for the effect {}", name));
+    if (name == "input_saturation") {  // a limit per input: it shapes w, adds no term
+      for (Index j = 0; j < L.n_in; ++j)
+        b.saturation[static_cast<std::size_t>(j)] = model.index_of(e->parameters[static_cast<std::size_t>(j)].name);
+      continue;
+    }
     const Signal s = name == "coulomb_friction" ? Signal::kSign
                      : name == "force_offset"   ? Signal::kOne
                                                 : Signal::kStribeck;
@@ -132,7 +164,7 @@ Balance balance_of(const PhysicalModel& model) {
 double signal_at(const ForceErrorData& d, const Balance& b, Signal s, Index channel, Index k) {
   switch (s) {
     case Signal::kStribeck: return b.stribeck(k, channel);
-    case Signal::kW: return d.w(k, channel);
+    case Signal::kW: return inputs_of(b, d)(k, channel);
     case Signal::kQdd: return d.qdd(k, channel);
     case Signal::kQd: return d.qd(k, channel);
     case Signal::kQ: return d.q(k, channel);
@@ -161,7 +193,8 @@ MatrixXd applied_at(const Balance& b, const ForceErrorData& d, const VectorXd& p
   MatrixXd f = MatrixXd::Zero(d.n(), nd);
   for (Index i = 0; i < nd; ++i)
     for (const Term& t : b.rows[static_cast<std::size_t>(i)])
-      if (t.signal == Signal::kW) f.col(i) += t.coefficient * (t.param >= 0 ? p(t.param) : 1.0) * d.w.col(t.channel);
+      if (t.signal == Signal::kW)
+        f.col(i) += t.coefficient * (t.param >= 0 ? p(t.param) : 1.0) * inputs_of(b, d).col(t.channel);
   return f;
 }
 
@@ -331,7 +364,8 @@ double rms(const Eigen::VectorXd& x) {
 }
 
 const std::vector<std::string>& time_effect_names() {
-  static const std::vector<std::string> names{"coulomb_friction", "force_offset", "stribeck_friction"};
+  static const std::vector<std::string> names{"coulomb_friction", "force_offset", "stribeck_friction",
+                                              "input_saturation"};
   return names;
 }
 
@@ -425,6 +459,8 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   d.kernel = k0;
   d.kernel_reach = H;
   d.w_noise.resize(n_in);
+  d.w_log = inputs;
+  d.held_input = options.held_input;
   const Index inner = N - 2 * h;  // [h, N − h): the cubic's residuals
   MatrixXd q_hf(inner, n_dof);
   auto mad = [](VectorXd x) {
@@ -523,7 +559,7 @@ namespace force_error_detail {
 ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorData& d) {
   start.validate();
   Balance bal = balance_of(start);
-  set_stribeck(bal, d, start.values());
+  set_shapes(bal, d, start.values());
   const std::vector<Index> free = start.free_indices();
   if (free.empty()) throw InputError("the model has no free parameter to fit (lpvid model set --free NAME)");
   const Index P = static_cast<Index>(start.parameters.size()), nf = static_cast<Index>(free.size());
@@ -669,10 +705,13 @@ ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorD
   return fit;
 }
 
-std::vector<Index> stribeck_scales(const PhysicalModel& model) {
-  std::vector<Index> out;
-  for (const Index v : balance_of(model).stribeck_v)
-    if (v >= 0) out.push_back(v);
+std::vector<ShapeParameter> shape_parameters(const PhysicalModel& model) {
+  const Balance b = balance_of(model);
+  std::vector<ShapeParameter> out;
+  for (std::size_t i = 0; i < b.stribeck_v.size(); ++i)
+    if (b.stribeck_v[i] >= 0) out.push_back({b.stribeck_v[i], ShapeParameter::Kind::kStribeckScale, static_cast<Index>(i)});
+  for (std::size_t j = 0; j < b.saturation.size(); ++j)
+    if (b.saturation[j] >= 0) out.push_back({b.saturation[j], ShapeParameter::Kind::kInputLimit, static_cast<Index>(j)});
   return out;
 }
 

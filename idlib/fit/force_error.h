@@ -20,7 +20,9 @@
 // w is logged, so closed loop or open loop is the same computation.
 //
 // stribeck_friction (F_s, v_s per DOF) adds F_s exp(−(q'/v_s)²) sign q': a friction that
-// rises towards standstill above the Coulomb level.
+// rises towards standstill above the Coulomb level.  input_saturation (w_max per input)
+// replaces w by clip(w, ±w_max): a drive that applies at most its limit while the log
+// holds the controller's unlimited command.
 //
 // sign q' is q'/v_eps clipped to [−1, 1], q' the unsmoothed central difference (the
 // smoothed velocity crosses zero late at a reversal), v_eps = 3× its noise: standstill
@@ -101,6 +103,10 @@ struct ForceErrorData {
   Eigen::MatrixXd v_raw;
   Eigen::VectorXd kernel;
   Index kernel_reach = 0;
+  // For input_saturation: the log's inputs as logged (N × n_in, row k the log's sample
+  // k), and whether the route holds them (ForceErrorOptions::held_input).
+  Eigen::MatrixXd w_log;
+  bool held_input = true;
   Index n() const { return q.rows(); }
 };
 
@@ -134,11 +140,13 @@ struct ForceErrorFit {
 };
 
 // Fits the model's free parameters (base and time-only effects; priors honoured).
-// Linear in every parameter but stribeck_friction's velocity scales v_s: a free v_s is
-// found by a profile search (the linear fit at each v_s; a log-spaced grid from 2 v_eps
-// to the median moving speed, then golden section; DOFs in turn, twice), its standard
-// error from the profile's curvature; a v_s on the search range's edge is reported on
-// its bound (docs/math.md §9b).
+// Linear in every parameter but the shape parameters, stribeck_friction's velocity
+// scales v_s and input_saturation's limits w_max: each free one is found by a profile
+// search (the linear fit at each trial value; a log-spaced grid, then golden section;
+// in turn, twice) over its range — v_s from 2 v_eps to the median moving speed, w_max
+// from the median |w| to the largest — its standard error from the profile's
+// curvature; a value on the range's edge is reported on its bound (a limit at the
+// largest command: the log shows no saturation) (docs/math.md §9b).
 // @throws InputError  the model has a block effect (delay, lag, gain, mode: those
 //   are the frequency route's; remove them) or no free parameter.
 ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& data);

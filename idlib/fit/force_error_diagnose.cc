@@ -61,6 +61,38 @@ std::string low_speed_signature(const VectorXd& r, const VectorXd& v, const std:
                          : "");
 }
 
+// Where in the command's size the residual sits: its rms (each DOF's in units of its own
+// rms, summed) over the rows where |w_j| is in its top 2 % against the rest.  A drive that
+// saturates applies less than the log's command exactly there.
+std::string command_signature(const Eigen::MatrixXd& residual, const ForceErrorData& d, Index j,
+                              const std::string& input, const std::string& unit, bool has_saturation) {
+  const VectorXd a = d.w.col(j).cwiseAbs();
+  std::vector<double> sorted(a.data(), a.data() + a.size());
+  const auto k = static_cast<std::ptrdiff_t>(0.98 * static_cast<double>(sorted.size() - 1));
+  std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+  const double top = sorted[static_cast<std::size_t>(k)];
+  double s_top = 0.0, s_rest = 0.0;
+  Index n_top = 0, n_rest = 0;
+  for (Index r = 0; r < residual.rows(); ++r) {
+    double e2 = 0.0;
+    for (Index i = 0; i < residual.cols(); ++i) {
+      const double s = rms(residual.col(i));
+      if (s > 0.0) e2 += std::pow(residual(r, i) / s, 2);
+    }
+    if (a(r) > top) s_top += e2, ++n_top;
+    else s_rest += e2, ++n_rest;
+  }
+  if (n_top == 0 || n_rest == 0 || !(s_rest > 0.0)) return {};
+  const double ratio = std::sqrt((s_top / static_cast<double>(n_top)) / (s_rest / static_cast<double>(n_rest)));
+  return fmt::format("{}: the residual's rms is {:.2f}x as large where |{}| is in its top 2 % (> {:.3g} {}) as "
+                     "elsewhere{}",
+                     input, ratio, input, top, unit,
+                     ratio > 3.0 && !has_saturation
+                         ? ": the force falls short of the command at its largest (input_saturation: a drive at its "
+                           "limit while the log holds the controller's command)"
+                         : "");
+}
+
 }  // namespace
 
 ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const ForceErrorData& d,
@@ -138,6 +170,7 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
 
   // What the baseline's residual shows, and what this log cannot separate
   const BaseInfo& info = model.base_info();
+  bool one_sign_on_some_dof = false;
   for (Index i = 0; i < base.residual.cols(); ++i) {
     const VectorXd r = base.residual.col(i);
     const VectorXd s = d.sign_v.col(i);
@@ -159,11 +192,33 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
                        std::find(names.begin(), names.end(), "coulomb_friction") != names.end()) &&
                       (model.has_effect("force_offset") ||
                        std::find(names.begin(), names.end(), "force_offset") != names.end());
+    if (both && one_sign > 0.95) one_sign_on_some_dof = true;
     if (both && one_sign > 0.95)
       out.cannot_separate.push_back(fmt::format(
           "on {} the velocity keeps one sign (the mean of sign(velocity) is {:.2f} of its rms): Coulomb friction and "
           "a constant offset are the same force on this log; record a motion that moves both ways to separate them",
           dof, one_sign));
+  }
+  for (Index j = 0; j < d.w.cols(); ++j) {
+    const std::string sig = command_signature(
+        base.residual, d, j, info.input_names[static_cast<std::size_t>(j)],
+        static_cast<std::size_t>(j) < info.input_units.size() ? info.input_units[static_cast<std::size_t>(j)] : "",
+        model.has_effect("input_saturation"));
+    if (!sig.empty()) out.signatures.push_back(sig);
+  }
+  // An offset named: what it is, the log cannot say.  While the axis moves, a constant
+  // force F_0 and a Coulomb friction that differs with direction (F_c + F_0 one way,
+  // F_c − F_0 the other) are the same force, and at rest the friction holds any force.
+  if (out.named >= 0) {
+    const auto& named = out.candidates[static_cast<std::size_t>(out.named)].effects;
+    if (std::find(named.begin(), named.end(), "force_offset") != named.end() &&
+        (model.has_effect("coulomb_friction") ||
+         std::find(named.begin(), named.end(), "coulomb_friction") != named.end()))
+      out.cannot_separate.push_back(
+          "the offset F_0 is one force on the moving axis whatever its cause: a constant force (gravity on a tilt, a "
+          "cable's pull, an amplifier's offset) or a friction that differs with direction (F_c + F_0 one way, F_c - "
+          "F_0 the other) fit the log alike; a measurement that changes one and not the other tells them apart (the "
+          "axis levelled or tilted, the amplifier's offset read with the motor off, the cable carrier unhooked)");
   }
   if (out.baseline_explained) {
     out.summary = fmt::format("nothing is missing: the error {:.3g} % is within {}x the noise floor {:.3g} %",
@@ -172,7 +227,7 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
     const ForceErrorCandidate& c = out.candidates[static_cast<std::size_t>(out.named)];
     out.summary = fmt::format("missing: {} (error {:.3g} % -> {:.3g} %, floor {:.3g} %; {})",
                               fmt::join(c.effects, " + "), base.error, c.fit.error, c.fit.floor, c.verdict);
-    if (!out.cannot_separate.empty())
+    if (one_sign_on_some_dof)
       out.summary += "; but this log cannot tell Coulomb friction from an offset (below): either names the same force";
   } else if (names.empty()) {
     out.summary = fmt::format("not explained: the model has every time-domain effect of the library and its error "
@@ -180,9 +235,12 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
                               "residual's signatures are below)",
                               base.error, base.error / std::max(base.floor, 1e-300), base.floor);
   } else {
-    out.summary = fmt::format("not explained: no time-domain effect of the library lowers the error {:.3g} % "
-                              "(floor {:.3g} %) significantly; the residual's signatures are below",
-                              base.error, base.floor);
+    // every absent effect of the library tried (no --candidates) and none helps: what is
+    // left is not in the library
+    out.summary = fmt::format("not explained: no time-domain effect of the library{} lowers the error {:.3g} % "
+                              "(floor {:.3g} %) significantly{}; the residual's signatures are below",
+                              options.candidates.empty() ? "" : " among the candidates given", base.error, base.floor,
+                              options.candidates.empty() ? ": what is left is not in the library" : "");
   }
   return out;
 }

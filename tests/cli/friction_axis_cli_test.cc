@@ -152,34 +152,64 @@ TEST(FrictionAxisCli, AHeavyAxisWithAVoltageLimitNamesTheSameEffectsAndReachesTh
                                   dir / "m0.json"))
                 .exit_code,
             0);
-  std::vector<std::string> named;
-  std::string model = dir / "m0.json", last_out;
-  for (int round = 1; round <= 4; ++round) {
-    const std::string next = dir / fmt::format("m{}.json", round);
-    const auto r = run_lpvid(fmt::format("diagnose --model {} --log {} --out {} --json", model, dir / "run.mat", next));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    const nlohmann::json j = nlohmann::json::parse(r.out);
-    if (j["named"].empty()) {
-      last_out = j["summary"].get<std::string>();
-      break;
+  // the loop as a user runs it, from the design: diagnose --out on the last model until
+  // nothing is named; then fit --log
+  struct Loop {
+    std::vector<std::string> named;
+    std::string last_summary, fit_err;
+    nlohmann::json fit;
+  };
+  auto loop = [&](const std::string& mat, const std::string& tag) {
+    Loop out;
+    std::string model = dir / "m0.json";
+    for (int round = 1; round <= 5; ++round) {
+      const std::string next = dir / fmt::format("{}{}.json", tag, round);
+      const auto r = run_lpvid(fmt::format("diagnose --model {} --log {} --out {} --json", model, mat, next));
+      EXPECT_EQ(r.exit_code, 0) << r.err;
+      const nlohmann::json j = nlohmann::json::parse(r.out);
+      if (j["named"].empty()) {
+        out.last_summary = j["summary"].get<std::string>();
+        break;
+      }
+      for (const auto& n : j["named"]) out.named.push_back(n.get<std::string>());
+      model = next;
     }
-    for (const auto& n : j["named"]) named.push_back(n.get<std::string>());
-    model = next;
-  }
-  EXPECT_EQ(named, (std::vector<std::string>{"coulomb_friction", "force_offset"}));
-  EXPECT_THAT(last_out, HasSubstr("nothing is missing"));
-  const auto f = run_lpvid(fmt::format("fit --model {} --log {} --out {} --json", model, dir / "run.mat",
-                                       dir / "fitted.json"));
-  ASSERT_EQ(f.exit_code, 0) << f.err;
-  EXPECT_THAT(f.err, HasSubstr("channel vir sits at its minimum -6"));  // the limit, said with its rows
-  const nlohmann::json j = nlohmann::json::parse(f.out);
-  EXPECT_LE(j["error_percent"].get<double>(), 1.5 * j["noise_floor_percent"].get<double>());
-  const PhysicalModel m = read_physical_model(dir / "fitted.json");
+    const auto f = run_lpvid(fmt::format("fit --model {} --log {} --out {} --json", model, mat,
+                                         dir / (tag + "-fitted.json")));
+    EXPECT_EQ(f.exit_code, 0) << f.err;
+    out.fit_err = f.err;
+    out.fit = nlohmann::json::parse(f.out);
+    return out;
+  };
   // the light axis's tolerances (0.2 % mass, 0.5 % forces: tests/idlib/fit/force_error_test.cc)
-  EXPECT_NEAR(m.parameter("M_kg").value, truth.m_kg, 0.002 * truth.m_kg);
-  EXPECT_NEAR(m.parameter("Fv_Ns_per_m").value, truth.c_Ns_per_m, 0.005 * truth.c_Ns_per_m);
-  EXPECT_NEAR(m.parameter("coulomb_x_N").value, truth.coulomb_N, 0.005 * truth.coulomb_N);
-  EXPECT_NEAR(m.parameter("offset_x_N").value, truth.offset_N, 0.005 * std::abs(truth.offset_N));
+  auto check_estimates = [&](const std::string& fitted) {
+    const PhysicalModel m = read_physical_model(fitted);
+    EXPECT_NEAR(m.parameter("M_kg").value, truth.m_kg, 0.002 * truth.m_kg);
+    EXPECT_NEAR(m.parameter("Fv_Ns_per_m").value, truth.c_Ns_per_m, 0.005 * truth.c_Ns_per_m);
+    EXPECT_NEAR(m.parameter("coulomb_x_N").value, truth.coulomb_N, 0.005 * truth.coulomb_N);
+    EXPECT_NEAR(m.parameter("offset_x_N").value, truth.offset_N, 0.005 * std::abs(truth.offset_N));
+    return m;
+  };
+  const Loop a = loop(dir / "run.mat", "a");
+  EXPECT_EQ(a.named, (std::vector<std::string>{"coulomb_friction", "force_offset"}));
+  EXPECT_THAT(a.last_summary, HasSubstr("nothing is missing"));
+  EXPECT_THAT(a.fit_err, HasSubstr("channel vir sits at its minimum -6"));  // the limit, said with its rows
+  EXPECT_LE(a.fit["error_percent"].get<double>(), 1.5 * a.fit["noise_floor_percent"].get<double>());
+  check_estimates(dir / "a-fitted.json");
+
+  // The same drive logging its controller's command (before the limit): the loop adds
+  // input_saturation to the two, and the profile search finds the 6 V (1 %: a clipped
+  // stretch is a few hundred samples).
+  e.log_unlimited = true;
+  const auto unlimited = friction_axis::simulate(truth, e);
+  ASSERT_GT(unlimited.i.cwiseAbs().maxCoeff(), 6.5);
+  write_signals_mat(dir / "unlimited.mat", {{"t", unlimited.t}, {"qm", unlimited.x}, {"qg", unlimited.r}, {"vir", unlimited.i}});
+  const Loop b = loop(dir / "unlimited.mat", "b");
+  EXPECT_THAT(b.named, ::testing::UnorderedElementsAre("input_saturation", "coulomb_friction", "force_offset"));
+  EXPECT_THAT(b.last_summary, HasSubstr("nothing is missing"));
+  EXPECT_LE(b.fit["error_percent"].get<double>(), 1.5 * b.fit["noise_floor_percent"].get<double>());
+  const PhysicalModel mb = check_estimates(dir / "b-fitted.json");
+  EXPECT_NEAR(mb.parameter("saturation_vir_V").value, 6.0, 0.06);
 }
 
 TEST(FrictionAxisCli, TheLoopNamesCoulombThenTheOffsetAndTheFitReachesTheFloor) {

@@ -57,6 +57,9 @@ struct Experiment {
   // The drive's limit on the force it commands (N; 0 none): the logged command is the
   // limited one, as a drive logs the value it applies.
   double saturation_N = 0.0;
+  // true: the log holds the controller's command before the limit (a drive logging its
+  // set-point, not what it applies); the motor applies the limited one.
+  bool log_unlimited = false;
   unsigned seed = 7;
 };
 
@@ -166,13 +169,16 @@ inline Log simulate(const Truth& p, const Experiment& e) {
       // feedforward of the offset the designer knows roughly (2 N), not exactly
       current = (kp * err + kd * d_filt + 2.0) / p.k_f_N_per_A;
     }
+    const double commanded = current;
     if (e.saturation_N > 0.0) {
       const double limit = e.saturation_N / p.k_f_N_per_A;
       current = std::clamp(current, -limit, limit);
+      // anti-windup, as a drive has it: the integrator holds while the command is limited
+      if (e.cascade && current != commanded) integ -= ki * (kx * err - v_est) * ts;
     }
     log.t(k) = t;
     log.r(k) = r;
-    log.i(k) = current + e.current_noise_A * n01(rng);
+    log.i(k) = (e.log_unlimited ? commanded : current) + e.current_noise_A * n01(rng);
     log.x(k) = enc;
     log.motor_N(k) = p.k_f_N_per_A * current;
     log.velocity(k) = v;

@@ -70,6 +70,27 @@ std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
                       false,
                       {},
                       true};
+  EffectInfo saturation{"input_saturation",
+                        "a drive that saturates: each input applies at most ±w_max, while the log holds the "
+                        "controller's unlimited command",
+                        "replaces each input w by clip(w, ±w_max) in the force balance (time domain only); w_max is "
+                        "found by a profile search between the median and the largest |w| of the log",
+                        "a force residual that grows where the command is largest (its top few per cent)",
+                        {},
+                        {},
+                        false,
+                        {},
+                        true};
+  for (std::size_t j = 0; j < b.input_names.size(); ++j) {
+    // the input's unit in the name when it is a plain symbol (V, A, N)
+    const std::string& u = j < b.input_units.size() ? b.input_units[j] : std::string();
+    const bool plain = !u.empty() && std::all_of(u.begin(), u.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) != 0;
+    });
+    // no limit until the fit finds one (the search range comes from the log)
+    saturation.parameters.push_back(
+        {"saturation_" + b.input_names[j] + (plain ? "_" + u : ""), u, 1e12, 1e-12, 1e12, true});
+  }
   for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
     const auto [unit, suffix] = force_unit(b.dof_units[i]);
     PhysicalParameter c{"coulomb_" + b.dof_names[i] + suffix, unit, 0.0, 0.0, 1e9, true};
@@ -85,7 +106,7 @@ std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
     const std::string suffix = u == "m" ? "_m_per_s" : u == "rad" ? "_rad_per_s" : "";
     stribeck.parameters.push_back({"stribeck_v_" + b.dof_names[i] + suffix, u + "/s", 0.01, 1e-9, 1e6, true});
   }
-  return {coulomb, offset, stribeck};
+  return {coulomb, offset, stribeck, saturation};
 }
 
 }  // namespace

@@ -76,6 +76,11 @@ TEST(ForceError, LoopNamesCoulombThenTheOffsetAndReachesTheFloor) {
   ASSERT_GE(r2.named, 0);
   EXPECT_THAT(r2.candidates[static_cast<std::size_t>(r2.named)].effects, ::testing::ElementsAre("force_offset"));
   EXPECT_TRUE(r2.candidates[static_cast<std::size_t>(r2.named)].explained);
+  // what an offset is, no log of the moving axis can say (a direction-dependent friction
+  // is the same force): diagnose says so and what measurement would
+  ASSERT_EQ(r2.cannot_separate.size(), 1u);
+  EXPECT_THAT(r2.cannot_separate[0], ::testing::HasSubstr("a friction that differs with direction"));
+  EXPECT_THAT(r2.summary, ::testing::Not(::testing::HasSubstr("cannot tell Coulomb friction from an offset")));
 
   m.add_effect("force_offset");
   const ForceErrorFit f = fit_force_error(m, d);
@@ -180,6 +185,70 @@ TEST(ForceError, ARealisticAxisNamesItsFrictionAndOffsetAndSaysWhatIsLeft) {
 // estimated floor within the 1.5x the loop uses (and not below 1/1.5 of it: a floor
 // far above the truth's error would hide a missing effect) — at the default noise and
 // with the encoder and the current sensor 100x finer (the floor follows the noise).
+// A drive that saturates while its log holds the controller's unlimited command: the
+// motor applies at most 22 N, the log says more during the hardest accelerations.  The
+// model with the right friction leaves a residual where the command is largest; diagnose
+// names input_saturation, the profile search finds the limit, and the error falls to the
+// floor.  On a log whose command is the applied one, the same candidate ends on the
+// top edge of its range (nothing clipped) and is refused.
+TEST(ForceError, ADriveThatSaturatesIsNamedAndItsLimitFound) {
+  const Truth truth;
+  Experiment exp;
+  exp.point_to_point = true;
+  exp.cascade = true;
+  exp.saturation_N = 22.0;
+  exp.log_unlimited = true;
+  exp.current_noise_A = 0.0;
+  const auto log = friction_axis::simulate(truth, exp);
+  const double limit_A = exp.saturation_N / truth.k_f_N_per_A;
+  const auto clipped = (log.i.array().abs() > limit_A).count();
+  ASSERT_GT(clipped, 200);  // the limit is reached: a few per cent of the samples
+  ASSERT_LT(clipped, log.i.size() / 10);
+  PhysicalModel m = start_model();
+  m.add_effect("coulomb_friction");
+  m.add_effect("force_offset");
+  const ForceErrorData d = data_of(log, m, exp.rate_hz);
+  const ForceErrorDiagnosis dx = diagnose_force_error(m, d);
+  // the signature: the residual sits where the command is largest
+  EXPECT_THAT(fmt::format("{}", fmt::join(dx.signatures, "\n")), ::testing::HasSubstr("input_saturation: a drive at its limit"));
+  ASSERT_GE(dx.named, 0) << dx.summary;
+  const ForceErrorCandidate& named = dx.candidates[static_cast<std::size_t>(dx.named)];
+  EXPECT_EQ(named.effects, std::vector<std::string>{"input_saturation"});
+  EXPECT_TRUE(named.explained) << named.fit.error << " vs floor " << named.fit.floor;
+  // the limit: the profile's minimum within 1 % of the drive's (a clipped stretch is a few
+  // hundred samples; the search's golden section closes to 0.1 % of its range)
+  EXPECT_NEAR(value_of(named.fit, "saturation_i_A"), limit_A, 0.01 * limit_A);
+  EXPECT_NEAR(value_of(named.fit, "coulomb_x_N"), truth.coulomb_N, 0.01 * truth.coulomb_N);
+
+  {  // the loop from the bare base: the limit first (the largest share), then the friction
+    PhysicalModel cur = start_model();
+    std::vector<std::string> named_in_turn;
+    for (int round = 0; round < 5; ++round) {
+      const ForceErrorDiagnosis r = diagnose_force_error(cur, d);
+      if (r.named < 0) {
+        EXPECT_TRUE(r.baseline_explained) << r.summary;
+        break;
+      }
+      const ForceErrorCandidate& c = r.candidates[static_cast<std::size_t>(r.named)];
+      for (const auto& e : c.effects) named_in_turn.push_back(e);
+      cur = c.fit.model;
+    }
+    EXPECT_THAT(named_in_turn, ::testing::UnorderedElementsAre("input_saturation", "coulomb_friction", "force_offset"));
+  }
+  // the applied command logged: nothing to find
+  exp.log_unlimited = false;
+  const auto applied = friction_axis::simulate(truth, exp);
+  const ForceErrorData d2 = data_of(applied, m, exp.rate_hz);
+  PhysicalModel m2 = m;
+  m2.add_effect("input_saturation");
+  const ForceErrorFit f2 = fit_force_error(m2, d2);
+  bool said = false;
+  for (const auto& u : f2.unidentifiable) said = said || u.find("shows no saturation") != std::string::npos;
+  EXPECT_TRUE(said) << fmt::format("{}", fmt::join(f2.unidentifiable, " | "));
+  const ForceErrorDiagnosis dx2 = diagnose_force_error(m, d2, {{"input_saturation"}});
+  EXPECT_EQ(dx2.named, -1) << dx2.summary;
+}
+
 TEST(ForceError, TheFloorIsWhatTheTrueModelScores) {
   const Truth truth;
   for (const double finer : {1.0, 100.0}) {
@@ -262,7 +331,7 @@ TEST(ForceError, RefusesWhatItCannotUse) {
   fr.add_effect("coulomb_friction");
   EXPECT_THAT(m.absent_effects(), ::testing::Not(::testing::Contains("coulomb_friction")));
   EXPECT_THAT(m.absent_time_effects(),
-              ::testing::ElementsAre("coulomb_friction", "force_offset", "stribeck_friction"));
+              ::testing::ElementsAre("coulomb_friction", "force_offset", "stribeck_friction", "input_saturation"));
 }
 
 }  // namespace force_error_test

@@ -1,8 +1,9 @@
-// lpvid — the force-error fit with Stribeck friction's velocity scales (idlib/fit/force_error.h,
+// lpvid — the force-error fit with its shape parameters (idlib/fit/force_error.h,
 // fit_force_error; docs/math.md §9b).  Every other parameter enters the force balance
-// linearly and is solved exactly by the bounded least squares of force_error.cc; a free
-// velocity scale v_s shapes its regressor, exp(−(q'/v_s)²) sign q', and is found by a
-// profile search: the linear fit at each trial v_s, the cost n_eff ln RSS.
+// linearly and is solved exactly by the bounded least squares of force_error.cc; a
+// shape parameter — a Stribeck velocity scale v_s (its regressor exp(−(q'/v_s)²) sign q'),
+// an input's limit w_max (the applied input clip(w, ±w_max)) — is found by a profile
+// search: the linear fit at each trial value, the cost n_eff ln RSS.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -27,23 +28,35 @@ double profile_cost(const PhysicalModel& m, const ForceErrorData& d) {
   return f.n_eff * std::log(std::max(f.rss, 1e-300));
 }
 
-// The search range of DOF i's velocity scale: from twice the speed the log resolves
-// (v_eps) to the median speed of its moving samples (a Stribeck curve is a low-speed
-// effect: a scale above most of the motion would make it Coulomb friction), within the
-// parameter's bounds.
-std::pair<double, double> search_range(const ForceErrorData& d, Index i, const PhysicalParameter& q) {
-  std::vector<double> speed;
-  speed.reserve(static_cast<std::size_t>(d.v_raw.rows()));
-  for (Index k = 0; k < d.v_raw.rows(); ++k)
-    if (std::abs(d.v_raw(k, i)) > d.v_eps(i)) speed.push_back(std::abs(d.v_raw(k, i)));
-  double hi = 0.0;
-  if (!speed.empty()) {
-    std::nth_element(speed.begin(), speed.begin() + static_cast<std::ptrdiff_t>(speed.size() / 2), speed.end());
-    hi = speed[speed.size() / 2];
+// The median and the largest of |x| over the entries above `floor`.
+std::pair<double, double> median_and_largest(const Eigen::VectorXd& x, double floor) {
+  std::vector<double> a;
+  a.reserve(static_cast<std::size_t>(x.size()));
+  for (Index k = 0; k < x.size(); ++k)
+    if (std::abs(x(k)) > floor) a.push_back(std::abs(x(k)));
+  if (a.empty()) return {0.0, 0.0};
+  const double largest = *std::max_element(a.begin(), a.end());
+  std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+  return {a[a.size() / 2], largest};
+}
+
+// The search range of a shape parameter, within its bounds:
+//  - a Stribeck velocity scale: from twice the speed the log resolves (v_eps) to the
+//    median speed of the moving samples (a Stribeck curve is a low-speed effect: a scale
+//    above most of the motion would make it Coulomb friction);
+//  - an input's limit: from the median |w| to the largest (a drive saturating more than
+//    half of the time is not at a limit but out of its range; at the largest nothing is
+//    clipped: the edge says the log shows no saturation).
+std::pair<double, double> search_range(const ForceErrorData& d, const force_error_detail::ShapeParameter& s,
+                                       const PhysicalParameter& q) {
+  double lo = 0.0, hi = 0.0;
+  if (s.kind == force_error_detail::ShapeParameter::Kind::kStribeckScale) {
+    lo = 2.0 * d.v_eps(s.channel);
+    hi = median_and_largest(d.v_raw.col(s.channel), d.v_eps(s.channel)).first;
+  } else {
+    std::tie(lo, hi) = median_and_largest(d.w_log.col(s.channel), 0.0);
   }
-  const double lo = std::max(2.0 * d.v_eps(i), q.lower);
-  hi = std::min(hi, q.upper);
-  return {lo, hi};
+  return {std::max(lo, q.lower), std::min(hi, q.upper)};
 }
 
 // Every stride-th row of d (the rows' own samples, so each term is what the full set has
@@ -69,32 +82,38 @@ ForceErrorData every_nth_row(const ForceErrorData& d, Index stride) {
 }  // namespace
 
 ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& d) {
+  std::vector<force_error_detail::ShapeParameter> shapes;
+  for (const auto& sp : force_error_detail::shape_parameters(start))
+    if (start.parameters[static_cast<std::size_t>(sp.param)].free) shapes.push_back(sp);
+  if (shapes.empty()) return fit_with_fixed_shape(start, d);
   std::vector<Index> scales;
-  for (const Index v : force_error_detail::stribeck_scales(start))
-    if (start.parameters[static_cast<std::size_t>(v)].free) scales.push_back(v);
-  if (scales.empty()) return fit_with_fixed_shape(start, d);
+  for (const auto& sp : shapes) scales.push_back(sp.param);
 
-  // Held during the profile search, each moved in turn (DOF by DOF, twice)
+  // Held during the profile search, each moved in turn (twice when there are several)
   PhysicalModel inner = start;
   for (const Index v : scales) inner.parameters[static_cast<std::size_t>(v)].free = false;
-  const std::vector<Index> all = force_error_detail::stribeck_scales(start);
   std::vector<std::pair<double, double>> range(scales.size());
   for (std::size_t j = 0; j < scales.size(); ++j) {
-    const Index dof = static_cast<Index>(std::find(all.begin(), all.end(), scales[j]) - all.begin());
-    range[j] = search_range(d, dof, start.parameters[static_cast<std::size_t>(scales[j])]);
+    const PhysicalParameter& q = start.parameters[static_cast<std::size_t>(scales[j])];
+    range[j] = search_range(d, shapes[j], q);
     if (!(range[j].second > range[j].first))
-      throw InputError(fmt::format("{}: the log's moving speeds leave no range to search (from {:.3g} to {:.3g}); fix "
-                                   "it at a known value (lpvid model set --fix) or log a slower motion",
-                                   start.parameters[static_cast<std::size_t>(scales[j])].name, range[j].first,
-                                   range[j].second));
+      throw InputError(fmt::format(
+          "{}: the log leaves no range to search (from {:.3g} to {:.3g}: {}); fix it at a known value (lpvid model "
+          "set --fix) or {}",
+          q.name, range[j].first, range[j].second,
+          shapes[j].kind == force_error_detail::ShapeParameter::Kind::kStribeckScale ? "the moving speeds"
+                                                                                     : "the command's sizes",
+          shapes[j].kind == force_error_detail::ShapeParameter::Kind::kStribeckScale ? "log a slower motion"
+                                                                                     : "log a command that varies"));
   }
   constexpr int kGrid = 16, kGolden = 14, kCycles = 2;
   // On a long log the search runs on every stride-th row (at most kSearchRows; the
   // optimum of a 10⁵-row profile lies within its own standard error of the full one's),
   // the final fit and the curvature on every row.
   constexpr Index kSearchRows = 100000;
-  const ForceErrorData sub = d.n() > kSearchRows ? every_nth_row(d, (d.n() + kSearchRows - 1) / kSearchRows) : d;
-  const ForceErrorData* on = &sub;
+  ForceErrorData sub;
+  if (d.n() > kSearchRows) sub = every_nth_row(d, (d.n() + kSearchRows - 1) / kSearchRows);
+  const ForceErrorData* on = d.n() > kSearchRows ? &sub : &d;
   auto cost_at = [&](std::size_t j, double log_v) {
     inner.parameters[static_cast<std::size_t>(scales[j])].value = std::exp(log_v);
     return profile_cost(inner, *on);
@@ -128,8 +147,8 @@ ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& 
       inner.parameters[static_cast<std::size_t>(scales[j])].value = std::exp(x);
     }
 
-  // The fit at the optimum, with the velocity scales free again: their standard errors
-  // from the profile's curvature in ln v_s (var ≈ 2 / (d²cost/d(ln v)²)), BIC counting them
+  // The fit at the optimum, with the shape parameters free again: their standard errors
+  // from the profile's curvature in ln x (var ≈ 2 / (d²cost/d(ln x)²)), BIC counting them
   on = &d;
   ForceErrorFit fit = fit_with_fixed_shape(inner, d);
   for (const Index v : scales) fit.model.parameters[static_cast<std::size_t>(v)].free = true;
@@ -160,11 +179,27 @@ ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& 
     ordered.push_back(e);
   }
   fit.parameters = ordered;
-  // A Stribeck force that ends at zero leaves its scale undetermined
-  for (const auto& e : fit.parameters)
-    if (e.at_bound && e.value == 0.0 && e.name.rfind("stribeck_", 0) == 0)
-      fit.unidentifiable.push_back(fmt::format(
-          "{} ends at zero: the Stribeck velocity scale beside it is not determined by this log", e.name));
+  // A Stribeck force that ends at zero leaves its scale undetermined; a limit on the
+  // range's top edge (the largest command) clips nothing
+  for (std::size_t j = 0; j < shapes.size(); ++j) {
+    const ForceErrorParameter* e = nullptr;
+    for (const auto& x : fit.parameters)
+      if (x.name == start.parameters[static_cast<std::size_t>(shapes[j].param)].name) e = &x;
+    if (shapes[j].kind == force_error_detail::ShapeParameter::Kind::kInputLimit) {
+      if (e != nullptr && e->at_bound && std::log(e->value) > 0.5 * (std::log(range[j].first) + std::log(range[j].second)))
+        fit.unidentifiable.push_back(fmt::format(
+            "{} ends at the largest command ({:.4g}): the log shows no saturation, so the limit is not determined",
+            e->name, e->value));
+      continue;
+    }
+    // the effect's parameters: F_s per DOF, then v_s per DOF
+    const std::string& force =
+        start.effect_info("stribeck_friction")->parameters[static_cast<std::size_t>(shapes[j].channel)].name;
+    for (const auto& x : fit.parameters)
+      if (x.name == force && x.at_bound && x.value == 0.0)
+        fit.unidentifiable.push_back(fmt::format(
+            "{} ends at zero: the Stribeck velocity scale beside it is not determined by this log", force));
+  }
   return fit;
 }
 
