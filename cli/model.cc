@@ -55,7 +55,7 @@ sampled with it (delays, fractional ones too, realised as extra states).  See do
 
 struct ModelCliOptions {
   std::string out, model, effect, base = "platform", from, from_diagnosis;
-  std::vector<std::string> sets;
+  std::vector<std::string> sets, fix, free;  // model set: --set, --fix, --free
   double xb = std::numeric_limits<double>::quiet_NaN(), rate_hz = 0.0;  // xb NaN: not given
   bool bare = false, json = false, add_defined = false;
 };
@@ -172,7 +172,21 @@ void run_set(const ModelCliOptions& o) {
   OutputSet outputs;
   check_changed(o, outputs);
   PhysicalModel m = read_physical_model(o.model);
+  if (o.sets.empty() && o.fix.empty() && o.free.empty())
+    throw InputError("model set: nothing to do; give --set NAME=VALUE, --fix NAME or --free NAME");
   apply_sets(m, o.sets);
+  // --fix / --free: held at its value by fit and diagnose, or estimated (names checked
+  // before anything changes; one name in both is refused)
+  std::vector<std::string> fixed, freed;
+  for (const std::string& list : o.fix)
+    for (const std::string& n : split_names(list, "--fix")) fixed.push_back(n);
+  for (const std::string& list : o.free)
+    for (const std::string& n : split_names(list, "--free")) freed.push_back(n);
+  for (const std::string& n : fixed)
+    if (std::find(freed.begin(), freed.end(), n) != freed.end())
+      throw InputError(fmt::format("model set: {} is given to both --fix and --free; give it to one", n));
+  for (const std::string& n : fixed) m.parameter(n).free = false;
+  for (const std::string& n : freed) m.parameter(n).free = true;
   const std::string written = write_changed(o, outputs, m);
   if (!outputs.to_stdout()) {
     std::vector<std::string> lines;
@@ -182,7 +196,9 @@ void run_set(const ModelCliOptions& o) {
                                                   p.prior_mean, p.prior_sigma)
                                     : fmt::format("{} = {:g} {}", p.name, p.value, p.unit));
     }
-    print_summary(o.json, {{"model", written}, {"set", o.sets}},
+    if (!fixed.empty()) lines.push_back(fmt::format("fixed {}", fmt::join(fixed, ", ")));
+    if (!freed.empty()) lines.push_back(fmt::format("free {}", fmt::join(freed, ", ")));
+    print_summary(o.json, {{"model", written}, {"set", o.sets}, {"fixed", fixed}, {"freed", freed}},
                   fmt::format("model set: {}{}\n", fmt::join(lines, ", "),
                               written == o.model ? " in " + o.model : fmt::format(", wrote {} from {}", written, o.model)));
   }
@@ -354,7 +370,11 @@ Command make_model_command() {
             init->callback([o] { run_init(*o); });
             auto* set = app->add_subcommand("set", "set design values (and priors) of a model file's parameters");
             set->add_option("--model", o->model, "model file to read")->required();
-            set->add_option("--set", o->sets, "NAME=VALUE or NAME=VALUE±SIGMA (a prior; repeat)")->required();
+            set->add_option("--set", o->sets, "NAME=VALUE or NAME=VALUE±SIGMA (a prior; repeat)");
+            set->add_option("--fix", o->fix,
+                            "NAME (or NAME,NAME): hold the parameter at its value in fit and diagnose (a datasheet "
+                            "value; repeat)");
+            set->add_option("--free", o->free, "NAME (or NAME,NAME): estimate the parameter in fit and diagnose (repeat)");
             set->add_option("--out", o->out, "write here (a new file continuing the fit history) instead of in place");
             set->add_flag("--json", o->json, "print the summary as JSON");
             set->callback([o] { run_set(*o); });

@@ -965,7 +965,7 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   check_controller(options, &base);
   Engine engine(start, options);
   const Index p = engine.num_free();
-  if (p == 0) throw InputError("the model has no free parameter; set \"free\": true on the parameters to estimate");
+  if (p == 0) throw InputError("the model has no free parameter; free the ones to estimate (lpvid model set --model MODEL.json --free NAME)");
   constexpr Index kMaxFree = 48;  // the largest Jet size instantiated (Engine::evaluate)
   if (p > kMaxFree)
     throw InputError(fmt::format("the model has {} free parameters; at most {} can be fitted at once — fix some", p,

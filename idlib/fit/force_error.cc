@@ -561,7 +561,7 @@ ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorD
   Balance bal = balance_of(start);
   set_shapes(bal, d, start.values());
   const std::vector<Index> free = start.free_indices();
-  if (free.empty()) throw InputError("the model has no free parameter to fit (lpvid model set --free NAME)");
+  if (free.empty()) throw InputError("the model has no free parameter to fit (lpvid model set --model MODEL.json --free NAME)");
   const Index P = static_cast<Index>(start.parameters.size()), nf = static_cast<Index>(free.size());
   const Index nd = static_cast<Index>(bal.rows.size());
   VectorXd p = start.values();

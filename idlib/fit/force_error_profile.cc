@@ -99,8 +99,8 @@ ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& 
     if (!(range[j].second > range[j].first))
       throw InputError(fmt::format(
           "{}: the log leaves no range to search (from {:.3g} to {:.3g}: {}); fix it at a known value (lpvid model "
-          "set --fix) or {}",
-          q.name, range[j].first, range[j].second,
+          "set --model MODEL.json --set {}=VALUE --fix {}) or {}",
+          q.name, range[j].first, range[j].second, q.name, q.name,
           shapes[j].kind == force_error_detail::ShapeParameter::Kind::kStribeckScale ? "the moving speeds"
                                                                                      : "the command's sizes",
           shapes[j].kind == force_error_detail::ShapeParameter::Kind::kStribeckScale ? "log a slower motion"

@@ -388,6 +388,24 @@ TEST(ModelCli, SetGivesDesignValuesWithPriorsAndRefusesBadOnesLeavingTheFile) {
     EXPECT_THAT(r.err, HasSubstr("is not a number > 0; write NAME=VALUE±SIGMA")) << bad;
   }
   EXPECT_EQ(lpvid::testing::slurp(dir / "m.json"), before);
+  // --fix / --free: the free flag, as the error messages of fit tell a user to set it
+  const auto fix = run_lpvid(fmt::format("model set --model {} --fix beam_mass_kg,beam_height_m --out {}", dir / "m.json",
+                                         dir / "fixed.json"));
+  ASSERT_EQ(fix.exit_code, 0) << fix.err;
+  EXPECT_THAT(fix.out, HasSubstr("fixed beam_mass_kg, beam_height_m"));
+  m = read_physical_model(dir / "fixed.json");
+  EXPECT_FALSE(m.parameter("beam_mass_kg").free);
+  EXPECT_FALSE(m.parameter("beam_height_m").free);
+  EXPECT_EQ(m.parameter("beam_mass_kg").value, 0.8);  // the value kept
+  ASSERT_EQ(run_lpvid(fmt::format("model set --model {} --free beam_mass_kg", dir / "fixed.json")).exit_code, 0);
+  EXPECT_TRUE(read_physical_model(dir / "fixed.json").parameter("beam_mass_kg").free);
+  const std::string fixed_before = lpvid::testing::slurp(dir / "fixed.json");
+  for (const std::string bad : {"--fix no_such_parameter", "--fix beam_mass_kg --free beam_mass_kg", ""}) {
+    const auto r = run_lpvid(fmt::format("model set --model {} {}", dir / "fixed.json", bad));
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_EQ(lpvid::testing::slurp(dir / "fixed.json"), fixed_before);
   // a prior with sigma <= 0 in the file itself: positioned, with the form to write
   {
     std::string text = before;
