@@ -252,6 +252,7 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
     j["verdict"] = c.verdict;
     cands.push_back(j);
   }
+  for (const auto& s : d.not_tried) text += "  not tried: " + s + "\n";
   if (!d.signatures.empty()) {
     text += "the baseline's residual:\n";
     for (const auto& s : d.signatures) text += "  " + s + "\n";
@@ -264,6 +265,7 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
                          {"candidates", cands},
                          {"signatures", d.signatures},
                          {"cannot_separate", d.cannot_separate},
+                         {"not_tried", d.not_tried},
                          {"baseline_explained", d.baseline_explained},
                          {"summary", d.summary}};
   if (d.named >= 0) {

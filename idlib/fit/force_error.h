@@ -168,6 +168,7 @@ struct ForceErrorDiagnosis {
   bool baseline_explained = false;   // the model is within 1.5× the floor already
   std::vector<std::string> signatures;   // what the baseline's residual shows (one line each)
   std::vector<std::string> cannot_separate;  // what this log cannot decide, and what would
+  std::vector<std::string> not_tried;        // candidates left out, and why (one line each)
   std::string summary;               // one sentence
 };
 
