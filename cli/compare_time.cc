@@ -12,6 +12,7 @@
 
 #include "cli/beam_commands.h"
 #include "cli/common.h"
+#include "cli/mechanical_time.h"
 #include "cli/output_set.h"
 #include "cli/responses.h"
 #include "cli/stage6_time.h"
@@ -124,6 +125,21 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
       guard.check();
     }
     PhysicalModel model = read_physical_model(o.params);
+    if (model.user_base != nullptr) {
+      // A mechanical base: the force error of the model as given on the log (cli/mechanical_time.h)
+      if (!o.controller.empty())
+        throw InputError("compare --log with a mechanical model: the force error uses the logged inputs, so no "
+                         "controller is needed; leave --controller out");
+      if (!o.overrides.empty() || o.substeps != 1 || o.max_lag != 25 || o.threshold_percent != 10.0)
+        throw InputError("compare --log with a mechanical model: --set, --substeps, --max-lag and "
+                         "--threshold-percent are for the platform's time-domain compare (edit the model with lpvid "
+                         "model set; the failing windows are judged against the noise floor)");
+      MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.params, o.log, "", 0.0, false, json);
+      req.png = o.out_png;
+      req.png_flag = "--out-png";
+      req.report = out_json;
+      return run_mechanical_time_compare(req, o.window_s);
+    }
     if (model.base == "stage6") {
       if (!o.controller.empty())
         throw InputError("compare --log with a stage6 model: the model is simulated on the logged wrench (u1..u6), "

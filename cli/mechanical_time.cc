@@ -218,6 +218,68 @@ void run_mechanical_time_fit(const MechanicalTimeRequest& r) {
   print_summary(r.json, summary, text);
 }
 
+void run_mechanical_time_compare(const MechanicalTimeRequest& r, double failing_window_s) {
+  OutputSet outputs;
+  outputs.input(r.log);
+  outputs.file("--out-png", r.png);
+  outputs.file("--out", r.report);
+  outputs.check();
+  const Loaded l = load(r);
+  const ForceErrorFit f = evaluate_force_error(r.model, l.data);
+  const BaseInfo& b = r.model.base_info();
+  const double span = failing_window_s > 0.0 ? failing_window_s : 0.25;
+  const std::vector<ForceErrorWindow> failing = force_error_failing_windows(f, l.data, span);
+  std::string text = fmt::format("compare ({}: {}; force error of the model as given, nothing refitted) on {}:\n  {}\n",
+                                 r.model_label, effects_text(r.model), r.log, data_text(r, l));
+  for (Index i = 0; i < f.error_per_dof.size(); ++i)
+    text += fmt::format("  force error on {}: {:.3g} % of rms(B_w w) (noise floor {:.3g} %)\n",
+                        b.dof_names[static_cast<std::size_t>(i)], f.error_per_dof(i), f.floor_per_dof(i));
+  text += fmt::format("  error {:.3g} % (noise floor {:.3g} %): {}\n", f.error, f.floor,
+                      f.error <= kForceErrorExplainedRatio * f.floor
+                          ? fmt::format("within {}x the floor: the model explains this log", kForceErrorExplainedRatio)
+                          : fmt::format("{:.1f}x the floor: something is missing or has changed (lpvid diagnose "
+                                        "--log on this log names what)",
+                                        f.error / std::max(f.floor, 1e-300)));
+  nlohmann::json windows = nlohmann::json::array();
+  if (failing.empty()) {
+    text += fmt::format("  no {:.3g}-s window fails beyond 1.5x the larger of the floor and the record's residual rms\n",
+                        span);
+  } else {
+    text += fmt::format("  where it fails most ({:.3g}-s windows beyond 1.5x the larger of the floor and the record's "
+                        "residual rms):\n",
+                        span);
+    for (const auto& w : failing) {
+      const std::string& dof = b.dof_names[static_cast<std::size_t>(w.dof)];
+      text += fmt::format("    {}: t {:.3f}-{:.3f} s, residual rms {:.3g}\n", dof, w.t_start_s, w.t_end_s, w.rms);
+      windows.push_back({{"dof", dof}, {"t_start_s", w.t_start_s}, {"t_end_s", w.t_end_s}, {"rms", w.rms}});
+    }
+  }
+  nlohmann::json summary = fit_json(f, b);
+  summary.erase("parameters");
+  summary.erase("unidentifiable");
+  summary["route"] = "force error";
+  summary["refitted"] = false;
+  summary["model"] = r.model_label;
+  summary["log"] = r.log;
+  summary["failing_windows"] = windows;
+  summary["window_samples"] = l.data.window;
+  summary["samples_used"] = l.data.n();
+  summary["samples_left_out_at_standstill"] = l.data.standstill;
+  if (!r.png.empty()) {
+    outputs.stage(r.png, force_overlay_png(f, l.data, b,
+                                           fmt::format("compare, {}: force error {:.3g} % (floor {:.3g} %)",
+                                                       effects_text(r.model), f.error, f.floor)));
+    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
+  }
+  if (!r.report.empty()) {
+    outputs.stage(r.report, summary.dump(2) + "\n");
+    text += fmt::format("wrote {}\n", r.report);
+  }
+  outputs.commit();
+  print_log_findings(l.set);
+  print_summary(r.json, summary, text);
+}
+
 void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
   OutputSet outputs;
   register_out(outputs, r);

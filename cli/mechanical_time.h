@@ -40,6 +40,11 @@ MechanicalTimeRequest mechanical_time_request(PhysicalModel model, const std::st
 void add_window_option(CLI::App* app, double* window_s);
 
 void run_mechanical_time_fit(const MechanicalTimeRequest& r);
+// `compare --log RUN --model M.json` on a mechanical model: the force error of the model as
+// given (nothing refitted; a validation log), where it fails in time (windows of
+// failing_window_s; 0: 0.25 s), the overlay to r.png (--out-png) and the summary to
+// r.report (--out).
+void run_mechanical_time_compare(const MechanicalTimeRequest& r, double failing_window_s);
 void run_mechanical_time_diagnose(const MechanicalTimeRequest& r);
 
 }  // namespace lpvid::cli

@@ -705,6 +705,41 @@ ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorD
   return fit;
 }
 
+}  // namespace force_error_detail
+
+ForceErrorFit evaluate_force_error(const PhysicalModel& model, const ForceErrorData& d) {
+  model.validate();
+  Balance bal = balance_of(model);
+  const VectorXd p = model.values();
+  set_shapes(bal, d, p);
+  const Index nd = static_cast<Index>(bal.rows.size());
+  ForceErrorFit fit;
+  fit.model = model;
+  fit.residual = residual_at(bal, d, p);
+  fit.applied = applied_at(bal, d, p);
+  const VectorXd scale = force_scales(bal, d, p);
+  const VectorXd floor = floor_forces(bal, d, p);
+  fit.error_per_dof.resize(nd);
+  fit.floor_per_dof.resize(nd);
+  for (Index i = 0; i < nd; ++i) {
+    fit.error_per_dof(i) = 100.0 * rms(fit.residual.col(i)) / scale(i);
+    fit.floor_per_dof(i) = 100.0 * floor(i) / scale(i);
+    fit.rss += fit.residual.col(i).squaredNorm() / (scale(i) * scale(i));
+  }
+  fit.error = std::sqrt(fit.error_per_dof.squaredNorm() / static_cast<double>(nd));
+  fit.floor = std::sqrt(fit.floor_per_dof.squaredNorm() / static_cast<double>(nd));
+  const double n_total = static_cast<double>(d.n() * nd);
+  fit.n_eff = n_total * d.centre_weight;
+  fit.bic = fit.n_eff * std::log(std::max(fit.rss, 1e-300) / n_total);
+  for (const Index k : model.free_indices()) {
+    const PhysicalParameter& q = model.parameters[static_cast<std::size_t>(k)];
+    fit.parameters.push_back({q.name, q.unit, q.value, std::numeric_limits<double>::quiet_NaN(), false});
+  }
+  return fit;
+}
+
+namespace force_error_detail {
+
 std::vector<ShapeParameter> shape_parameters(const PhysicalModel& model) {
   const Balance b = balance_of(model);
   std::vector<ShapeParameter> out;

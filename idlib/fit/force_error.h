@@ -151,6 +151,12 @@ struct ForceErrorFit {
 //   are the frequency route's; remove them) or no free parameter.
 ForceErrorFit fit_force_error(const PhysicalModel& start, const ForceErrorData& data);
 
+// The force error of the model as given, nothing estimated: a model fitted on one log
+// checked on another (`compare --log`).  parameters: the model's free ones at their
+// values, std_error NaN; rss, n_eff and bic as a fit's (no parameter counted).
+// @throws InputError  as fit_force_error for a block effect.
+ForceErrorFit evaluate_force_error(const PhysicalModel& model, const ForceErrorData& data);
+
 struct ForceErrorCandidate {
   std::vector<std::string> effects;  // one, or a pair
   ForceErrorFit fit;

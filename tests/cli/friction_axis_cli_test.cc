@@ -248,6 +248,36 @@ TEST(FrictionAxisCli, TheLoopNamesCoulombThenTheOffsetAndTheFitReachesTheFloor) 
   // the lineage: diagnose's two --out and the fit, one history line each
   const std::string history = slurp(dir / "fit3.json.history.jsonl");
   EXPECT_EQ(std::count(history.begin(), history.end(), '\n'), 3) << history;
+
+  // Validation on a log the fit did not see (point-to-point moves under the drive's
+  // cascade, another noise seed): compare --log evaluates the model as given.  The fitted
+  // model explains it within the floor; the design (the base alone) fails, and says where.
+  friction_axis::Experiment other;
+  other.point_to_point = true;
+  other.cascade = true;
+  other.seconds = 12.2;
+  other.seed = 11;
+  friction_axis::write_csv(friction_axis::simulate(truth, other), dir / "validation.csv");
+  const auto v = run_lpvid(fmt::format("compare --model {} --log {} --out {} --out-png {}", dir / "fit3.json",
+                                       dir / "validation.csv", dir / "v.json", dir / "v.png"));
+  ASSERT_EQ(v.exit_code, 0) << v.err;
+  EXPECT_THAT(v.out, HasSubstr("nothing refitted"));
+  EXPECT_THAT(v.out, HasSubstr("the model explains this log"));
+  const nlohmann::json vj = nlohmann::json::parse(slurp(dir / "v.json"));
+  EXPECT_LE(vj["error_percent"].get<double>(), 1.5 * vj["noise_floor_percent"].get<double>());
+  EXPECT_FALSE(vj["refitted"].get<bool>());
+  EXPECT_EQ(slurp(dir / "v.png").substr(1, 3), "PNG");
+  const auto d0 = run_lpvid(fmt::format("compare --model {} --log {} --json", m0, dir / "validation.csv"));
+  ASSERT_EQ(d0.exit_code, 0) << d0.err;
+  const nlohmann::json dj = nlohmann::json::parse(d0.out);
+  EXPECT_GT(dj["error_percent"].get<double>(), 10.0 * dj["noise_floor_percent"].get<double>());
+  EXPECT_FALSE(dj["failing_windows"].empty());
+  // what compare --log on a mechanical model does not take: one line, nothing written
+  const auto bad = run_lpvid(fmt::format("compare --model {} --log {} --controller {} --out {}", dir / "fit3.json",
+                                         dir / "validation.csv", dir / "v.json", dir / "never.json"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_THAT(bad.err, HasSubstr("no controller is needed"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "never.json"));
 }
 
 TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
