@@ -56,7 +56,7 @@ ExperimentSet read_experiments(const std::vector<std::string>& paths, const std:
     const Eigen::MatrixXd& ou = set.outputs.back();
     for (const auto* block : {&ex, &ou}) {
       const std::vector<std::string>& names = block == &ex ? excitation : output;
-      for (const ChannelFinding& f : inspect_channels(*block)) {
+      for (const ChannelFinding& f : inspect_channels(*block, &log.data)) {
         set.findings.push_back(fmt::format("{}: {}", path == "-" ? "<stdin>" : path,
                                            describe_finding(f, names[static_cast<std::size_t>(f.channel)])));
       }

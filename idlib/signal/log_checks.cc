@@ -47,9 +47,28 @@ bool saturated(const Eigen::Ref<const Eigen::VectorXd>& x, double sign, double r
   return true;
 }
 
+// The dwell rule of log_checks.h: within the rail runs of x (steps t−1 → t both at the
+// rail), some other column of the context that varies over the log holds its value at
+// least kDwellShare of those steps.
+bool designed_dwell(const Eigen::Ref<const Eigen::VectorXd>& x, double rail, const Eigen::MatrixXd& context) {
+  std::vector<Index> steps;
+  for (Index t = 1; t < x.size(); ++t)
+    if (x(t) == rail && x(t - 1) == rail) steps.push_back(t);
+  if (steps.empty() || context.rows() != x.size()) return false;
+  for (Index c = 0; c < context.cols(); ++c) {
+    const auto y = context.col(c);
+    if (y == x || !(y.maxCoeff() > y.minCoeff())) continue;  // the channel itself, or a constant column
+    Index held = 0;
+    for (const Index t : steps) held += y(t) == y(t - 1);
+    if (static_cast<double>(held) >= kDwellShare * static_cast<double>(steps.size())) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
-std::vector<ChannelFinding> inspect_channels(const Eigen::Ref<const Eigen::MatrixXd>& data) {
+std::vector<ChannelFinding> inspect_channels(const Eigen::Ref<const Eigen::MatrixXd>& data,
+                                             const Eigen::MatrixXd* context) {
   std::vector<ChannelFinding> out;
   const Index N = data.rows();
   if (N < 8) return out;
@@ -61,7 +80,8 @@ std::vector<ChannelFinding> inspect_channels(const Eigen::Ref<const Eigen::Matri
       ChannelFinding f;
       f.kind = sign > 0 ? ChannelFinding::Kind::kSaturatedHigh : ChannelFinding::Kind::kSaturatedLow;
       f.channel = c;
-      if (saturated(x, sign, range, f)) out.push_back(f);
+      if (saturated(x, sign, range, f) && !(context != nullptr && designed_dwell(x, f.value, *context)))
+        out.push_back(f);
     }
     // The least-squares line a + b s over s = t − (N − 1)/2 (centred: a = mean, b = Σ s x / Σ s²).
     const double half = 0.5 * static_cast<double>(N - 1);

@@ -12,8 +12,12 @@
 //     top level is the thin tail of its distribution, a clipped one piles up at the rail),
 //   - and that next level lies within 5 % of the channel's range of it (a binary signal
 //     such as a PRBS jumps across the whole range: its levels are its design).
-// A designed dwell (a setpoint held at its end position) passes these rules too, so the
-// finding says "clipped, or a designed dwell".
+// A designed dwell (a setpoint held at its end position) passes these rules too.  When
+// the log holds the setpoint (context below: any other column of the log), a channel
+// whose rail runs are steps where some other, varying column holds its value too (at
+// least kDwellShare of them) is taking a designed rest, not a clip: no finding (measured
+// on a point-to-point log: the encoder sits at its largest count in the rests of 0.2 m,
+// where the reference rests).  Otherwise the finding says "clipped, or a designed dwell".
 //
 // Drift: the least-squares line through the channel changes over the record by more than
 // kDriftRatio times the rms of the channel about that line.  A stationary signal's fitted
@@ -33,6 +37,7 @@
 namespace lpvid {
 
 inline constexpr Index kMinSaturatedSamples = 3;
+inline constexpr double kDwellShare = 0.9;
 inline constexpr double kDriftRatio = 1.0;
 inline constexpr Index kMinDriftSamples = 100;
 
@@ -50,7 +55,10 @@ struct ChannelFinding {
 // | data: N × channels | findings sorted by channel, then kind.  Channels with fewer than
 // 8 samples or no spread are skipped; the drift rule needs kMinDriftSamples (a record
 // of a few dozen samples is mostly its start: a transient, not a drift).
-std::vector<ChannelFinding> inspect_channels(const Eigen::Ref<const Eigen::MatrixXd>& data);
+// context: the log's columns (N × any, the checked ones among them or not), for the dwell
+// rule; nullptr: none.
+std::vector<ChannelFinding> inspect_channels(const Eigen::Ref<const Eigen::MatrixXd>& data,
+                                             const Eigen::MatrixXd* context = nullptr);
 
 // One sentence for a finding, naming the channel and the rows (1-based, as a user counts
 // them in the file's data rows).

@@ -27,6 +27,41 @@ Eigen::VectorXd white(Index n, std::uint64_t seed) {
   return x;
 }
 
+// A designed dwell: an encoder (1 µm counts) following a reference that moves between
+// 0 and 0.2 m and rests at each end (point-to-point).  Alone it looks clipped at both
+// rails; with the log's reference as context (resting where the encoder sits) it is a
+// rest, not a clip.  The clipped sine of the next test stays a finding with a varying
+// context column (its drive keeps moving while it sits at the rail).
+TEST(LogChecks, ADwellWhereTheLogsReferenceRestsIsNotAClip) {
+  const Index n = 6000;
+  const Eigen::VectorXd noise = white(n, 5);
+  Eigen::MatrixXd log(n, 3);  // t, reference, encoder
+  for (Index t = 0; t < n; ++t) {
+    const double tau = std::fmod(static_cast<double>(t) * 1e-3, 2.0);  // 0.5 s rest, 0.5 s move, each way
+    const double s = std::clamp((tau < 1.0 ? tau - 0.5 : 1.5 - tau) / 0.5, 0.0, 1.0);
+    const double r = tau < 1.0 ? (tau < 0.5 ? 0.0 : 0.2 * s * s * s * (10 - 15 * s + 6 * s * s))
+                               : (tau < 1.5 ? 0.2 : 0.2 * s * s * s * (10 - 15 * s + 6 * s * s));
+    log(t, 0) = static_cast<double>(t) * 1e-3;
+    log(t, 1) = r;
+    // the axis settles a count short of the reference's end, with a count of noise while moving
+    const double moving = (r > 0.0 && r < 0.2) ? 1e-6 * noise(t) : 0.0;
+    log(t, 2) = std::round(std::clamp(r - 0.5e-6 + moving, 0.0, 0.2) / 1e-6) * 1e-6;
+  }
+  const Eigen::MatrixXd enc = log.col(2);
+  ASSERT_FALSE(inspect_channels(enc).empty());          // alone: "clipped, or a designed dwell"
+  EXPECT_TRUE(inspect_channels(enc, &log).empty());     // the reference rests there: a rest
+
+  // a clipped sine with a varying second column in the context: still found
+  Eigen::MatrixXd clipped(4000, 2);
+  const Eigen::VectorXd w = white(4000, 3);
+  for (Index t = 0; t < 4000; ++t) {
+    clipped(t, 1) = std::sin(2 * std::numbers::pi * 3.0 * static_cast<double>(t) * 1e-3) + 0.01 * w(t);
+    clipped(t, 0) = std::clamp(clipped(t, 1), -0.8, 0.8);
+  }
+  const Eigen::MatrixXd y = clipped.col(0);
+  EXPECT_EQ(inspect_channels(y, &clipped).size(), 2u);
+}
+
 TEST(LogChecks, AClippedSignalIsFoundAtItsRailsWithItsRows) {
   // A 3 Hz sine at 1 kHz plus 1 % noise, clipped at +-0.8 (an amplifier's limit).
   const Index n = 4000;
