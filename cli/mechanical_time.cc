@@ -118,6 +118,17 @@ std::vector<unsigned char> force_overlay_png(const ForceErrorFit& f, const Force
   return fit_overlay_png(ov);
 }
 
+// With r.png given: the force overlay of f staged there, titled "<what>, <effects>: force
+// error ..." (what empty: the effects alone); the line that says so, else "".
+std::string stage_overlay(OutputSet& outputs, const MechanicalTimeRequest& r, const ForceErrorFit& f,
+                          const ForceErrorData& d, const std::string& what) {
+  if (r.png.empty()) return {};
+  const std::string head = what.empty() ? effects_text(f.model) : what + ", " + effects_text(f.model);
+  outputs.stage(r.png, force_overlay_png(f, d, r.model.base_info(),
+                                         fmt::format("{}: force error {:.3g} % (floor {:.3g} %)", head, f.error, f.floor)));
+  return fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
+}
+
 // The fitted model and its history line, staged (not committed).
 void stage_fitted(OutputSet& outputs, const MechanicalTimeRequest& r, const ForceErrorFit& f, const BaseInfo& b,
                   const std::string& note, nlohmann::json section) {
@@ -203,12 +214,7 @@ void run_mechanical_time_fit(const MechanicalTimeRequest& r) {
   std::string text = fmt::format("fit ({}: {}; force error, idlib/fit/force_error.h) to {}:\n  {}\n", r.model_label,
                                  effects_text(r.model), r.log, data_text(r, l)) +
                      fit_text(f, b);
-  if (!r.png.empty()) {
-    outputs.stage(r.png, force_overlay_png(f, l.data, b,
-                                           fmt::format("fit, {}: force error {:.3g} % (floor {:.3g} %)",
-                                                       effects_text(f.model), f.error, f.floor)));
-    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
-  }
+  text += stage_overlay(outputs, r, f, l.data, "fit");
   if (!r.out.empty()) {
     stage_fitted(outputs, r, f, b, fmt::format("lpvid fit --log {} (force error)", r.log), summary);
     text += fmt::format("wrote {} (history: {})\n", r.out, history_path_for(r.out));
@@ -265,12 +271,7 @@ void run_mechanical_time_compare(const MechanicalTimeRequest& r, double failing_
   summary["window_samples"] = l.data.window;
   summary["samples_used"] = l.data.n();
   summary["samples_left_out_at_standstill"] = l.data.standstill;
-  if (!r.png.empty()) {
-    outputs.stage(r.png, force_overlay_png(f, l.data, b,
-                                           fmt::format("compare, {}: force error {:.3g} % (floor {:.3g} %)",
-                                                       effects_text(r.model), f.error, f.floor)));
-    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
-  }
+  text += stage_overlay(outputs, r, f, l.data, "compare");
   if (!r.report.empty()) {
     outputs.stage(r.report, summary.dump(2) + "\n");
     text += fmt::format("wrote {}\n", r.report);
@@ -353,12 +354,7 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
     }
   }
   if (!r.report.empty()) outputs.stage(r.report, summary.dump(2) + "\n");
-  if (!r.png.empty()) {
-    outputs.stage(r.png, force_overlay_png(d.baseline, l.data, b,
-                                           fmt::format("{}: force error {:.3g} % (floor {:.3g} %)", effects_text(r.model),
-                                                       d.baseline.error, d.baseline.floor)));
-    text += fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
-  }
+  text += stage_overlay(outputs, r, d.baseline, l.data, "");
   outputs.commit();
   print_log_findings(l.set);
   print_summary(r.json, summary, text);

@@ -355,6 +355,28 @@ void leave_out_standstill(const std::vector<char>& still, Index H, Index W, Forc
   }
 }
 
+// The figures of a fit at parameter values p: residual, actuator force, error and
+// floor per DOF and over the DOFs, the rms-normalised RSS and n_eff (no BIC: a fit adds
+// its parameters' count).
+void score(ForceErrorFit& fit, const Balance& bal, const ForceErrorData& d, const VectorXd& p) {
+  const Index nd = static_cast<Index>(bal.rows.size());
+  fit.residual = residual_at(bal, d, p);
+  fit.applied = applied_at(bal, d, p);
+  const VectorXd scale = force_scales(bal, d, p);
+  const VectorXd floor = floor_forces(bal, d, p);
+  fit.error_per_dof.resize(nd);
+  fit.floor_per_dof.resize(nd);
+  fit.rss = 0.0;
+  for (Index i = 0; i < nd; ++i) {
+    fit.error_per_dof(i) = 100.0 * rms(fit.residual.col(i)) / scale(i);
+    fit.floor_per_dof(i) = 100.0 * floor(i) / scale(i);
+    fit.rss += fit.residual.col(i).squaredNorm() / (scale(i) * scale(i));
+  }
+  fit.error = std::sqrt(fit.error_per_dof.squaredNorm() / static_cast<double>(nd));
+  fit.floor = std::sqrt(fit.floor_per_dof.squaredNorm() / static_cast<double>(nd));
+  fit.n_eff = static_cast<double>(d.n() * nd) * d.centre_weight;
+}
+
 }  // namespace
 
 namespace force_error_detail {
@@ -666,23 +688,10 @@ ForceErrorFit fit_with_fixed_shape(const PhysicalModel& start, const ForceErrorD
                    start.parameters[static_cast<std::size_t>(free[static_cast<std::size_t>(k)])].lower,
                    start.parameters[static_cast<std::size_t>(free[static_cast<std::size_t>(k)])].upper);
   p = fit.model.values();
-  fit.residual = residual_at(bal, d, p);
-  fit.applied = applied_at(bal, d, p);
-  const VectorXd scale = force_scales(bal, d, p);
-  const VectorXd floor = floor_forces(bal, d, p);
-  fit.error_per_dof.resize(nd);
-  fit.floor_per_dof.resize(nd);
+  score(fit, bal, d, p);
   double chi2 = 0.0;
-  for (Index i = 0; i < nd; ++i) {
-    fit.error_per_dof(i) = 100.0 * rms(fit.residual.col(i)) / scale(i);
-    fit.floor_per_dof(i) = 100.0 * floor(i) / scale(i);
-    fit.rss += fit.residual.col(i).squaredNorm() / (scale(i) * scale(i));
-    chi2 += fit.residual.col(i).squaredNorm() * weight(i) * weight(i);
-  }
-  fit.error = std::sqrt(fit.error_per_dof.squaredNorm() / static_cast<double>(nd));
-  fit.floor = std::sqrt(fit.floor_per_dof.squaredNorm() / static_cast<double>(nd));
+  for (Index i = 0; i < nd; ++i) chi2 += fit.residual.col(i).squaredNorm() * weight(i) * weight(i);
   const double n_total = static_cast<double>(d.n() * nd);
-  fit.n_eff = n_total * d.centre_weight;
   fit.bic = fit.n_eff * std::log(std::max(fit.rss, 1e-300) / n_total) + static_cast<double>(nf) * std::log(fit.n_eff);
   // Covariance: (ΦᵀWΦ)⁻¹ scaled by the reduced χ² (the floor is an estimate)
   const double reduced = chi2 / std::max(fit.n_eff - static_cast<double>(nf), 1.0);
@@ -712,24 +721,10 @@ ForceErrorFit evaluate_force_error(const PhysicalModel& model, const ForceErrorD
   Balance bal = balance_of(model);
   const VectorXd p = model.values();
   set_shapes(bal, d, p);
-  const Index nd = static_cast<Index>(bal.rows.size());
   ForceErrorFit fit;
   fit.model = model;
-  fit.residual = residual_at(bal, d, p);
-  fit.applied = applied_at(bal, d, p);
-  const VectorXd scale = force_scales(bal, d, p);
-  const VectorXd floor = floor_forces(bal, d, p);
-  fit.error_per_dof.resize(nd);
-  fit.floor_per_dof.resize(nd);
-  for (Index i = 0; i < nd; ++i) {
-    fit.error_per_dof(i) = 100.0 * rms(fit.residual.col(i)) / scale(i);
-    fit.floor_per_dof(i) = 100.0 * floor(i) / scale(i);
-    fit.rss += fit.residual.col(i).squaredNorm() / (scale(i) * scale(i));
-  }
-  fit.error = std::sqrt(fit.error_per_dof.squaredNorm() / static_cast<double>(nd));
-  fit.floor = std::sqrt(fit.floor_per_dof.squaredNorm() / static_cast<double>(nd));
-  const double n_total = static_cast<double>(d.n() * nd);
-  fit.n_eff = n_total * d.centre_weight;
+  score(fit, bal, d, p);
+  const double n_total = static_cast<double>(d.n() * static_cast<Index>(bal.rows.size()));
   fit.bic = fit.n_eff * std::log(std::max(fit.rss, 1e-300) / n_total);
   for (const Index k : model.free_indices()) {
     const PhysicalParameter& q = model.parameters[static_cast<std::size_t>(k)];

@@ -41,6 +41,26 @@ void write_signals_mat(const std::string& path, const std::vector<std::pair<std:
   Mat_Close(mat);
 }
 
+// The description a lab writes for its axis: the drive's command vir in volts, the motor
+// encoder qm, mass and viscous friction free at these design values, the drive's gain
+// 35.15 N/V fixed from its datasheet.
+void write_lab_description(const std::string& path, double mass_kg, double viscous_Ns_per_m) {
+  std::ofstream(path) << fmt::format(R"({{
+  "format": "lpvid-mechanical-base", "version": 1, "name": "lab_axis",
+  "dofs": [{{"name": "x", "unit": "m"}}],
+  "inputs": [{{"name": "vir", "unit": "V"}}],
+  "outputs": [{{"name": "qm", "unit": "m"}}],
+  "parameters": {{
+    "M_kg": {{"value": {}, "unit": "kg", "lower": 0.1, "upper": 1000, "free": true}},
+    "Fv_Ns_per_m": {{"value": {}, "unit": "N·s/m", "lower": 0, "upper": 10000, "free": true}},
+    "gtau_N_per_V": {{"value": 35.15, "unit": "N/V", "lower": 1, "upper": 100, "free": false}}
+  }},
+  "mass": [["M_kg"]], "damping": [["Fv_Ns_per_m"]], "stiffness": [[0]],
+  "input_map": [["gtau_N_per_V"]], "output_map": [[1]]
+}})",
+                                     mass_kg, viscous_Ns_per_m);
+}
+
 // A real axis is never the model, and its log is the lab's: an industrial drive's
 // cascade, point-to-point moves with rests, a Stribeck rise (in the library) and a
 // position ripple (not; the idlib test's axis, tests/idlib/fit/force_error_test.cc), the
@@ -54,19 +74,7 @@ TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   truth.k_f_N_per_A = 35.15;  // N/V: the drive's gain, from its datasheet
   const auto log = friction_axis::simulate(truth, friction_axis::realistic_experiment());
   write_signals_mat(dir / "run.mat", {{"t", log.t}, {"qm", log.x}, {"qg", log.r}, {"vir", log.i}});
-  std::ofstream(dir / "axis.json") << R"({
-  "format": "lpvid-mechanical-base", "version": 1, "name": "lab_axis",
-  "dofs": [{"name": "x", "unit": "m"}],
-  "inputs": [{"name": "vir", "unit": "V"}],
-  "outputs": [{"name": "qm", "unit": "m"}],
-  "parameters": {
-    "M_kg": {"value": 3.0, "unit": "kg", "lower": 0.1, "upper": 1000, "free": true},
-    "Fv_Ns_per_m": {"value": 10.0, "unit": "N·s/m", "lower": 0, "upper": 10000, "free": true},
-    "gtau_N_per_V": {"value": 35.15, "unit": "N/V", "lower": 1, "upper": 100, "free": false}
-  },
-  "mass": [["M_kg"]], "damping": [["Fv_Ns_per_m"]], "stiffness": [[0]],
-  "input_map": [["gtau_N_per_V"]], "output_map": [[1]]
-})";
+  write_lab_description(dir / "axis.json", 3.0, 10.0);
   ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", dir / "axis.json",
                                   dir / "m0.json"))
                 .exit_code,
@@ -135,19 +143,7 @@ TEST(FrictionAxisCli, AHeavyAxisWithAVoltageLimitNamesTheSameEffectsAndReachesTh
   // the limit is reached (the logged command is the limited one, as the drive applies it)
   ASSERT_GT((log.i.array().abs() >= 6.0 - 1e-12).count(), 100);
   write_signals_mat(dir / "run.mat", {{"t", log.t}, {"qm", log.x}, {"qg", log.r}, {"vir", log.i}});
-  std::ofstream(dir / "axis.json") << R"({
-  "format": "lpvid-mechanical-base", "version": 1, "name": "heavy_axis",
-  "dofs": [{"name": "x", "unit": "m"}],
-  "inputs": [{"name": "vir", "unit": "V"}],
-  "outputs": [{"name": "qm", "unit": "m"}],
-  "parameters": {
-    "M_kg": {"value": 60.0, "unit": "kg", "lower": 1, "upper": 1000, "free": true},
-    "Fv_Ns_per_m": {"value": 50.0, "unit": "N·s/m", "lower": 0, "upper": 10000, "free": true},
-    "gtau_N_per_V": {"value": 35.15, "unit": "N/V", "lower": 1, "upper": 100, "free": false}
-  },
-  "mass": [["M_kg"]], "damping": [["Fv_Ns_per_m"]], "stiffness": [[0]],
-  "input_map": [["gtau_N_per_V"]], "output_map": [[1]]
-})";
+  write_lab_description(dir / "axis.json", 60.0, 50.0);
   ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", dir / "axis.json",
                                   dir / "m0.json"))
                 .exit_code,
