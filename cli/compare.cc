@@ -58,7 +58,10 @@ and the mean phase error (degrees); per band the weighted matrix error
       --out-png overlay.png --json
 time domain: simulates the platform model's closed loop on the logged excitation and beam
 trajectory; NRMSE fit % per output, residual whiteness and residual-input tests (99 %),
-and the time windows where the model fails (channel, t_start, t_end, size).)";
+and the time windows where the model fails (channel, t_start, t_end, size).
+  lpvid compare --log validation.csv --model axis_fitted.json --out-png where.png
+a mechanical model (base mechanical): the force error of the model as given on the log
+(nothing refitted), against its noise floor, and the windows where it fails.)";
 
 struct CompareCliOptions {
   std::string estimate, reference, weights, out;

@@ -60,20 +60,29 @@ nlohmann::json fit_json(const ForceErrorFit& f, const BaseInfo& b) {
           {"unidentifiable", f.unidentifiable}};
 }
 
+// The error per DOF and over the DOFs against the floor; within 1.5x the floor `within`,
+// else "N.Nx" followed by `beyond`; `tail` ends the last line.
+std::string error_lines(const ForceErrorFit& f, const BaseInfo& b, const std::string& within,
+                        const std::string& beyond, const std::string& tail) {
+  std::string t;
+  for (Index i = 0; i < f.error_per_dof.size(); ++i)
+    t += fmt::format("  force error on {}: {:.3g} % of rms(B_w w) (noise floor {:.3g} %)\n",
+                     b.dof_names[static_cast<std::size_t>(i)], f.error_per_dof(i), f.floor_per_dof(i));
+  t += fmt::format("  error {:.3g} % (noise floor {:.3g} %): {}{}\n", f.error, f.floor,
+                   f.error <= kForceErrorExplainedRatio * f.floor
+                       ? within
+                       : fmt::format("{:.1f}{}", f.error / std::max(f.floor, 1e-300), beyond),
+                   tail);
+  return t;
+}
+
 std::string fit_text(const ForceErrorFit& f, const BaseInfo& b) {
   std::string t;
   for (const auto& p : f.parameters)
     t += fmt::format("  {} = {} ± {} {}{}\n", p.name, value_text(p.value), value_text(p.std_error), p.unit,
                      p.at_bound ? "  (on its bound)" : "");
-  for (Index i = 0; i < f.error_per_dof.size(); ++i)
-    t += fmt::format("  force error on {}: {:.3g} % of rms(B_w w) (noise floor {:.3g} %)\n",
-                     b.dof_names[static_cast<std::size_t>(i)], f.error_per_dof(i), f.floor_per_dof(i));
-  t += fmt::format("  error {:.3g} % (noise floor {:.3g} %): {}; BIC {:.1f}\n", f.error, f.floor,
-                   f.error <= kForceErrorExplainedRatio * f.floor
-                       ? fmt::format("within {}x the floor, the model fits within the noise", kForceErrorExplainedRatio)
-                       : fmt::format("{:.1f}x the floor, something is missing (lpvid diagnose --log)",
-                                     f.error / std::max(f.floor, 1e-300)),
-                   f.bic);
+  t += error_lines(f, b, fmt::format("within {}x the floor, the model fits within the noise", kForceErrorExplainedRatio),
+                   "x the floor, something is missing (lpvid diagnose --log)", fmt::format("; BIC {:.1f}", f.bic));
   for (const auto& u : f.unidentifiable) t += "  warning: " + u + "\n";
   return t;
 }
@@ -237,15 +246,9 @@ void run_mechanical_time_compare(const MechanicalTimeRequest& r, double failing_
   const std::vector<ForceErrorWindow> failing = force_error_failing_windows(f, l.data, span);
   std::string text = fmt::format("compare ({}: {}; force error of the model as given, nothing refitted) on {}:\n  {}\n",
                                  r.model_label, effects_text(r.model), r.log, data_text(r, l));
-  for (Index i = 0; i < f.error_per_dof.size(); ++i)
-    text += fmt::format("  force error on {}: {:.3g} % of rms(B_w w) (noise floor {:.3g} %)\n",
-                        b.dof_names[static_cast<std::size_t>(i)], f.error_per_dof(i), f.floor_per_dof(i));
-  text += fmt::format("  error {:.3g} % (noise floor {:.3g} %): {}\n", f.error, f.floor,
-                      f.error <= kForceErrorExplainedRatio * f.floor
-                          ? fmt::format("within {}x the floor: the model explains this log", kForceErrorExplainedRatio)
-                          : fmt::format("{:.1f}x the floor: something is missing or has changed (lpvid diagnose "
-                                        "--log on this log names what)",
-                                        f.error / std::max(f.floor, 1e-300)));
+  text += error_lines(f, b, fmt::format("within {}x the floor: the model explains this log", kForceErrorExplainedRatio),
+                      "x the floor: something is missing or has changed (lpvid diagnose --log on this log names what)",
+                      "");
   nlohmann::json windows = nlohmann::json::array();
   if (failing.empty()) {
     text += fmt::format("  no {:.3g}-s window fails beyond 1.5x the larger of the floor and the record's residual rms\n",
