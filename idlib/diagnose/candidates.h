@@ -69,4 +69,20 @@ std::vector<CandidateOutcome> evaluate_combinations(const std::vector<CandidateO
 // at most 10 % of the baseline's failing-band points.
 bool leaves_only_noise(const CandidateOutcome& c, const CandidateContext& ctx);
 
+// What diagnose() found, for the report in words (diagnose_summary.cc).
+struct SummaryInputs {
+  const PhysicalModel& model;  // the model as the user gave it
+  const std::vector<FitDataset>& data;
+  const DiagnoseOptions& options;
+  const CandidateOutcome* winner;  // nullptr: no candidate (nor combination) significant
+  bool something;                  // an excess or failing bands: something to explain
+  bool distorted;                  // the baseline has parameters on bounds
+  bool left;                       // something the winner (or, without one, the model) leaves
+};
+
+// Diagnosis::summary, in the order a user reads it: the model's error and where it
+// fails, the design values a baseline on its bounds asks for, the verdict (nothing to
+// explain, the winner, or the closest candidates), and the residual's description.
+void summarise(Diagnosis& out, const SummaryInputs& in);
+
 }  // namespace lpvid::diagnose_detail
