@@ -398,8 +398,22 @@ bool is_time_effect(const std::string& name) {
 
 }  // namespace force_error_detail
 
-ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& inputs, const MatrixXd& outputs,
-                                   double sample_period_s, const ForceErrorOptions& options) {
+namespace {
+
+// The median absolute deviation (robust: a friction reversal's kink is not noise).
+double median_abs_deviation(VectorXd x) {
+  if (x.size() == 0) return 0.0;
+  const auto mid = x.begin() + x.size() / 2;
+  std::nth_element(x.begin(), mid, x.end());
+  const double med = *mid;
+  x = (x.array() - med).abs();
+  std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
+  return *(x.begin() + x.size() / 2);
+}
+
+// The log checked against the base, and the DOFs' positions q = C_q⁺ y.
+MatrixXd positions_from_log(const PhysicalModel& model, const MatrixXd& inputs, const MatrixXd& outputs,
+                            double sample_period_s) {
   if (model.user_base == nullptr)
     throw InputError(fmt::format("the force-error route needs a mechanical base (a model of 'lpvid model init --base "
                                  "mechanical --from DESCRIPTION.json'); this model's base is {}",
@@ -434,6 +448,117 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
     throw InputError(fmt::format("the outputs see only {} of the {} DOFs (the output map has rank {}); the force-error "
                                  "route needs every DOF's position",
                                  lu.rank(), L.n_dof, lu.rank()));
+  // q = C_q⁺ y
+  return outputs * Cq * (Cq.transpose() * Cq).inverse();
+}
+
+// What prepare_force_error's stages share: the window's kernels and reaches.
+struct Smoothing {
+  const SavitzkyGolay& sg;
+  const VectorXd &k0, &k1, &k2;
+  Index h, H, N, inner;
+  double noise_scale;
+};
+
+// Per DOF: the noise, the smoothed position, velocity and acceleration, the
+// friction's sign, and the samples at standstill (still) or a reversal.
+void dof_signals(const MatrixXd& Q, const Smoothing& sm, double sample_period_s, ForceErrorData& d, MatrixXd& q_hf,
+                 std::vector<char>& still) {
+  const SavitzkyGolay& sg = sm.sg;
+  const VectorXd &k0 = sm.k0, &k1 = sm.k1, &k2 = sm.k2;
+  const Index h = sm.h, H = sm.H, N = sm.N, inner = sm.inner, n = d.q.rows();
+  const double noise_scale = sm.noise_scale;
+  const auto mad = median_abs_deviation;
+  for (Index i = 0; i < Q.cols(); ++i) {
+    const VectorXd qi = Q.col(i);
+    q_hf.col(i) = qi.segment(h, inner) - filter(sg.h0, qi, h, N - h);
+    d.q_noise(i) = mad(q_hf.col(i)) * noise_scale;
+    const VectorXd v = filter(k1, qi, H, N - H) / sample_period_s;  // [H, N − H)
+    // The friction's sign from the unsmoothed central difference: the smoothed
+    // velocity crosses zero late where the friction's step bends the motion (measured:
+    // 1.02 % of the force left at the reversals by the true model on the simulated
+    // axis, against 0.4 % noise).  v_eps = 3 × its noise.
+    VectorXd v_raw(N - 2 * H);
+    for (Index k = H; k < N - H; ++k) v_raw(k - H) = 0.5 * (qi(k + 1) - qi(k - 1)) / sample_period_s;
+    const double v_noise = d.q_noise(i) * std::sqrt(0.5) / sample_period_s;
+    d.v_eps(i) = std::max(3.0 * v_noise, 1e-12 * v_raw.cwiseAbs().maxCoeff());
+    if (!(d.v_eps(i) > 0.0)) d.v_eps(i) = std::numeric_limits<double>::min();
+    for (Index k = H; k < N - H; ++k) {
+      if (std::abs(v_raw(k - H)) < d.v_eps(i)) still[static_cast<std::size_t>(k)] = 1;
+      // a reversal between two samples: the friction's step falls somewhere between them
+      if (k > H && v_raw(k - H) * v_raw(k - H - 1) < 0.0)
+        still[static_cast<std::size_t>(k)] = still[static_cast<std::size_t>(k - 1)] = 1;
+    }
+    d.v_raw.col(i) = v_raw;
+    const VectorXd s = (v_raw / d.v_eps(i)).cwiseMax(-1.0).cwiseMin(1.0);
+    d.sign_v.col(i) = filter(k0, s, H, s.size() - H);  // s(0) is sample H
+    d.q.col(i) = filter(k0, qi, 2 * H, N - 2 * H);
+    d.qd.col(i) = v.segment(H, n);
+    d.qdd.col(i) = filter(k2, qi, 2 * H, N - 2 * H) / (sample_period_s * sample_period_s);
+  }
+}
+
+// Per input: the smoothed (held) input and its noise, what the controller's reaction
+// to the position noise does not explain.
+void input_signals(const MatrixXd& inputs, const MatrixXd& q_hf, const Smoothing& sm, bool held_input,
+                   ForceErrorData& d) {
+  const SavitzkyGolay& sg = sm.sg;
+  const VectorXd& k0 = sm.k0;
+  const Index h = sm.h, H = sm.H, N = sm.N, inner = sm.inner;
+  const Index n_dof = q_hf.cols(), n_in = inputs.cols();
+  const double noise_scale = sm.noise_scale;
+  const auto mad = median_abs_deviation;
+  // The position noise at lags 0 .. kNoiseLags explains the controller's reaction to
+  // it in w's high-frequency content (a PD with a filtered derivative reacts over a few
+  // samples); what it does not is w's own noise.  Measured on the simulated axis's
+  // motion that never reverses: with lags 0 and 1 only, the floor was 2.7x the error
+  // the model reached.
+  constexpr Index kNoiseLags = 8;
+  const Index rows = inner - kNoiseLags;
+  MatrixXd X(rows, (kNoiseLags + 1) * n_dof);
+  for (Index lag = 0; lag <= kNoiseLags; ++lag)
+    X.middleCols(lag * n_dof, n_dof) = q_hf.middleRows(kNoiseLags - lag, rows);
+  for (Index j = 0; j < n_in; ++j) {
+    VectorXd wj = inputs.col(j);
+    if (held_input)
+      for (Index k = N - 1; k > 0; --k) wj(k) = 0.5 * (wj(k) + wj(k - 1));
+    d.w.col(j) = filter(k0, wj, 2 * H, N - 2 * H);
+    const VectorXd hf = (wj.segment(h, inner) - filter(sg.h0, wj, h, N - h)).tail(rows);
+    // The regression on the samples where w's high-frequency content is of the bulk's
+    // size: a transient (a step in the reference, a hard stop) would set the
+    // coefficients, and the bulk's residual, the noise estimate, would carry it
+    // (measured: a 2 cm reference step in a point-to-point log lifted the floor 32x,
+    // 0.037 % to 1.18 %).
+    const double spread = std::max(mad(hf) * 1.4826, 1e-300);
+    std::vector<Index> bulk;
+    for (Index k = 0; k < rows; ++k)
+      if (std::abs(hf(k)) <= 6.0 * spread) bulk.push_back(k);
+    // (normal equations: the lagged noise columns are near-orthogonal, and one pass over
+    // the log costs a tenth of a pivoted QR of N × 9)
+    MatrixXd G = MatrixXd::Zero(X.cols(), X.cols());
+    VectorXd rhs = VectorXd::Zero(X.cols());
+    const bool all = static_cast<Index>(bulk.size()) == rows || static_cast<Index>(bulk.size()) < 4 * X.cols();
+    if (all) {
+      G.selfadjointView<Eigen::Lower>().rankUpdate(X.transpose());
+      rhs = X.transpose() * hf;
+    } else {
+      for (const Index k : bulk) {
+        G.selfadjointView<Eigen::Lower>().rankUpdate(X.row(k).transpose());
+        rhs += hf(k) * X.row(k).transpose();
+      }
+    }
+    G = G.selfadjointView<Eigen::Lower>();
+    const VectorXd coef = G.ldlt().solve(rhs);
+    d.w_noise(j) = mad(hf - X * coef) * noise_scale;
+  }
+}
+
+}  // namespace
+
+ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& inputs, const MatrixXd& outputs,
+                                   double sample_period_s, const ForceErrorOptions& options) {
+  const MatrixXd Q = positions_from_log(model, inputs, outputs, sample_period_s);
+  const MechanicalIndices L(model);
 
   ForceErrorData d;
   d.sample_period_s = sample_period_s;
@@ -465,8 +590,6 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   d.g0 = k0.norm();
   d.g1 = k1.norm();
   d.g2 = k2.norm();
-  // q = C_q⁺ y
-  const MatrixXd Q = outputs * Cq * (Cq.transpose() * Cq).inverse();
   const Index n_dof = L.n_dof, n_in = L.n_in;
   const Index n = N - 4 * H;  // [2H, N − 2H): the smoothed sign too
   d.first = 2 * H;
@@ -485,86 +608,10 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   d.held_input = options.held_input;
   const Index inner = N - 2 * h;  // [h, N − h): the cubic's residuals
   MatrixXd q_hf(inner, n_dof);
-  auto mad = [](VectorXd x) {
-    if (x.size() == 0) return 0.0;
-    const auto mid = x.begin() + x.size() / 2;
-    std::nth_element(x.begin(), mid, x.end());
-    const double med = *mid;
-    x = (x.array() - med).abs();
-    std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
-    return *(x.begin() + x.size() / 2);
-  };
+  const Smoothing sm{sg, k0, k1, k2, h, H, N, inner, noise_scale};
   std::vector<char> still(static_cast<std::size_t>(N), 0);  // a DOF at standstill
-  for (Index i = 0; i < n_dof; ++i) {
-    const VectorXd qi = Q.col(i);
-    q_hf.col(i) = qi.segment(h, inner) - filter(sg.h0, qi, h, N - h);
-    d.q_noise(i) = mad(q_hf.col(i)) * noise_scale;
-    const VectorXd v = filter(k1, qi, H, N - H) / sample_period_s;  // [H, N − H)
-    // The friction's sign from the unsmoothed central difference: the smoothed
-    // velocity crosses zero late where the friction's step bends the motion (measured:
-    // 1.02 % of the force left at the reversals by the true model on the simulated
-    // axis, against 0.4 % noise).  v_eps = 3 × its noise.
-    VectorXd v_raw(N - 2 * H);
-    for (Index k = H; k < N - H; ++k) v_raw(k - H) = 0.5 * (qi(k + 1) - qi(k - 1)) / sample_period_s;
-    const double v_noise = d.q_noise(i) * std::sqrt(0.5) / sample_period_s;
-    d.v_eps(i) = std::max(3.0 * v_noise, 1e-12 * v_raw.cwiseAbs().maxCoeff());
-    if (!(d.v_eps(i) > 0.0)) d.v_eps(i) = std::numeric_limits<double>::min();
-    for (Index k = H; k < N - H; ++k) {
-      if (std::abs(v_raw(k - H)) < d.v_eps(i)) still[static_cast<std::size_t>(k)] = 1;
-      // a reversal between two samples: the friction's step falls somewhere between them
-      if (k > H && v_raw(k - H) * v_raw(k - H - 1) < 0.0)
-        still[static_cast<std::size_t>(k)] = still[static_cast<std::size_t>(k - 1)] = 1;
-    }
-    d.v_raw.col(i) = v_raw;
-    const VectorXd s = (v_raw / d.v_eps(i)).cwiseMax(-1.0).cwiseMin(1.0);
-    d.sign_v.col(i) = filter(k0, s, H, s.size() - H);  // s(0) is sample H
-    d.q.col(i) = filter(k0, qi, 2 * H, N - 2 * H);
-    d.qd.col(i) = v.segment(H, n);
-    d.qdd.col(i) = filter(k2, qi, 2 * H, N - 2 * H) / (sample_period_s * sample_period_s);
-  }
-  // The position noise at lags 0 .. kNoiseLags explains the controller's reaction to
-  // it in w's high-frequency content (a PD with a filtered derivative reacts over a few
-  // samples); what it does not is w's own noise.  Measured on the simulated axis's
-  // motion that never reverses: with lags 0 and 1 only, the floor was 2.7x the error
-  // the model reached.
-  constexpr Index kNoiseLags = 8;
-  const Index rows = inner - kNoiseLags;
-  MatrixXd X(rows, (kNoiseLags + 1) * n_dof);
-  for (Index lag = 0; lag <= kNoiseLags; ++lag)
-    X.middleCols(lag * n_dof, n_dof) = q_hf.middleRows(kNoiseLags - lag, rows);
-  for (Index j = 0; j < n_in; ++j) {
-    VectorXd wj = inputs.col(j);
-    if (options.held_input)
-      for (Index k = N - 1; k > 0; --k) wj(k) = 0.5 * (wj(k) + wj(k - 1));
-    d.w.col(j) = filter(k0, wj, 2 * H, N - 2 * H);
-    const VectorXd hf = (wj.segment(h, inner) - filter(sg.h0, wj, h, N - h)).tail(rows);
-    // The regression on the samples where w's high-frequency content is of the bulk's
-    // size: a transient (a step in the reference, a hard stop) would set the
-    // coefficients, and the bulk's residual, the noise estimate, would carry it
-    // (measured: a 2 cm reference step in a point-to-point log lifted the floor 32x,
-    // 0.037 % to 1.18 %).
-    const double spread = std::max(mad(hf) * 1.4826, 1e-300);
-    std::vector<Index> bulk;
-    for (Index k = 0; k < rows; ++k)
-      if (std::abs(hf(k)) <= 6.0 * spread) bulk.push_back(k);
-    // (normal equations: the lagged noise columns are near-orthogonal, and one pass over
-    // the log costs a tenth of a pivoted QR of N × 9)
-    MatrixXd G = MatrixXd::Zero(X.cols(), X.cols());
-    VectorXd rhs = VectorXd::Zero(X.cols());
-    const bool all = static_cast<Index>(bulk.size()) == rows || static_cast<Index>(bulk.size()) < 4 * X.cols();
-    if (all) {
-      G.selfadjointView<Eigen::Lower>().rankUpdate(X.transpose());
-      rhs = X.transpose() * hf;
-    } else {
-      for (const Index k : bulk) {
-        G.selfadjointView<Eigen::Lower>().rankUpdate(X.row(k).transpose());
-        rhs += hf(k) * X.row(k).transpose();
-      }
-    }
-    G = G.selfadjointView<Eigen::Lower>();
-    const VectorXd coef = G.ldlt().solve(rhs);
-    d.w_noise(j) = mad(hf - X * coef) * noise_scale;
-  }
+  dof_signals(Q, sm, sample_period_s, d, q_hf, still);
+  input_signals(inputs, q_hf, sm, options.held_input, d);
   // Standstill: while a DOF rests, its friction holds any force up to F_c, which no
   // sign law predicts (measured on the simulated axis with a sticking Coulomb law: the
   // true model left 1.39 % of the force, all of it in the dwells at the reversals); and

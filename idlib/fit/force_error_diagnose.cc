@@ -107,6 +107,93 @@ constexpr double kSaturationSignature = 2.0;
 
 }  // namespace
 
+namespace {
+
+// What the baseline's residual shows (per DOF, per input), and what this log cannot
+// separate; returns whether some DOF's velocity keeps one sign while Coulomb friction
+// and an offset are both in play.
+bool residual_signatures(const PhysicalModel& model, const ForceErrorData& d, const std::vector<std::string>& names,
+                         const std::vector<CommandSignature>& by_input, ForceErrorDiagnosis& out) {
+  const ForceErrorFit& base = out.baseline;
+  const BaseInfo& info = model.base_info();
+  bool one_sign_on_some_dof = false;
+  for (Index i = 0; i < base.residual.cols(); ++i) {
+    const VectorXd r = base.residual.col(i);
+    const VectorXd s = d.sign_v.col(i);
+    const double rr = rms(r), rs = rms(s);
+    if (!(rr > 0.0)) continue;
+    const double mean = r.mean();
+    const double rho = rs > 0.0 ? r.dot(s) / (r.norm() * s.norm()) : 0.0;
+    const std::string& dof = info.dof_names[static_cast<std::size_t>(i)];
+    out.signatures.push_back(fmt::format(
+        "{}: the force residual correlates with sign(velocity) at {:+.2f} (Coulomb friction's signature) and has a "
+        "mean of {:+.2f} of its rms (an offset's)",
+        dof, rho, mean / rr));
+    const std::string unit =
+        static_cast<std::size_t>(i) < info.dof_units.size() ? info.dof_units[static_cast<std::size_t>(i)] : "unit";
+    out.signatures.push_back(low_speed_signature(r, d.qd.col(i), dof, unit, model.has_effect("coulomb_friction"),
+                                                 model.has_effect("stribeck_friction")));
+    const double one_sign = rs > 0.0 ? std::abs(s.mean()) / rs : 1.0;
+    const bool both = (model.has_effect("coulomb_friction") ||
+                       std::find(names.begin(), names.end(), "coulomb_friction") != names.end()) &&
+                      (model.has_effect("force_offset") ||
+                       std::find(names.begin(), names.end(), "force_offset") != names.end());
+    if (both && one_sign > 0.95) one_sign_on_some_dof = true;
+    if (both && one_sign > 0.95)
+      out.cannot_separate.push_back(fmt::format(
+          "on {} the velocity keeps one sign (the mean of sign(velocity) is {:.2f} of its rms): Coulomb friction and "
+          "a constant offset are the same force on this log; record a motion that moves both ways to separate them",
+          dof, one_sign));
+  }
+  for (const CommandSignature& s : by_input)
+    if (!s.text.empty()) out.signatures.push_back(s.text);
+  // An offset named: what it is, the log cannot say.  While the axis moves, a constant
+  // force F_0 and a Coulomb friction that differs with direction (F_c + F_0 one way,
+  // F_c − F_0 the other) are the same force, and at rest the friction holds any force.
+  if (out.named >= 0) {
+    const auto& named = out.candidates[static_cast<std::size_t>(out.named)].effects;
+    if (std::find(named.begin(), named.end(), "force_offset") != named.end() &&
+        (model.has_effect("coulomb_friction") ||
+         std::find(named.begin(), named.end(), "coulomb_friction") != named.end()))
+      out.cannot_separate.push_back(
+          "the offset F_0 is one force on the moving axis whatever its cause: a constant force (gravity on a tilt, a "
+          "cable's pull, an amplifier's offset) or a friction that differs with direction (F_c + F_0 one way, F_c - "
+          "F_0 the other) fit the log alike; a measurement that changes one and not the other tells them apart (the "
+          "axis levelled or tilted, the amplifier's offset read with the motor off, the cable carrier unhooked)");
+  }
+  return one_sign_on_some_dof;
+}
+
+// ForceErrorDiagnosis::summary: nothing missing, what is named, or why nothing is.
+void force_error_summary(const PhysicalModel& model, const ForceErrorDiagnoseOptions& options,
+                         bool one_sign_on_some_dof, ForceErrorDiagnosis& out) {
+  const ForceErrorFit& base = out.baseline;
+  if (out.baseline_explained) {
+    out.summary = fmt::format("nothing is missing: the error {:.3g} % is within {}x the noise floor {:.3g} %",
+                              base.error, kForceErrorExplainedRatio, base.floor);
+  } else if (out.named >= 0) {
+    const ForceErrorCandidate& c = out.candidates[static_cast<std::size_t>(out.named)];
+    out.summary = fmt::format("missing: {} (error {:.3g} % -> {:.3g} %, floor {:.3g} %; {})",
+                              fmt::join(c.effects, " + "), base.error, c.fit.error, c.fit.floor, c.verdict);
+    if (one_sign_on_some_dof)
+      out.summary += "; but this log cannot tell Coulomb friction from an offset (below): either names the same force";
+  } else if (model.absent_time_effects().empty()) {
+    out.summary = fmt::format("not explained: the model has every time-domain effect of the library and its error "
+                              "{:.3g} % is {:.1f}x the noise floor {:.3g} %; what is left is not in the library (the "
+                              "residual's signatures are below)",
+                              base.error, base.error / std::max(base.floor, 1e-300), base.floor);
+  } else {
+    // every absent effect of the library tried (no --candidates) and none helps: what is
+    // left is not in the library
+    out.summary = fmt::format("not explained: no time-domain effect of the library{} lowers the error {:.3g} % "
+                              "(floor {:.3g} %) significantly{}; the residual's signatures are below",
+                              options.candidates.empty() ? "" : " among the candidates given", base.error, base.floor,
+                              options.candidates.empty() ? ": what is left is not in the library" : "");
+  }
+}
+
+}  // namespace
+
 ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const ForceErrorData& d,
                                          const ForceErrorDiagnoseOptions& options) {
   std::vector<std::string> names = options.candidates;
@@ -210,74 +297,8 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
       break;
     }
 
-  // What the baseline's residual shows, and what this log cannot separate
-  bool one_sign_on_some_dof = false;
-  for (Index i = 0; i < base.residual.cols(); ++i) {
-    const VectorXd r = base.residual.col(i);
-    const VectorXd s = d.sign_v.col(i);
-    const double rr = rms(r), rs = rms(s);
-    if (!(rr > 0.0)) continue;
-    const double mean = r.mean();
-    const double rho = rs > 0.0 ? r.dot(s) / (r.norm() * s.norm()) : 0.0;
-    const std::string& dof = info.dof_names[static_cast<std::size_t>(i)];
-    out.signatures.push_back(fmt::format(
-        "{}: the force residual correlates with sign(velocity) at {:+.2f} (Coulomb friction's signature) and has a "
-        "mean of {:+.2f} of its rms (an offset's)",
-        dof, rho, mean / rr));
-    const std::string unit =
-        static_cast<std::size_t>(i) < info.dof_units.size() ? info.dof_units[static_cast<std::size_t>(i)] : "unit";
-    out.signatures.push_back(low_speed_signature(r, d.qd.col(i), dof, unit, model.has_effect("coulomb_friction"),
-                                                 model.has_effect("stribeck_friction")));
-    const double one_sign = rs > 0.0 ? std::abs(s.mean()) / rs : 1.0;
-    const bool both = (model.has_effect("coulomb_friction") ||
-                       std::find(names.begin(), names.end(), "coulomb_friction") != names.end()) &&
-                      (model.has_effect("force_offset") ||
-                       std::find(names.begin(), names.end(), "force_offset") != names.end());
-    if (both && one_sign > 0.95) one_sign_on_some_dof = true;
-    if (both && one_sign > 0.95)
-      out.cannot_separate.push_back(fmt::format(
-          "on {} the velocity keeps one sign (the mean of sign(velocity) is {:.2f} of its rms): Coulomb friction and "
-          "a constant offset are the same force on this log; record a motion that moves both ways to separate them",
-          dof, one_sign));
-  }
-  for (const CommandSignature& s : by_input)
-    if (!s.text.empty()) out.signatures.push_back(s.text);
-  // An offset named: what it is, the log cannot say.  While the axis moves, a constant
-  // force F_0 and a Coulomb friction that differs with direction (F_c + F_0 one way,
-  // F_c − F_0 the other) are the same force, and at rest the friction holds any force.
-  if (out.named >= 0) {
-    const auto& named = out.candidates[static_cast<std::size_t>(out.named)].effects;
-    if (std::find(named.begin(), named.end(), "force_offset") != named.end() &&
-        (model.has_effect("coulomb_friction") ||
-         std::find(named.begin(), named.end(), "coulomb_friction") != named.end()))
-      out.cannot_separate.push_back(
-          "the offset F_0 is one force on the moving axis whatever its cause: a constant force (gravity on a tilt, a "
-          "cable's pull, an amplifier's offset) or a friction that differs with direction (F_c + F_0 one way, F_c - "
-          "F_0 the other) fit the log alike; a measurement that changes one and not the other tells them apart (the "
-          "axis levelled or tilted, the amplifier's offset read with the motor off, the cable carrier unhooked)");
-  }
-  if (out.baseline_explained) {
-    out.summary = fmt::format("nothing is missing: the error {:.3g} % is within {}x the noise floor {:.3g} %",
-                              base.error, kForceErrorExplainedRatio, base.floor);
-  } else if (out.named >= 0) {
-    const ForceErrorCandidate& c = out.candidates[static_cast<std::size_t>(out.named)];
-    out.summary = fmt::format("missing: {} (error {:.3g} % -> {:.3g} %, floor {:.3g} %; {})",
-                              fmt::join(c.effects, " + "), base.error, c.fit.error, c.fit.floor, c.verdict);
-    if (one_sign_on_some_dof)
-      out.summary += "; but this log cannot tell Coulomb friction from an offset (below): either names the same force";
-  } else if (model.absent_time_effects().empty()) {
-    out.summary = fmt::format("not explained: the model has every time-domain effect of the library and its error "
-                              "{:.3g} % is {:.1f}x the noise floor {:.3g} %; what is left is not in the library (the "
-                              "residual's signatures are below)",
-                              base.error, base.error / std::max(base.floor, 1e-300), base.floor);
-  } else {
-    // every absent effect of the library tried (no --candidates) and none helps: what is
-    // left is not in the library
-    out.summary = fmt::format("not explained: no time-domain effect of the library{} lowers the error {:.3g} % "
-                              "(floor {:.3g} %) significantly{}; the residual's signatures are below",
-                              options.candidates.empty() ? "" : " among the candidates given", base.error, base.floor,
-                              options.candidates.empty() ? ": what is left is not in the library" : "");
-  }
+  const bool one_sign_on_some_dof = residual_signatures(model, d, names, by_input, out);
+  force_error_summary(model, options, one_sign_on_some_dof, out);
   return out;
 }
 
