@@ -124,7 +124,8 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
       guard.file("--out", out_json);
       guard.check();
     }
-    PhysicalModel model = read_physical_model(o.params);
+    nlohmann::json fit_section;
+    PhysicalModel model = read_physical_model(o.params, &fit_section);
     if (model.user_base != nullptr) {
       // A mechanical base: the force error of the model as given on the log (cli/mechanical_time.h)
       if (!o.controller.empty())
@@ -135,6 +136,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
                          "--threshold-percent are for the platform's time-domain compare (edit the model with lpvid "
                          "model set; the failing windows are judged against the noise floor)");
       MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.params, o.log, "", 0.0, false, json);
+      use_recorded_smoothing(fit_section, req);
       req.png = o.out_png;
       req.png_flag = "--out-png";
       req.report = out_json;

@@ -92,7 +92,8 @@ std::string data_text(const MechanicalTimeRequest& r, const Loaded& l) {
                      "window {} samples ({:.3g} s), input {}",
                      l.data.n(), r.log, 1.0 / l.data.sample_period_s, l.data.standstill, l.data.window,
                      static_cast<double>(l.data.window) * l.data.sample_period_s,
-                     r.measured_input ? "measured" : "held over each sample");
+                     r.measured_input ? "measured" : "held over each sample") +
+         (r.smoothing_source.empty() ? std::string() : " (" + r.smoothing_source + ")");
 }
 
 // Where the model fails in time (fit --plot, diagnose --png): per DOF the actuators'
@@ -164,6 +165,9 @@ void stage_fitted(OutputSet& outputs, const MechanicalTimeRequest& r, const Forc
   for (const auto& old : records) lines += history_line(old) + "\n";
   lines += history_line(rec) + "\n";
   section["route"] = "force error";
+  // what compare needs to check the model on another log as it was fitted
+  section["smoothing"] = {{"window_s", r.window_s > 0.0 ? r.window_s : kForceErrorDefaultWindowS},
+                          {"input", r.measured_input ? "measured" : "held"}};
   outputs.stage(r.out, physical_model_to_json(f.model, section));
   outputs.stage(history_path_for(r.out), lines);
 }
@@ -199,6 +203,20 @@ MechanicalTimeRequest mechanical_time_request(PhysicalModel model, const std::st
   r.measured_input = measured_input;
   r.json = json;
   return r;
+}
+
+void use_recorded_smoothing(const nlohmann::json& fit_section, MechanicalTimeRequest& r) {
+  const auto* sm = fit_section.is_object() && fit_section.contains("smoothing") ? &fit_section["smoothing"] : nullptr;
+  if (sm == nullptr) {
+    r.window_s = 0.0;
+    r.measured_input = false;
+    r.smoothing_source = fmt::format("the defaults: {} records no force-error fit", r.model_label);
+    return;
+  }
+  // (its shape checked by the reader, formats/io/physical_model_json.h)
+  r.window_s = (*sm)["window_s"].get<double>();
+  r.measured_input = (*sm)["input"] == "measured";
+  r.smoothing_source = fmt::format("as the fit that wrote {}", r.model_label);
 }
 
 void add_window_option(CLI::App* app, double* window_s) {

@@ -7,6 +7,7 @@
 // description names them.
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,7 @@ struct MechanicalTimeRequest {
   double delta_bic = 10.0;
   double window_s = 0.0;      // 0: the default (idlib/fit/force_error.h)
   bool measured_input = false;
+  std::string smoothing_source;  // compare: where window_s and measured_input came from
   bool json = false;
 };
 
@@ -36,6 +38,11 @@ struct MechanicalTimeRequest {
 MechanicalTimeRequest mechanical_time_request(PhysicalModel model, const std::string& model_path,
                                               const std::string& log, const std::string& out, double window_s,
                                               bool measured_input, bool json);
+// compare: the smoothing window and input convention the fit that wrote the model used
+// (the file's fit section, written by fit --log and diagnose --log --out), so that a
+// model is checked on a new log as it was fitted; the defaults, said so, for a model
+// no force-error fit wrote.
+void use_recorded_smoothing(const nlohmann::json& fit_section, MechanicalTimeRequest& r);
 // Declares --window-s (fit and diagnose).
 void add_window_option(CLI::App* app, double* window_s);
 

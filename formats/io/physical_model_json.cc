@@ -60,7 +60,7 @@ class Reader {
     return at == std::string::npos ? (params == std::string::npos ? 0 : params) : at;
   }
 
-  PhysicalModel read() const {
+  PhysicalModel read(nlohmann::json* fit_section = nullptr) const {
     const json root = parse_ordered(path_, text_);
     if (!root.is_object())
       fail_at(0, "a physical model file is a JSON object {\"format\": \"lpvid-physical-model\", ...}; see "
@@ -190,6 +190,22 @@ class Reader {
       const std::string name = q2 == std::string::npos ? "" : what.substr(q1 + 1, q2 - q1 - 1);
       const bool missing = what.rfind("missing", 0) == 0;
       fail_at(name.empty() || missing ? top("parameters") : param(name), what);
+    }
+    if (const auto fit = root.find("fit"); fit != root.end() && fit->is_object() && fit->contains("smoothing")) {
+      // the force-error route's smoothing, which compare reuses (cli/mechanical_time.h)
+      const json& sm = (*fit)["smoothing"];
+      const bool ok = sm.is_object() && sm.contains("window_s") && sm["window_s"].is_number() &&
+                      sm["window_s"].get<double>() > 0.0 && std::isfinite(sm["window_s"].get<double>()) &&
+                      sm.contains("input") && sm["input"].is_string() &&
+                      (sm["input"] == "held" || sm["input"] == "measured");
+      if (!ok)
+        fail_at(top("smoothing"), "fit.smoothing must be {\"window_s\": seconds > 0, \"input\": \"held\" or "
+                                  "\"measured\"} (as lpvid fit --log writes it); correct it, or remove it to use the "
+                                  "defaults");
+    }
+    if (fit_section != nullptr) {
+      const auto fit = root.find("fit");
+      *fit_section = fit == root.end() ? nlohmann::json() : nlohmann::json::parse(fit->dump());
     }
     return model;
   }
@@ -584,6 +600,10 @@ bool is_physical_model_file(const std::string& path) {
 
 PhysicalModel read_physical_model(const std::string& path) {
   return parse_physical_model(detail::read_json_text(path, "a physical model file"), path);
+}
+
+PhysicalModel read_physical_model(const std::string& path, nlohmann::json* fit_section) {
+  return Reader(detail::read_json_text(path, "a physical model file"), path).read(fit_section);
 }
 
 std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::json& fit_section) {

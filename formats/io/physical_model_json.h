@@ -65,6 +65,10 @@ bool is_physical_model_file(const std::string& path);
 
 // Reads and validates a model file ("-" reads stdin).
 PhysicalModel read_physical_model(const std::string& path);
+// The same, and the file's "fit" section (null when it has none): what the fit that
+// wrote the model recorded (e.g. the force-error route's smoothing, which compare
+// reuses).
+PhysicalModel read_physical_model(const std::string& path, nlohmann::json* fit_section);
 // The same from text (path used in messages only).
 PhysicalModel parse_physical_model(const std::string& text, const std::string& path);
 

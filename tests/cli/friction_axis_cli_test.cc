@@ -278,6 +278,59 @@ TEST(FrictionAxisCli, TheLoopNamesCoulombThenTheOffsetAndTheFitReachesTheFloor) 
   EXPECT_FALSE(std::filesystem::exists(dir / "never.json"));
 }
 
+// compare checks a model on a log as it was fitted: the smoothing window and the input
+// convention the fit used travel in the model file's fit section.  Before, compare
+// smoothed with the defaults whatever the fit used, so the same model on the same log
+// scored differently in fit and in compare.
+TEST(FrictionAxisCli, CompareSmoothsAsTheFitThatWroteTheModel) {
+  const TempDir dir("friction_smoothing");
+  friction_axis::Experiment e;
+  e.seconds = 6.0;
+  friction_axis::write_csv(friction_axis::simulate(friction_axis::Truth{}, e), dir / "run.csv");
+  const std::string m0 = dir / "axis.json";
+  ASSERT_EQ(run_lpvid(fmt::format("model init --base mechanical --from {} --out {}", sample(), m0)).exit_code, 0);
+  ASSERT_EQ(run_lpvid(fmt::format("model add coulomb_friction,force_offset --model {}", m0)).exit_code, 0);
+  // a window 2.5x the default (0.02 s) and the measured-input convention: both change
+  // the figures, so a compare that ignored them would not reproduce the fit's
+  const auto f = run_lpvid(fmt::format("fit --model {} --log {} --window-s 0.05 --measured-input --out {} --json", m0,
+                                       dir / "run.csv", dir / "fitted.json"));
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  const nlohmann::json fj = nlohmann::json::parse(f.out);
+  const nlohmann::json section = nlohmann::json::parse(slurp(dir / "fitted.json"))["fit"]["smoothing"];
+  EXPECT_EQ(section["window_s"].get<double>(), 0.05);
+  EXPECT_EQ(section["input"], "measured");
+  const auto c = run_lpvid(fmt::format("compare --model {} --log {} --out {}", dir / "fitted.json", dir / "run.csv",
+                                       dir / "c.json"));
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  EXPECT_THAT(c.out, HasSubstr("input measured (as the fit that wrote"));
+  const nlohmann::json cj = nlohmann::json::parse(slurp(dir / "c.json"));
+  // the same model on the same log with the same smoothing: the same figures (the fit's
+  // error is the evaluation at its estimate; 1e-9 relative is rounding)
+  EXPECT_NEAR(cj["error_percent"].get<double>(), fj["error_percent"].get<double>(),
+              1e-9 * fj["error_percent"].get<double>());
+  EXPECT_NEAR(cj["noise_floor_percent"].get<double>(), fj["noise_floor_percent"].get<double>(),
+              1e-9 * fj["noise_floor_percent"].get<double>());
+  EXPECT_EQ(cj["window_samples"], fj["window_samples"]);
+  // a model no force-error fit wrote: the defaults, said so
+  const auto d = run_lpvid(fmt::format("compare --model {} --log {}", m0, dir / "run.csv"));
+  ASSERT_EQ(d.exit_code, 0) << d.err;
+  EXPECT_THAT(d.out, HasSubstr("(the defaults: "));
+  EXPECT_THAT(d.out, HasSubstr("records no force-error fit"));
+  // a record edited wrong: one line with file:line:column, nothing written
+  std::string text = slurp(dir / "fitted.json");
+  const std::string::size_type at = text.find("\"window_s\": 0.05");
+  ASSERT_NE(at, std::string::npos) << text;
+  text.replace(at, std::string("\"window_s\": 0.05").size(), "\"window_s\": -1");
+  std::ofstream(dir / "bad.json") << text;
+  const auto b = run_lpvid(fmt::format("compare --model {} --log {} --out {}", dir / "bad.json", dir / "run.csv",
+                                       dir / "never.json"));
+  EXPECT_NE(b.exit_code, 0);
+  EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
+  EXPECT_THAT(b.err, HasSubstr("bad.json:"));
+  EXPECT_THAT(b.err, HasSubstr("fit.smoothing must be"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "never.json"));
+}
+
 TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
   const TempDir dir("friction_bad");
   friction_axis::Experiment e;
