@@ -70,14 +70,12 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
   if (!std::isfinite(s1) || !std::isfinite(s2)) {
     for (Index t = 0; t < n; ++t)
       if (!std::isfinite(a(t, c)))
-        throw InputError(fmt::format(
-            "estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
-            "remove or interpolate the bad samples first",
-            experiment + 1, what, t + 1, c + 1, a(t, c)));
-    throw InputError(fmt::format(
-        "estimate_markov: experiment {}: {} column {} overflows a double when squared and "
-        "summed; rescale the signal (e.g. to SI units)",
-        experiment + 1, what, c + 1));
+        throw InputError(fmt::format("estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
+                                     "remove or interpolate the bad samples first",
+                                     experiment + 1, what, t + 1, c + 1, a(t, c)));
+    throw InputError(fmt::format("estimate_markov: experiment {}: {} column {} overflows a double when squared and "
+                                 "summed; rescale the signal (e.g. to SI units)",
+                                 experiment + 1, what, c + 1));
   }
   const double dn = static_cast<double>(n);
   if (remove_mean) {
@@ -571,13 +569,12 @@ void intercept_lag_means(const std::vector<ExperimentView>& experiments, const M
                          std::vector<Eigen::VectorXd>& lag_means, std::vector<double>& lag_count) {
   const Index E = static_cast<Index>(experiments.size());
   const Index m = ch.v_energy.cols();
-  const auto& vs = ch.vs;
   for (Index e = 0; e < E; ++e) {
     const Index n = experiments[e].excitation.rows();
     Eigen::VectorXd mu = Eigen::VectorXd::Zero(m * (L + 1));
     for (Index a = 0; a < m; ++a) {
-      if (!vs[e][a].active) continue;
-      const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
+      if (!ch.vs[e][a].active) continue;
+      const Eigen::VectorXd means = lag_means_of(ch.vs[e][a].data, n, L);
       for (Index k = 0; k <= L; ++k) mu(k * m + a) = means(k);
     }
     lag_means.push_back(std::move(mu));
@@ -639,7 +636,6 @@ bool estimate_by_least_squares(const std::vector<ExperimentView>& experiments, c
       for (Index i = 0; i < p; ++i) rhs(k * m + a, i) = corr[k](i, a);
   }
   rvv[0] = 0.5 * (rvv[0] + rvv[0].transpose()).eval();
-
   // Linearly dependent inputs make Phi singular: name them.
   const Eigen::VectorXd inv_sqrt = rvv[0].diagonal().cwiseSqrt().cwiseInverse();
   const Eigen::MatrixXd normalised = inv_sqrt.asDiagonal() * rvv[0] * inv_sqrt.asDiagonal();
@@ -698,20 +694,19 @@ Eigen::VectorXd markov_residual_energy(const std::vector<ExperimentView>& experi
                                        const MarkovSequence& g, Index L, bool intercept) {
   const Index E = static_cast<Index>(experiments.size());
   const Index m = ch.v_energy.cols(), p = ch.q_energy.cols();
-  const auto& vs = ch.vs;
   Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(p);
   for (Index e = 0; e < E; ++e) {
     const Index n = experiments[e].excitation.rows();
     Eigen::VectorXd part = Eigen::VectorXd::Zero(p);
-    signal_detail::accumulate_fir_residual_energy(vs[e], ch.qs[e], n, g, part);
+    signal_detail::accumulate_fir_residual_energy(ch.vs[e], ch.qs[e], n, g, part);
     if (intercept) {
       // e'(t) = (q - mean q) - sum_k g[k] v(t - k) has mean -delta_e with
       // delta_e = sum_k g[k] mu_e(k); the residual e' + delta_e has energy
       // sum e'^2 - n |delta_e|^2 per output.
       Eigen::VectorXd delta = Eigen::VectorXd::Zero(p);
       for (Index a = 0; a < m; ++a) {
-        if (!vs[e][a].active) continue;
-        const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
+        if (!ch.vs[e][a].active) continue;
+        const Eigen::VectorXd means = lag_means_of(ch.vs[e][a].data, n, L);
         for (Index k = 0; k <= L; ++k) delta += g[k].col(a) * means(k);
       }
       part -= static_cast<double>(n) * delta.cwiseAbs2();
@@ -726,17 +721,13 @@ Eigen::VectorXd markov_residual_energy(const std::vector<ExperimentView>& experi
 void MarkovOptions::validate() const {
   if (num_lags <= 0)
     throw InputError(fmt::format(
-        "Markov options: num_lags = {}; it must be > 0 (the number L of lags, g[0..L] is "
-        "estimated)",
-        num_lags));
+        "Markov options: num_lags = {}; it must be > 0 (the number L of lags, g[0..L] is estimated)", num_lags));
   if (!(tolerance > 0.0 && tolerance < 1.0))
     throw InputError(fmt::format(
-        "Markov options: tolerance = {}; it must be in (0, 1) (relative residual of the "
-        "iterative solve, e.g. 1e-10)",
+        "Markov options: tolerance = {}; it must be in (0, 1) (relative residual of the iterative solve, e.g. 1e-10)",
         tolerance));
   if (max_iterations <= 0)
-    throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0",
-                                 max_iterations));
+    throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0", max_iterations));
   if (regularized_tuning_lags < 2)
     throw InputError(fmt::format("Markov options: regularized_tuning_lags = {}; it must be >= 2",
                                  regularized_tuning_lags));
