@@ -139,36 +139,8 @@ double noise_floor(const Eigen::MatrixXd& scaled_std, Index rows, Index cols) {
   return leading_svd(block_hankel(noise, rows, cols, 0, 1), 1).singular_values(0);
 }
 
-}  // namespace
-
-void EraOptions::validate() const {
-  if (!(sample_period_s > 0.0) || !std::isfinite(sample_period_s))
-    throw InputError(fmt::format("ERA: sample_period_s = {}; it must be a positive, finite sample period in seconds",
-                                 sample_period_s));
-  if (order < 0) throw InputError(fmt::format("ERA: order = {}; use 0 for automatic or a positive order", order));
-  if (max_order < 1) throw InputError(fmt::format("ERA: max_order = {}; it must be at least 1", max_order));
-  for (const Index o : also_orders)
-    if (o < 1 || o > max_order)
-      throw InputError(fmt::format("ERA: also_orders holds {}; each must be 1..max_order ({})", o, max_order));
-  if (block_rows < 0 || block_cols < 0 || stride < 0)
-    throw InputError(fmt::format("ERA: block_rows = {}, block_cols = {}, stride = {}; use 0 for automatic or a positive "
-                                 "number",
-                                 block_rows, block_cols, stride));
-  if (input_scale.size() > 0 && !(input_scale.allFinite() && input_scale.minCoeff() > 0.0))
-    throw InputError("ERA: input_scale holds a value that is zero, negative or not finite; every scale must be > 0");
-  if (output_scale.size() > 0 && !(output_scale.allFinite() && output_scale.minCoeff() > 0.0))
-    throw InputError("ERA: output_scale holds a value that is zero, negative or not finite; every scale must be > 0");
-  if (markov_noise_std.size() > 0 && !(markov_noise_std.allFinite() && markov_noise_std.minCoeff() >= 0.0))
-    throw InputError("ERA: markov_noise_std holds a value that is negative or not finite; every std must be >= 0");
-}
-
-EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
-  options.validate();
-  check_sequence(g);
-  const Index p = g.front().rows();
-  const Index m = g.front().cols();
-  const Index last_lag = static_cast<Index>(g.size()) - 1;
-
+// The options' per-channel sizes against g's shape.
+void check_era_channels(const EraOptions& options, Index p, Index m) {
   if (options.input_scale.size() > 0 && options.input_scale.size() != m)
     throw InputError(fmt::format("ERA: input_scale has {} entries for {} inputs; give one per input or none",
                                  options.input_scale.size(), m));
@@ -183,28 +155,14 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
     throw InputError(fmt::format("ERA: {} input names for {} inputs", options.input_names.size(), m));
   if (!options.output_names.empty() && static_cast<Index>(options.output_names.size()) != p)
     throw InputError(fmt::format("ERA: {} output names for {} outputs", options.output_names.size(), p));
+}
 
-  EraResult result;
-  Report& report = result.report;
-
-  // 1. Scaling.
-  Eigen::VectorXd in = options.input_scale.size() > 0 ? options.input_scale : Eigen::VectorXd::Ones(m);
-  Eigen::VectorXd out = options.output_scale.size() > 0 ? options.output_scale : Eigen::VectorXd::Ones(p);
-  derive_scales(g, options.input_scale.size() == 0, options.output_scale.size() == 0, in, out);
-  result.input_scale = in;
-  result.output_scale = out;
-  const Eigen::MatrixXd to_scaled = out.cwiseInverse() * in.transpose();  // p x m factors
-  MarkovSequence gs(g.size());
-  for (std::size_t k = 0; k < g.size(); ++k) gs[k] = g[k].cwiseProduct(to_scaled);
-
-  // 2. Noise level.
-  result.markov_noise_std = options.markov_noise_std.size() > 0 ? options.markov_noise_std : tail_noise_std(g);
-  const Eigen::MatrixXd scaled_std = result.markov_noise_std.cwiseProduct(to_scaled);
-
-  // 3. Effective length: the largest K whose tail g~[K..L] still carries more
-  // energy than its noise, by kEffectiveLengthSigmas standard deviations of the
-  // noise energy (a slow weak mode is found through its accumulated energy).
-  std::vector<double> energy(g.size(), 0.0);
+// 3. Effective length: the largest K whose tail g~[K..L] still carries more
+// energy than its noise, by kEffectiveLengthSigmas standard deviations of the
+// noise energy (a slow weak mode is found through its accumulated energy).
+Index effective_length_of(const MarkovSequence& gs, const Eigen::MatrixXd& scaled_std) {
+  const Index last_lag = static_cast<Index>(gs.size()) - 1;
+  std::vector<double> energy(gs.size(), 0.0);
   double peak = 0.0;
   for (Index k = 1; k <= last_lag; ++k) {
     energy[static_cast<std::size_t>(k)] = gs[static_cast<std::size_t>(k)].squaredNorm();
@@ -227,9 +185,19 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
       break;
     }
   }
-  result.effective_length = effective_length;
+  return effective_length;
+}
 
-  // 4. Hankel layout.
+// Block rows, block columns and stride of the Hankel matrix.
+struct HankelLayout {
+  Index rows = 0, cols = 0, stride = 0;
+};
+
+// 4. Hankel layout.
+HankelLayout hankel_layout(const MarkovSequence& g, const EraOptions& options, Index effective_length) {
+  const Index p = g.front().rows();
+  const Index m = g.front().cols();
+  const Index last_lag = static_cast<Index>(g.size()) - 1;
   const Index k_max = std::max(options.order, options.max_order) + 1;
   const Index min_rows = ceil_div(k_max, p);
   const Index min_cols = ceil_div(k_max, m);
@@ -281,33 +249,29 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
         "ERA: the automatic order needs {} singular values (max_order + 1) but the {}x{} Hankel matrix has {}; raise "
         "block_rows/block_cols or lower max_order",
         k_max, hankel_rows, hankel_cols, available));
-  result.block_rows = rows;
-  result.block_cols = cols;
-  result.stride = stride;
+  return {rows, cols, stride};
+}
 
-  // 5. Sums over d lags (h[k] = sum_{l<d} g~[k+l] = C A^(k-1) B_d), then the
-  // leading singular triplets.
-  const bool summed = options.sum_stride_lags && stride > 1;
-  MarkovSequence hs;
-  if (summed) {
-    const Index h_last = 2 + (rows + cols - 2) * stride;
-    hs.assign(static_cast<std::size_t>(h_last + 1), Eigen::MatrixXd::Zero(p, m));
-    Eigen::MatrixXd running = Eigen::MatrixXd::Zero(p, m);
-    for (Index l = 0; l < stride; ++l) running += gs[static_cast<std::size_t>(1 + l)];
-    for (Index k = 1; k <= h_last; ++k) {
-      hs[static_cast<std::size_t>(k)] = running;
-      running += gs[static_cast<std::size_t>(k + stride)] - gs[static_cast<std::size_t>(k)];
-    }
+// Sums over d = stride lags, h[k] = sum_{l<d} g~[k+l] = C A^(k-1) B_d, for the lags
+// the layout's Hankel matrices read.
+MarkovSequence stride_sums(const MarkovSequence& gs, const HankelLayout& lay) {
+  const Index p = gs.front().rows();
+  const Index m = gs.front().cols();
+  const Index stride = lay.stride;
+  const Index h_last = 2 + (lay.rows + lay.cols - 2) * stride;
+  MarkovSequence hs(static_cast<std::size_t>(h_last + 1), Eigen::MatrixXd::Zero(p, m));
+  Eigen::MatrixXd running = Eigen::MatrixXd::Zero(p, m);
+  for (Index l = 0; l < stride; ++l) running += gs[static_cast<std::size_t>(1 + l)];
+  for (Index k = 1; k <= h_last; ++k) {
+    hs[static_cast<std::size_t>(k)] = running;
+    running += gs[static_cast<std::size_t>(k + stride)] - gs[static_cast<std::size_t>(k)];
   }
-  const MarkovSequence& hankel_source = summed ? hs : gs;
-  const Eigen::MatrixXd H = block_hankel(hankel_source, rows, cols, 1, stride);
-  const PartialSvd svd = leading_svd(H, std::min(k_max, available));
-  const Eigen::VectorXd& s = svd.singular_values;
+  return hs;
+}
 
-  OrderSelection& sel = result.selection;
-  sel.singular_values = s;
-  // Sums of d independent lags: std grows by sqrt(d); entries d apart stay independent.
-  sel.noise_floor = noise_floor(scaled_std * std::sqrt(summed ? static_cast<double>(stride) : 1.0), rows, cols);
+// The order from the singular values s against sel.noise_floor (given, or every value
+// above the noise threshold up to max_order); fills the rest of `sel`.
+void select_era_order(const Eigen::VectorXd& s, const EraOptions& options, OrderSelection& sel, Report& report) {
   sel.threshold = std::max(kKappa * sel.noise_floor, kRelativeRankTolerance * s(0));
   Index above = 0;
   while (above < s.size() && s(above) > sel.threshold) ++above;
@@ -356,10 +320,24 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
   if (n < s.size() && boundary_ratio(n) < kClearGapRatio)
     report.warnings.push_back(fmt::format("the order {} is uncertain: s_{}/s_{} = {:.3g} is below {:g}", n, n, n + 1,
                                           boundary_ratio(n), kClearGapRatio));
+}
 
-  // Realisation (era.h step 5) and unscaling (step 6), at n and at every also_orders.
-  const Eigen::MatrixXd H1 = block_hankel(hankel_source, rows, cols, 2, stride);
-  const auto realise = [&](Index n, Report* report) {
+// Realisation (era.h step 5) and unscaling (step 6) at any order from one SVD.
+struct EraRealiser {
+  const MarkovSequence& g;
+  const EraOptions& options;
+  const PartialSvd& svd;
+  const Eigen::MatrixXd& H1;  // the Hankel matrix shifted by one sample
+  const Eigen::VectorXd& in;
+  const Eigen::VectorXd& out;
+  Index stride;
+  bool summed;
+
+  // report: where a poorly conditioned sum over the stride is warned of (none: not).
+  StateSpace realise(Index n, Report* report) const {
+    const Index p = g.front().rows();
+    const Index m = g.front().cols();
+    const Eigen::VectorXd& s = svd.singular_values;
     StateSpace model;
     const Eigen::VectorXd sqrt_s = s.head(n).cwiseSqrt();
     const Eigen::VectorXd inv_sqrt_s = sqrt_s.cwiseInverse();
@@ -389,11 +367,92 @@ EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
     model.input_names = options.input_names;
     model.output_names = options.output_names;
     return model;
-  };
-  result.model = realise(n, &report);
+  }
+};
+
+}  // namespace
+
+void EraOptions::validate() const {
+  if (!(sample_period_s > 0.0) || !std::isfinite(sample_period_s))
+    throw InputError(fmt::format("ERA: sample_period_s = {}; it must be a positive, finite sample period in seconds",
+                                 sample_period_s));
+  if (order < 0) throw InputError(fmt::format("ERA: order = {}; use 0 for automatic or a positive order", order));
+  if (max_order < 1) throw InputError(fmt::format("ERA: max_order = {}; it must be at least 1", max_order));
+  for (const Index o : also_orders)
+    if (o < 1 || o > max_order)
+      throw InputError(fmt::format("ERA: also_orders holds {}; each must be 1..max_order ({})", o, max_order));
+  if (block_rows < 0 || block_cols < 0 || stride < 0)
+    throw InputError(fmt::format("ERA: block_rows = {}, block_cols = {}, stride = {}; use 0 for automatic or a positive "
+                                 "number",
+                                 block_rows, block_cols, stride));
+  if (input_scale.size() > 0 && !(input_scale.allFinite() && input_scale.minCoeff() > 0.0))
+    throw InputError("ERA: input_scale holds a value that is zero, negative or not finite; every scale must be > 0");
+  if (output_scale.size() > 0 && !(output_scale.allFinite() && output_scale.minCoeff() > 0.0))
+    throw InputError("ERA: output_scale holds a value that is zero, negative or not finite; every scale must be > 0");
+  if (markov_noise_std.size() > 0 && !(markov_noise_std.allFinite() && markov_noise_std.minCoeff() >= 0.0))
+    throw InputError("ERA: markov_noise_std holds a value that is negative or not finite; every std must be >= 0");
+}
+
+EraResult realize_era(const MarkovSequence& g, const EraOptions& options) {
+  options.validate();
+  check_sequence(g);
+  const Index p = g.front().rows();
+  const Index m = g.front().cols();
+  const Index last_lag = static_cast<Index>(g.size()) - 1;
+  check_era_channels(options, p, m);
+
+  EraResult result;
+  Report& report = result.report;
+
+  // 1. Scaling.
+  Eigen::VectorXd in = options.input_scale.size() > 0 ? options.input_scale : Eigen::VectorXd::Ones(m);
+  Eigen::VectorXd out = options.output_scale.size() > 0 ? options.output_scale : Eigen::VectorXd::Ones(p);
+  derive_scales(g, options.input_scale.size() == 0, options.output_scale.size() == 0, in, out);
+  result.input_scale = in;
+  result.output_scale = out;
+  const Eigen::MatrixXd to_scaled = out.cwiseInverse() * in.transpose();  // p x m factors
+  MarkovSequence gs(g.size());
+  for (std::size_t k = 0; k < g.size(); ++k) gs[k] = g[k].cwiseProduct(to_scaled);
+
+  // 2. Noise level.
+  result.markov_noise_std = options.markov_noise_std.size() > 0 ? options.markov_noise_std : tail_noise_std(g);
+  const Eigen::MatrixXd scaled_std = result.markov_noise_std.cwiseProduct(to_scaled);
+
+  const Index effective_length = effective_length_of(gs, scaled_std);
+  result.effective_length = effective_length;
+  const HankelLayout lay = hankel_layout(g, options, effective_length);
+  const Index rows = lay.rows, cols = lay.cols, stride = lay.stride;
+  const Index k_max = std::max(options.order, options.max_order) + 1;
+  const Index hankel_rows = rows * p;
+  const Index hankel_cols = cols * m;
+  const Index available = std::min(hankel_rows, hankel_cols);
+  result.block_rows = rows;
+  result.block_cols = cols;
+  result.stride = stride;
+
+  // 5. Sums over d lags (h[k] = sum_{l<d} g~[k+l] = C A^(k-1) B_d), then the
+  // leading singular triplets.
+  const bool summed = options.sum_stride_lags && stride > 1;
+  const MarkovSequence hs = summed ? stride_sums(gs, lay) : MarkovSequence();
+  const MarkovSequence& hankel_source = summed ? hs : gs;
+  const Eigen::MatrixXd H = block_hankel(hankel_source, rows, cols, 1, stride);
+  const PartialSvd svd = leading_svd(H, std::min(k_max, available));
+  const Eigen::VectorXd& s = svd.singular_values;
+
+  OrderSelection& sel = result.selection;
+  sel.singular_values = s;
+  // Sums of d independent lags: std grows by sqrt(d); entries d apart stay independent.
+  sel.noise_floor = noise_floor(scaled_std * std::sqrt(summed ? static_cast<double>(stride) : 1.0), rows, cols);
+  select_era_order(s, options, sel, report);
+  const Index n = sel.order;
+
+  // Realisation (era.h step 5) and unscaling (step 6), at n and at every also_orders.
+  const Eigen::MatrixXd H1 = block_hankel(hankel_source, rows, cols, 2, stride);
+  const EraRealiser realiser{g, options, svd, H1, in, out, stride, summed};
+  result.model = realiser.realise(n, &report);
   const StateSpace& model = result.model;
   for (const Index extra : options.also_orders)
-    result.models_at.push_back(extra <= s.size() ? realise(extra, nullptr) : StateSpace{});
+    result.models_at.push_back(extra <= s.size() ? realiser.realise(extra, nullptr) : StateSpace{});
 
   const double spectral_radius = Eigen::EigenSolver<Eigen::MatrixXd>(model.A, false).eigenvalues().cwiseAbs().maxCoeff();
   if (spectral_radius >= 1.0)

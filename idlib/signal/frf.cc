@@ -277,17 +277,27 @@ Index richardson_segment(Index nseg, Index n_min, const FrfOptions& options) {
   return n_min >= 2 * nseg + (kFineSegments - 1) * step_fine ? 2 * nseg : 0;
 }
 
-}  // namespace
+// Per experiment its channels and the inputs it excites; single_input: every
+// experiment excites one input and every input is excited by some experiment (the
+// spectra are then averaged per input, in groups).
+struct FrfChannels {
+  std::vector<std::vector<Channel>> vs, ys;
+  std::vector<std::vector<Index>> excited;
+  bool single_input = true;
+};
 
-FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
-  Index n_min = 0;
-  const Index nseg = checked_segment_length(experiments, options, n_min);
+// Channel statistics (also the finiteness check) and classification.
+FrfChannels frf_channels(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
   const Index E = static_cast<Index>(experiments.size());
   const Index m = experiments[0].excitation.cols();
   const Index p = experiments[0].output.cols();
-  // Channel statistics (also the finiteness check) and classification.
-  std::vector<std::vector<Channel>> vs(E), ys(E);
-  std::vector<std::vector<Index>> excited(E);
+  FrfChannels chans;
+  std::vector<std::vector<Channel>>& vs = chans.vs;
+  std::vector<std::vector<Channel>>& ys = chans.ys;
+  std::vector<std::vector<Index>>& excited = chans.excited;
+  vs.resize(E);
+  ys.resize(E);
+  excited.resize(E);
   for (Index e = 0; e < E; ++e) {
     const ExperimentView& x = experiments[e];
     double rms_max = 0.0;
@@ -315,19 +325,20 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   }
   if (single_input)
     single_input = std::all_of(input_covered.begin(), input_covered.end(), [](bool b) { return b; });
-  const Index num_groups = single_input ? m : 1;
+  chans.single_input = single_input;
+  return chans;
+}
 
-  // The H1 estimate with segments of nseg samples (response, coherence, flags,
-  // averages; no variance).  Called for the estimate and, for its leakage bias, with
-  // twice the segment length.
-  auto welch = [&](const Index nseg) {
-  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
+// The unscaled spectra of every group from windowed segments of nseg samples, one
+// every `step`.
+std::vector<Spectra> welch_spectra(const std::vector<ExperimentView>& experiments, const FrfChannels& chans,
+                                   const FrfOptions& options, Index nseg, Index step, const RealArray& window) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
+  const Index num_groups = chans.single_input ? m : 1;
   const Index bins = nseg / 2 + 1;
-  const Index F = nseg / 2;
   std::vector<Spectra> groups(static_cast<size_t>(num_groups), Spectra(bins, m, p));
-
-  const RealArray window = make_window(nseg, options.window);
-
   // One plan for every segment and channel.
   const RealFft fft(nseg);
   RealArray in = alloc_real(nseg);
@@ -335,12 +346,12 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
   for (Index c = 0; c < m + p; ++c) X.push_back(alloc_complex(bins));
 
   for (Index e = 0; e < E; ++e) {
-    Spectra& g = groups[static_cast<size_t>(single_input ? excited[e][0] : 0)];
+    Spectra& g = groups[static_cast<size_t>(chans.single_input ? chans.excited[e][0] : 0)];
     const Index n = experiments[e].excitation.rows();
     g.segments_per_experiment.push_back(n >= nseg ? (n - nseg) / step + 1 : 0);
     for (Index s0 = 0; s0 + nseg <= n; s0 += step) {
       for (Index c = 0; c < m + p; ++c) {
-        const Channel& ch = c < m ? vs[e][c] : ys[e][c - m];
+        const Channel& ch = c < m ? chans.vs[e][c] : chans.ys[e][c - m];
         const double* src = ch.data + s0;
         const double off = options.remove_mean ? segment_mean(src, nseg) : ch.offset;
         for (Index t = 0; t < nseg; ++t) in[t] = (src[t] - off) * window[t];
@@ -354,16 +365,14 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
       }
     }
   }
+  return groups;
+}
 
-  FrequencyResponse out;
-  // Independent averages behind the coherence (effective_averages), per group; the
-  // smallest group counts (the noisiest column).
-  {
-    double smallest = INFINITY;
-    for (const Spectra& g : groups)
-      smallest = std::min(smallest, effective_averages(window, nseg, step, g.segments_per_experiment));
-    out.averages = std::isfinite(smallest) && smallest >= 1.0 ? smallest : 0.0;
-  }
+// out's response, coherence and flags at the lines 1..nseg/2 from the groups' spectra
+// (m inputs, p outputs).
+void h1_lines(const std::vector<Spectra>& groups, bool single_input, const FrfOptions& options, Index nseg, Index m,
+              Index p, FrequencyResponse& out) {
+  const Index F = nseg / 2;
   out.omega_rad_s.resize(F);
   out.response.assign(static_cast<size_t>(F), Eigen::MatrixXcd::Zero(p, m));
   out.coherence.assign(static_cast<size_t>(F), Eigen::MatrixXd::Zero(p, m));
@@ -425,10 +434,39 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
       }
     }
   }
-  return out;
-  };
+}
 
-  FrequencyResponse out = welch(nseg);
+// The H1 estimate with segments of nseg samples (response, coherence, flags,
+// averages; no variance).  Called for the estimate and, for its leakage bias, with
+// twice the segment length.
+FrequencyResponse welch_h1(const std::vector<ExperimentView>& experiments, const FrfChannels& chans,
+                           const FrfOptions& options, Index nseg) {
+  const Index step = std::max<Index>(1, nseg - static_cast<Index>(std::lround(options.overlap * nseg)));
+  const RealArray window = make_window(nseg, options.window);
+  const std::vector<Spectra> groups = welch_spectra(experiments, chans, options, nseg, step, window);
+
+  FrequencyResponse out;
+  // Independent averages behind the coherence (effective_averages), per group; the
+  // smallest group counts (the noisiest column).
+  {
+    double smallest = INFINITY;
+    for (const Spectra& g : groups)
+      smallest = std::min(smallest, effective_averages(window, nseg, step, g.segments_per_experiment));
+    out.averages = std::isfinite(smallest) && smallest >= 1.0 ? smallest : 0.0;
+  }
+  h1_lines(groups, chans.single_input, options, nseg, experiments[0].excitation.cols(), experiments[0].output.cols(),
+           out);
+  return out;
+}
+
+}  // namespace
+
+FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, const FrfOptions& options) {
+  Index n_min = 0;
+  const Index nseg = checked_segment_length(experiments, options, n_min);
+  const FrfChannels chans = frf_channels(experiments, options);
+
+  FrequencyResponse out = welch_h1(experiments, chans, options, nseg);
   // Variance: the mean-square error of each entry (docs/math.md, "FRF variance"):
   //   random part   |Ĥ|² (1 − γ²)/(n_d γ²)            (H1 with n_d averages, single-input
   //                                                     design; the multiple coherence else)
@@ -458,7 +496,7 @@ FrequencyResponse estimate_frf(const std::vector<ExperimentView>& experiments, c
     };
     const Index nseg_fine = richardson_segment(nseg, n_min, options);
     FrequencyResponse fine;
-    if (nseg_fine > 0) fine = welch(nseg_fine);
+    if (nseg_fine > 0) fine = welch_h1(experiments, chans, options, nseg_fine);
     const bool have_fine = nseg_fine > 0 && fine.averages > 0;
     fill_variance(out, h1_variance(out, nd), have_fine ? &fine : nullptr, h1_variance(fine, fine.averages),
                   second_moment, 0.0);

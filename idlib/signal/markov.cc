@@ -70,14 +70,12 @@ ColumnStats column_stats(const Eigen::Ref<const Eigen::MatrixXd>& a, Index c, bo
   if (!std::isfinite(s1) || !std::isfinite(s2)) {
     for (Index t = 0; t < n; ++t)
       if (!std::isfinite(a(t, c)))
-        throw InputError(fmt::format(
-            "estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
-            "remove or interpolate the bad samples first",
-            experiment + 1, what, t + 1, c + 1, a(t, c)));
-    throw InputError(fmt::format(
-        "estimate_markov: experiment {}: {} column {} overflows a double when squared and "
-        "summed; rescale the signal (e.g. to SI units)",
-        experiment + 1, what, c + 1));
+        throw InputError(fmt::format("estimate_markov: experiment {}: {}({}, {}) = {}; every sample must be finite: "
+                                     "remove or interpolate the bad samples first",
+                                     experiment + 1, what, t + 1, c + 1, a(t, c)));
+    throw InputError(fmt::format("estimate_markov: experiment {}: {} column {} overflows a double when squared and "
+                                 "summed; rescale the signal (e.g. to SI units)",
+                                 experiment + 1, what, c + 1));
   }
   const double dn = static_cast<double>(n);
   if (remove_mean) {
@@ -400,22 +398,336 @@ PcgOutcome solve_regularized(NormalOperator& op, const std::vector<Eigen::Matrix
   return sol;
 }
 
+// The records' shapes against each other and the horizon; returns the total samples.
+Index check_markov_experiments(const std::vector<ExperimentView>& experiments, Index L) {
+  if (experiments.empty())
+    throw InputError("estimate_markov: no experiments; pass at least one experiment (excitation and output logs)");
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
+  if (m == 0 || p == 0)
+    throw InputError(fmt::format(
+        "estimate_markov: experiment 1 has {} excitation and {} output columns; each needs at least one", m, p));
+  Index total = 0;
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    if (x.excitation.rows() != x.output.rows())
+      throw InputError(fmt::format("estimate_markov: experiment {}: excitation has {} samples and output has {}; both "
+                                   "must cover the same N samples",
+                                   e + 1, x.excitation.rows(), x.output.rows()));
+    if (x.excitation.cols() != m || x.output.cols() != p)
+      throw InputError(fmt::format("estimate_markov: experiment {} has {} excitation and {} output channels, "
+                                   "experiment 1 has {} and {}; every experiment must log the same channels",
+                                   e + 1, x.excitation.cols(), x.output.cols(), m, p));
+    if (x.excitation.rows() <= L)
+      throw InputError(fmt::format("estimate_markov: experiment {} has N = {} samples for num_lags = {}; each record "
+                                   "needs N > num_lags: use fewer lags or a longer record",
+                                   e + 1, x.excitation.rows(), L));
+    total += x.excitation.rows();
+  }
+  if (total < 2 * m * (L + 1))
+    throw InputError(fmt::format("estimate_markov: {} samples in all for {} inputs and num_lags = {}; the rule is "
+                                 "total samples >= 2 * inputs * (num_lags + 1) = {}: add experiments, use longer "
+                                 "records or fewer lags",
+                                 total, m, L, 2 * m * (L + 1)));
+  return total;
+}
+
+// Per experiment the views of the excitation (vs) and output (qs) columns with their
+// offsets, and their centred energies (E x m, E x p).
+struct MarkovChannels {
+  std::vector<std::vector<ChannelView>> vs, qs;
+  Eigen::MatrixXd v_energy, q_energy;  // sum_t (centred)^2
+};
+
+// Per-experiment column statistics (also the finiteness check).
+MarkovChannels markov_channels(const std::vector<ExperimentView>& experiments, bool remove_mean, bool intercept) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = experiments[0].excitation.cols();
+  const Index p = experiments[0].output.cols();
+  MarkovChannels ch;
+  ch.vs.resize(E);
+  ch.qs.resize(E);
+  ch.v_energy.resize(E, m);
+  ch.q_energy.resize(E, p);
+  for (Index e = 0; e < E; ++e) {
+    const ExperimentView& x = experiments[e];
+    for (Index a = 0; a < m; ++a) {
+      const ColumnStats s = column_stats(x.excitation, a, remove_mean, e, "excitation");
+      ch.vs[e].push_back({x.excitation.data() + a * x.excitation.outerStride(), intercept ? 0.0 : s.offset, s.active});
+      ch.v_energy(e, a) = s.sum_sq;
+    }
+    for (Index i = 0; i < p; ++i) {
+      const ColumnStats s = column_stats(x.output, i, remove_mean, e, "output");
+      ch.qs[e].push_back({x.output.data() + i * x.output.outerStride(), s.offset, s.active});
+      ch.q_energy(e, i) = s.sum_sq;
+    }
+  }
+  return ch;
+}
+
+// kCorrelation: g[k] = R_qv(k) / sum v^2, each experiment counting only for the inputs
+// it excites.
+void estimate_by_correlation(const std::vector<ExperimentView>& experiments, const MarkovChannels& ch, Index L,
+                             MarkovResult& res) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = ch.v_energy.cols(), p = ch.q_energy.cols();
+  const Eigen::MatrixXd& v_energy = ch.v_energy;
+  Eigen::VectorXd denom = Eigen::VectorXd::Zero(m);
+  std::vector<Eigen::MatrixXd> rqv(static_cast<size_t>(L + 1));
+  for (Index e = 0; e < E; ++e) {
+    // RMS ratio >= fraction  <=>  mean-square ratio >= fraction^2 (records may differ
+    // in length, so compare mean squares, not energies).
+    const double n_e = static_cast<double>(experiments[e].excitation.rows());
+    std::vector<ChannelView> excited = ch.vs[e];
+    std::vector<Index> names;
+    for (Index a = 0; a < m; ++a) {
+      double largest_ms = 0.0;
+      for (Index f = 0; f < E; ++f)
+        largest_ms = std::max(largest_ms, v_energy(f, a) / static_cast<double>(experiments[f].excitation.rows()));
+      const double ms = v_energy(e, a) / n_e;
+      const bool is_excited = excited[a].active &&
+          ms >= kExcitedFractionOfLargestRms * kExcitedFractionOfLargestRms * largest_ms;
+      excited[a].active = is_excited;
+      if (is_excited) {
+        denom(a) += v_energy(e, a);
+        names.push_back(a);
+      }
+    }
+    if (names.size() > 1)
+      res.report.warnings.push_back(fmt::format("experiment {} excites inputs {} at once: the correlation method "
+                                                "ignores their cross-correlation; use the least-squares method",
+                                                e, names));
+    std::fill(rqv.begin(), rqv.end(), Eigen::MatrixXd::Zero(p, m));
+    signal_detail::accumulate_cross_correlation(ch.qs[e], excited, experiments[e].excitation.rows(), L, rqv);
+    for (Index k = 0; k <= L; ++k) res.g[k] += rqv[k];
+  }
+  for (Index k = 0; k <= L; ++k) res.g[k] = res.g[k] * denom.cwiseInverse().asDiagonal();
+  res.report.termination = "correlation estimate g[k] = R_qv(k) / sum v^2 (biased: finite-sample autocorrelation of "
+                           "the excitation is not a delta)";
+  res.report.warnings.push_back("the correlation method is biased by the finite-sample autocorrelation of the "
+                                "excitation and by the record end; use the least-squares method for accurate Markov "
+                                "parameters");
+}
+
+// One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together
+// (rows 0..p-1 and p..p+m-1 of corr[k]); with `reuse`, see the header.
+std::vector<Eigen::MatrixXd> output_input_correlations(const std::vector<ExperimentView>& experiments,
+                                                       const MarkovChannels& ch, Index L,
+                                                       MarkovCorrelations* reuse) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = ch.v_energy.cols(), p = ch.q_energy.cols();
+  std::vector<Eigen::MatrixXd> corr(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p + m, m));
+  if (reuse != nullptr && reuse->max_lag >= L && !reuse->vv.empty()) {
+    if (static_cast<Index>(reuse->vv.size()) != reuse->max_lag + 1 || reuse->vv.front().rows() != m ||
+        (!reuse->qv.empty() && (reuse->qv.size() != reuse->vv.size() || reuse->qv.front().rows() != p)))
+      throw InputError("estimate_markov: the reused correlations do not match these experiments' channels");
+    for (Index k = 0; k <= L; ++k) corr[k].bottomRows(m) = reuse->vv[static_cast<std::size_t>(k)];
+    if (!reuse->qv.empty()) {
+      for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = reuse->qv[static_cast<std::size_t>(k)];
+    } else {
+      std::vector<Eigen::MatrixXd> qv(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
+      for (Index e = 0; e < E; ++e)
+        signal_detail::accumulate_cross_correlation(ch.qs[e], ch.vs[e], experiments[e].excitation.rows(), L, qv);
+      for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = qv[static_cast<std::size_t>(k)];
+    }
+    return corr;
+  }
+  const bool store = reuse != nullptr && reuse->max_lag > 0;
+  const Index Lc = store ? std::max(reuse->max_lag, L) : L;
+  if (store) {
+    // The longest lag must leave N > Lc in every record (the FFT blocks' rule).
+    Index shortest = experiments[0].excitation.rows();
+    for (Index e = 1; e < E; ++e) shortest = std::min<Index>(shortest, experiments[e].excitation.rows());
+    if (Lc >= shortest) throw InputError(fmt::format("estimate_markov: correlations up to lag {} asked of a "
+                                                     "record of {} samples", Lc, shortest));
+  }
+  std::vector<Eigen::MatrixXd> full(store ? static_cast<size_t>(Lc + 1) : 0, Eigen::MatrixXd::Zero(p + m, m));
+  for (Index e = 0; e < E; ++e) {
+    std::vector<ChannelView> xs = ch.qs[e];
+    xs.insert(xs.end(), ch.vs[e].begin(), ch.vs[e].end());
+    signal_detail::accumulate_cross_correlation(xs, ch.vs[e], experiments[e].excitation.rows(), Lc,
+                                                store ? full : corr);
+  }
+  if (store) {
+    reuse->max_lag = Lc;
+    reuse->vv.clear();
+    reuse->qv.clear();
+    for (Index k = 0; k <= Lc; ++k) {
+      reuse->qv.push_back(full[static_cast<std::size_t>(k)].topRows(p));
+      reuse->vv.push_back(full[static_cast<std::size_t>(k)].bottomRows(m));
+    }
+    for (Index k = 0; k <= L; ++k) corr[k] = full[static_cast<std::size_t>(k)];
+  }
+  return corr;
+}
+
+// Intercept: with the per-experiment offsets c_e eliminated, the normal matrix is
+// Phi - sum_e N_e mu_e mu_e^T, mu_e(k m + a) = mean_t v_a(t - k) over the record
+// (v = 0 before it), and the right-hand side is that of the centred outputs.
+void intercept_lag_means(const std::vector<ExperimentView>& experiments, const MarkovChannels& ch, Index L,
+                         std::vector<Eigen::VectorXd>& lag_means, std::vector<double>& lag_count) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = ch.v_energy.cols();
+  for (Index e = 0; e < E; ++e) {
+    const Index n = experiments[e].excitation.rows();
+    Eigen::VectorXd mu = Eigen::VectorXd::Zero(m * (L + 1));
+    for (Index a = 0; a < m; ++a) {
+      if (!ch.vs[e][a].active) continue;
+      const Eigen::VectorXd means = lag_means_of(ch.vs[e][a].data, n, L);
+      for (Index k = 0; k <= L; ++k) mu(k * m + a) = means(k);
+    }
+    lag_means.push_back(std::move(mu));
+    lag_count.push_back(static_cast<double>(n));
+  }
+}
+
+// The least-squares solve's termination line, and its usability.
+void report_markov_solve(const PcgOutcome& sol, bool regularized, const MarkovOptions& options, MarkovResult& res) {
+  if (regularized) {
+    res.report.termination = fmt::format(
+        "regularised: TC kernel, hyperparameters by marginal likelihood on the first {} lags "
+        "(decay per lag {:.4g}..{:.4g}); {}",
+        res.kernel_tuning_lags, res.kernel_decay.minCoeff(), res.kernel_decay.maxCoeff(),
+        sol.iterations == 0 ? std::string(sol.converged ? "solved exactly (dense Cholesky)" : "the dense solve failed")
+                            : fmt::format("CG {} in {} iterations (relative residual {:.2e})",
+                                          sol.converged ? "converged" : "stopped", sol.iterations,
+                                          sol.worst_relative_residual));
+    if (!sol.converged) res.report.usable = false;
+  } else if (sol.converged) {
+    res.report.termination = fmt::format("PCG converged in {} iterations (relative residual {:.2e} <= tolerance "
+                                         "{:.1e})",
+                                         sol.iterations, sol.worst_relative_residual, options.tolerance);
+  } else {
+    res.report.usable = false;
+    res.report.termination = fmt::format("PCG stopped at max_iterations = {} with relative residual {:.2e} > tolerance "
+                                         "{:.1e}; raise max_iterations or check the excitation (strongly coloured or "
+                                         "nearly dependent inputs)",
+                                         sol.iterations, sol.worst_relative_residual, options.tolerance);
+  }
+}
+
+// kLeastSquares and kRegularized: the normal equations from the correlations, solved by
+// PCG (or the regularised solve); sum_sq gets the residual energy per output from the
+// normal equations.  Returns whether that energy is accurate (kAnalyticResidualMinFraction).
+bool estimate_by_least_squares(const std::vector<ExperimentView>& experiments, const MarkovChannels& ch,
+                               const MarkovOptions& options, bool intercept, Index total, MarkovCorrelations* reuse,
+                               MarkovResult& res, Eigen::VectorXd& sum_sq) {
+  const Index L = options.num_lags;
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = ch.v_energy.cols(), p = ch.q_energy.cols();
+  const Eigen::MatrixXd& q_energy = ch.q_energy;
+  const std::vector<Eigen::MatrixXd> corr = output_input_correlations(experiments, ch, L, reuse);
+  std::vector<Eigen::MatrixXd> tails;
+  for (Index e = 0; e < E; ++e) {
+    const Index n = experiments[e].excitation.rows();
+    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(L, m);  // row s-1: v(N - s), s = 1..L
+    for (Index a = 0; a < m; ++a) {
+      if (!ch.vs[e][a].active) continue;
+      for (Index s = 1; s <= L && n - s >= 0; ++s) w(s - 1, a) = ch.vs[e][a].data[n - s] - ch.vs[e][a].offset;
+    }
+    tails.push_back(std::move(w));
+  }
+  std::vector<Eigen::MatrixXd> rvv(static_cast<size_t>(L + 1));
+  Eigen::MatrixXd rhs(m * (L + 1), p);
+  for (Index k = 0; k <= L; ++k) {
+    rvv[k] = corr[k].bottomRows(m);
+    for (Index a = 0; a < m; ++a)
+      for (Index i = 0; i < p; ++i) rhs(k * m + a, i) = corr[k](i, a);
+  }
+  rvv[0] = 0.5 * (rvv[0] + rvv[0].transpose()).eval();
+  // Linearly dependent inputs make Phi singular: name them.
+  const Eigen::VectorXd inv_sqrt = rvv[0].diagonal().cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd normalised = inv_sqrt.asDiagonal() * rvv[0] * inv_sqrt.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(normalised);
+  if (eig.eigenvalues()(0) < kDependentInputsEigenvalue) {
+    std::vector<Index> names;
+    for (Index a = 0; a < m; ++a)
+      if (std::abs(eig.eigenvectors()(a, 0)) > kDependentInputComponent) names.push_back(a + 1);  // 1-based
+    throw InputError(fmt::format("estimate_markov: excitation inputs {} are linearly dependent over all experiments "
+                                 "(e.g. identical): their Markov parameters cannot be separated; excite them "
+                                 "independently (different signals or separate experiments)",
+                                 names));
+  }
+  std::vector<Eigen::VectorXd> lag_means;
+  std::vector<double> lag_count;
+  if (intercept) intercept_lag_means(experiments, ch, L, lag_means, lag_count);
+  const Eigen::LLT<Eigen::MatrixXd> r0(rvv[0]);
+  NormalOperator op(rvv, tails, m, L, p, lag_means, lag_count);
+  Eigen::MatrixXd x0;
+  if (!options.initial_guess.empty()) {
+    x0 = Eigen::MatrixXd::Zero(m * (L + 1), p);
+    const Index K = std::min<Index>(L + 1, static_cast<Index>(options.initial_guess.size()));
+    for (Index k = 0; k < K; ++k) {
+      const Eigen::MatrixXd& gk = options.initial_guess[static_cast<std::size_t>(k)];
+      if (gk.rows() != p || gk.cols() != m)
+        throw InputError(fmt::format("estimate_markov: the initial guess is {}x{} at lag {}; the data are {}x{}",
+                                     gk.rows(), gk.cols(), k, p, m));
+      for (Index a = 0; a < m; ++a)
+        for (Index i = 0; i < p; ++i) x0(k * m + a, i) = gk(i, a);
+    }
+  }
+  const bool regularized = options.method == MarkovOptions::Method::kRegularized;
+  const PcgOutcome sol =
+      regularized ? solve_regularized(op, rvv, tails, lag_means, lag_count, rhs, q_energy.colwise().sum().transpose(),
+                                      static_cast<double>(total - (intercept ? E : 0)), m, L, options, res)
+                  : solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations,
+                              options.initial_guess.empty() ? nullptr : &x0);
+  for (Index k = 0; k <= L; ++k)
+    for (Index a = 0; a < m; ++a)
+      for (Index i = 0; i < p; ++i) res.g[k](i, a) = sol.x(k * m + a, i);
+  res.iterations = sol.iterations;
+  Eigen::MatrixXd phi_x;
+  op.apply(sol.x, phi_x);
+  const Eigen::VectorXd q_energy_total = q_energy.colwise().sum().transpose();
+  bool residual_known = true;
+  for (Index i = 0; i < p; ++i) {
+    sum_sq(i) = q_energy_total(i) - 2.0 * sol.x.col(i).dot(rhs.col(i)) + sol.x.col(i).dot(phi_x.col(i));
+    residual_known = residual_known && sum_sq(i) >= kAnalyticResidualMinFraction * q_energy_total(i);
+  }
+  report_markov_solve(sol, regularized, options, res);
+  return residual_known;
+}
+
+// Residual energy per output of the estimated model by FFT convolution over the data.
+Eigen::VectorXd markov_residual_energy(const std::vector<ExperimentView>& experiments, const MarkovChannels& ch,
+                                       const MarkovSequence& g, Index L, bool intercept) {
+  const Index E = static_cast<Index>(experiments.size());
+  const Index m = ch.v_energy.cols(), p = ch.q_energy.cols();
+  Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(p);
+  for (Index e = 0; e < E; ++e) {
+    const Index n = experiments[e].excitation.rows();
+    Eigen::VectorXd part = Eigen::VectorXd::Zero(p);
+    signal_detail::accumulate_fir_residual_energy(ch.vs[e], ch.qs[e], n, g, part);
+    if (intercept) {
+      // e'(t) = (q - mean q) - sum_k g[k] v(t - k) has mean -delta_e with
+      // delta_e = sum_k g[k] mu_e(k); the residual e' + delta_e has energy
+      // sum e'^2 - n |delta_e|^2 per output.
+      Eigen::VectorXd delta = Eigen::VectorXd::Zero(p);
+      for (Index a = 0; a < m; ++a) {
+        if (!ch.vs[e][a].active) continue;
+        const Eigen::VectorXd means = lag_means_of(ch.vs[e][a].data, n, L);
+        for (Index k = 0; k <= L; ++k) delta += g[k].col(a) * means(k);
+      }
+      part -= static_cast<double>(n) * delta.cwiseAbs2();
+    }
+    sum_sq += part.cwiseMax(0.0);
+  }
+  return sum_sq;
+}
+
 }  // namespace
 
 void MarkovOptions::validate() const {
   if (num_lags <= 0)
     throw InputError(fmt::format(
-        "Markov options: num_lags = {}; it must be > 0 (the number L of lags, g[0..L] is "
-        "estimated)",
-        num_lags));
+        "Markov options: num_lags = {}; it must be > 0 (the number L of lags, g[0..L] is estimated)", num_lags));
   if (!(tolerance > 0.0 && tolerance < 1.0))
     throw InputError(fmt::format(
-        "Markov options: tolerance = {}; it must be in (0, 1) (relative residual of the "
-        "iterative solve, e.g. 1e-10)",
+        "Markov options: tolerance = {}; it must be in (0, 1) (relative residual of the iterative solve, e.g. 1e-10)",
         tolerance));
   if (max_iterations <= 0)
-    throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0",
-                                 max_iterations));
+    throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0", max_iterations));
   if (regularized_tuning_lags < 2)
     throw InputError(fmt::format("Markov options: regularized_tuning_lags = {}; it must be >= 2",
                                  regularized_tuning_lags));
@@ -445,296 +757,38 @@ Index default_markov_lags(Index shortest_record, Index total_samples, Index num_
 MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
                              const MarkovOptions& options, MarkovCorrelations* reuse) {
   options.validate();
-  if (experiments.empty())
-    throw InputError(
-        "estimate_markov: no experiments; pass at least one experiment (excitation and output "
-        "logs)");
   const Index L = options.num_lags;
+  const Index total = check_markov_experiments(experiments, L);
   const Index E = static_cast<Index>(experiments.size());
   const Index m = experiments[0].excitation.cols();
   const Index p = experiments[0].output.cols();
-  if (m == 0 || p == 0)
-    throw InputError(fmt::format(
-        "estimate_markov: experiment 1 has {} excitation and {} output columns; each needs at "
-        "least one",
-        m, p));
-  Index total = 0;
-  for (Index e = 0; e < E; ++e) {
-    const ExperimentView& x = experiments[e];
-    if (x.excitation.rows() != x.output.rows())
-      throw InputError(fmt::format(
-          "estimate_markov: experiment {}: excitation has {} samples and output has {}; both "
-          "must cover the same N samples",
-          e + 1, x.excitation.rows(), x.output.rows()));
-    if (x.excitation.cols() != m || x.output.cols() != p)
-      throw InputError(fmt::format(
-          "estimate_markov: experiment {} has {} excitation and {} output channels, experiment "
-          "1 has {} and {}; every experiment must log the same channels",
-          e + 1, x.excitation.cols(), x.output.cols(), m, p));
-    if (x.excitation.rows() <= L)
-      throw InputError(fmt::format(
-          "estimate_markov: experiment {} has N = {} samples for num_lags = {}; each record "
-          "needs N > num_lags: use fewer lags or a longer record",
-          e + 1, x.excitation.rows(), L));
-    total += x.excitation.rows();
-  }
-  if (total < 2 * m * (L + 1))
-    throw InputError(fmt::format(
-        "estimate_markov: {} samples in all for {} inputs and num_lags = {}; the rule is total "
-        "samples >= 2 * inputs * (num_lags + 1) = {}: add experiments, use longer records or "
-        "fewer lags",
-        total, m, L, 2 * m * (L + 1)));
 
   // Least squares with remove_mean: a constant output offset per experiment is
   // estimated jointly with g (an intercept), so the excitation stays as logged (zero
   // before the record) and only the outputs are centred; see the header.
   const bool intercept = options.remove_mean && options.method != MarkovOptions::Method::kCorrelation;
-  // Per-experiment column statistics (also the finiteness check).
-  std::vector<std::vector<ChannelView>> vs(E), qs(E);
-  Eigen::MatrixXd v_energy(E, m), q_energy(E, p);  // sum_t (centred)^2
-  for (Index e = 0; e < E; ++e) {
-    const ExperimentView& x = experiments[e];
-    for (Index a = 0; a < m; ++a) {
-      const ColumnStats s = column_stats(x.excitation, a, options.remove_mean, e, "excitation");
-      vs[e].push_back({x.excitation.data() + a * x.excitation.outerStride(), intercept ? 0.0 : s.offset, s.active});
-      v_energy(e, a) = s.sum_sq;
-    }
-    for (Index i = 0; i < p; ++i) {
-      const ColumnStats s = column_stats(x.output, i, options.remove_mean, e, "output");
-      qs[e].push_back({x.output.data() + i * x.output.outerStride(), s.offset, s.active});
-      q_energy(e, i) = s.sum_sq;
-    }
-  }
-  const Eigen::VectorXd v_energy_total = v_energy.colwise().sum().transpose();
+  const MarkovChannels ch = markov_channels(experiments, options.remove_mean, intercept);
+  const Eigen::VectorXd v_energy_total = ch.v_energy.colwise().sum().transpose();
   for (Index a = 0; a < m; ++a)
     if (!(v_energy_total(a) > 0.0))
-      throw InputError(fmt::format(
-          "estimate_markov: excitation input {} is constant{} in every experiment, so its "
-          "Markov parameters are not identifiable: excite it in at least one experiment or "
-          "drop the column",
-          a + 1, options.remove_mean ? " (zero after mean removal)" : " zero"));
+      throw InputError(fmt::format("estimate_markov: excitation input {} is constant{} in every experiment, so its "
+                                   "Markov parameters are not identifiable: excite it in at least one experiment or "
+                                   "drop the column",
+                                   a + 1, options.remove_mean ? " (zero after mean removal)" : " zero"));
 
   MarkovResult res;
   res.total_samples = total;
   res.excitation_rms = (v_energy_total / static_cast<double>(total)).cwiseSqrt();
-  res.output_rms = (q_energy.colwise().sum().transpose() / static_cast<double>(total)).cwiseSqrt();
+  res.output_rms = (ch.q_energy.colwise().sum().transpose() / static_cast<double>(total)).cwiseSqrt();
   res.g.assign(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
   Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(p);  // residual energy per output
   bool residual_known = false;
+  if (options.method == MarkovOptions::Method::kCorrelation)
+    estimate_by_correlation(experiments, ch, L, res);
+  else
+    residual_known = estimate_by_least_squares(experiments, ch, options, intercept, total, reuse, res, sum_sq);
+  if (!residual_known) sum_sq = markov_residual_energy(experiments, ch, res.g, L, intercept);
 
-  if (options.method == MarkovOptions::Method::kCorrelation) {
-    Eigen::VectorXd denom = Eigen::VectorXd::Zero(m);
-    std::vector<Eigen::MatrixXd> rqv(static_cast<size_t>(L + 1));
-    for (Index e = 0; e < E; ++e) {
-      // RMS ratio >= fraction  <=>  mean-square ratio >= fraction^2 (records may differ
-      // in length, so compare mean squares, not energies).
-      const double n_e = static_cast<double>(experiments[e].excitation.rows());
-      std::vector<ChannelView> excited = vs[e];
-      std::vector<Index> names;
-      for (Index a = 0; a < m; ++a) {
-        double largest_ms = 0.0;
-        for (Index f = 0; f < E; ++f)
-          largest_ms = std::max(largest_ms, v_energy(f, a) / static_cast<double>(experiments[f].excitation.rows()));
-        const double ms = v_energy(e, a) / n_e;
-        const bool is_excited = excited[a].active &&
-            ms >= kExcitedFractionOfLargestRms * kExcitedFractionOfLargestRms * largest_ms;
-        excited[a].active = is_excited;
-        if (is_excited) {
-          denom(a) += v_energy(e, a);
-          names.push_back(a);
-        }
-      }
-      if (names.size() > 1)
-        res.report.warnings.push_back(fmt::format(
-            "experiment {} excites inputs {} at once: the correlation method ignores their "
-            "cross-correlation; use the least-squares method",
-            e, names));
-      std::fill(rqv.begin(), rqv.end(), Eigen::MatrixXd::Zero(p, m));
-      signal_detail::accumulate_cross_correlation(qs[e], excited, experiments[e].excitation.rows(), L, rqv);
-      for (Index k = 0; k <= L; ++k) res.g[k] += rqv[k];
-    }
-    for (Index k = 0; k <= L; ++k) res.g[k] = res.g[k] * denom.cwiseInverse().asDiagonal();
-    res.report.termination =
-        "correlation estimate g[k] = R_qv(k) / sum v^2 (biased: finite-sample "
-        "autocorrelation of the excitation is not a delta)";
-    res.report.warnings.push_back(
-        "the correlation method is biased by the finite-sample autocorrelation of the "
-        "excitation and by the record end; use the least-squares method for accurate "
-        "Markov parameters");
-  } else {
-    // One pass per experiment: x = [q v] against y = v gives R_qv and R_vv together
-    // (rows 0..p-1 and p..p+m-1 of corr[k]); with `reuse`, see the header.
-    std::vector<Eigen::MatrixXd> corr(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p + m, m));
-    if (reuse != nullptr && reuse->max_lag >= L && !reuse->vv.empty()) {
-      if (static_cast<Index>(reuse->vv.size()) != reuse->max_lag + 1 || reuse->vv.front().rows() != m ||
-          (!reuse->qv.empty() && (reuse->qv.size() != reuse->vv.size() || reuse->qv.front().rows() != p)))
-        throw InputError("estimate_markov: the reused correlations do not match these experiments' channels");
-      for (Index k = 0; k <= L; ++k) corr[k].bottomRows(m) = reuse->vv[static_cast<std::size_t>(k)];
-      if (!reuse->qv.empty()) {
-        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = reuse->qv[static_cast<std::size_t>(k)];
-      } else {
-        std::vector<Eigen::MatrixXd> qv(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
-        for (Index e = 0; e < E; ++e)
-          signal_detail::accumulate_cross_correlation(qs[e], vs[e], experiments[e].excitation.rows(), L, qv);
-        for (Index k = 0; k <= L; ++k) corr[k].topRows(p) = qv[static_cast<std::size_t>(k)];
-      }
-    } else {
-      const bool store = reuse != nullptr && reuse->max_lag > 0;
-      const Index Lc = store ? std::max(reuse->max_lag, L) : L;
-      if (store) {
-        // The longest lag must leave N > Lc in every record (the FFT blocks' rule).
-        Index shortest = experiments[0].excitation.rows();
-        for (Index e = 1; e < E; ++e) shortest = std::min<Index>(shortest, experiments[e].excitation.rows());
-        if (Lc >= shortest) throw InputError(fmt::format("estimate_markov: correlations up to lag {} asked of a "
-                                                         "record of {} samples", Lc, shortest));
-      }
-      std::vector<Eigen::MatrixXd> full(store ? static_cast<size_t>(Lc + 1) : 0, Eigen::MatrixXd::Zero(p + m, m));
-      for (Index e = 0; e < E; ++e) {
-        std::vector<ChannelView> xs = qs[e];
-        xs.insert(xs.end(), vs[e].begin(), vs[e].end());
-        signal_detail::accumulate_cross_correlation(xs, vs[e], experiments[e].excitation.rows(), Lc,
-                                                    store ? full : corr);
-      }
-      if (store) {
-        reuse->max_lag = Lc;
-        reuse->vv.clear();
-        reuse->qv.clear();
-        for (Index k = 0; k <= Lc; ++k) {
-          reuse->qv.push_back(full[static_cast<std::size_t>(k)].topRows(p));
-          reuse->vv.push_back(full[static_cast<std::size_t>(k)].bottomRows(m));
-        }
-        for (Index k = 0; k <= L; ++k) corr[k] = full[static_cast<std::size_t>(k)];
-      }
-    }
-    std::vector<Eigen::MatrixXd> tails;
-    for (Index e = 0; e < E; ++e) {
-      const Index n = experiments[e].excitation.rows();
-      Eigen::MatrixXd w = Eigen::MatrixXd::Zero(L, m);  // row s-1: v(N - s), s = 1..L
-      for (Index a = 0; a < m; ++a) {
-        if (!vs[e][a].active) continue;
-        for (Index s = 1; s <= L && n - s >= 0; ++s) w(s - 1, a) = vs[e][a].data[n - s] - vs[e][a].offset;
-      }
-      tails.push_back(std::move(w));
-    }
-    std::vector<Eigen::MatrixXd> rvv(static_cast<size_t>(L + 1));
-    Eigen::MatrixXd rhs(m * (L + 1), p);
-    for (Index k = 0; k <= L; ++k) {
-      rvv[k] = corr[k].bottomRows(m);
-      for (Index a = 0; a < m; ++a)
-        for (Index i = 0; i < p; ++i) rhs(k * m + a, i) = corr[k](i, a);
-    }
-    rvv[0] = 0.5 * (rvv[0] + rvv[0].transpose()).eval();
-
-    // Linearly dependent inputs make Phi singular: name them.
-    const Eigen::VectorXd inv_sqrt = rvv[0].diagonal().cwiseSqrt().cwiseInverse();
-    const Eigen::MatrixXd normalised = inv_sqrt.asDiagonal() * rvv[0] * inv_sqrt.asDiagonal();
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(normalised);
-    if (eig.eigenvalues()(0) < kDependentInputsEigenvalue) {
-      std::vector<Index> names;
-      for (Index a = 0; a < m; ++a)
-        if (std::abs(eig.eigenvectors()(a, 0)) > kDependentInputComponent) names.push_back(a + 1);  // 1-based
-      throw InputError(fmt::format(
-          "estimate_markov: excitation inputs {} are linearly dependent over all experiments "
-          "(e.g. identical): their Markov parameters cannot be separated; excite them "
-          "independently (different signals or separate experiments)",
-          names));
-    }
-    // Intercept: with the per-experiment offsets c_e eliminated, the normal matrix is
-    // Phi - sum_e N_e mu_e mu_e^T, mu_e(k m + a) = mean_t v_a(t - k) over the record
-    // (v = 0 before it), and the right-hand side is that of the centred outputs.
-    std::vector<Eigen::VectorXd> lag_means;
-    std::vector<double> lag_count;
-    if (intercept) {
-      for (Index e = 0; e < E; ++e) {
-        const Index n = experiments[e].excitation.rows();
-        Eigen::VectorXd mu = Eigen::VectorXd::Zero(m * (L + 1));
-        for (Index a = 0; a < m; ++a) {
-          if (!vs[e][a].active) continue;
-          const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
-          for (Index k = 0; k <= L; ++k) mu(k * m + a) = means(k);
-        }
-        lag_means.push_back(std::move(mu));
-        lag_count.push_back(static_cast<double>(n));
-      }
-    }
-    const Eigen::LLT<Eigen::MatrixXd> r0(rvv[0]);
-    NormalOperator op(rvv, tails, m, L, p, lag_means, lag_count);
-    Eigen::MatrixXd x0;
-    if (!options.initial_guess.empty()) {
-      x0 = Eigen::MatrixXd::Zero(m * (L + 1), p);
-      const Index K = std::min<Index>(L + 1, static_cast<Index>(options.initial_guess.size()));
-      for (Index k = 0; k < K; ++k) {
-        const Eigen::MatrixXd& gk = options.initial_guess[static_cast<std::size_t>(k)];
-        if (gk.rows() != p || gk.cols() != m)
-          throw InputError(fmt::format("estimate_markov: the initial guess is {}x{} at lag {}; the data are {}x{}",
-                                       gk.rows(), gk.cols(), k, p, m));
-        for (Index a = 0; a < m; ++a)
-          for (Index i = 0; i < p; ++i) x0(k * m + a, i) = gk(i, a);
-      }
-    }
-    const bool regularized = options.method == MarkovOptions::Method::kRegularized;
-    const PcgOutcome sol =
-        regularized ? solve_regularized(op, rvv, tails, lag_means, lag_count, rhs, q_energy.colwise().sum().transpose(),
-                                        static_cast<double>(total - (intercept ? E : 0)), m, L, options, res)
-                    : solve_pcg(op, rhs, r0, m, L, options.tolerance, options.max_iterations,
-                                options.initial_guess.empty() ? nullptr : &x0);
-    for (Index k = 0; k <= L; ++k)
-      for (Index a = 0; a < m; ++a)
-        for (Index i = 0; i < p; ++i) res.g[k](i, a) = sol.x(k * m + a, i);
-    res.iterations = sol.iterations;
-    Eigen::MatrixXd phi_x;
-    op.apply(sol.x, phi_x);
-    const Eigen::VectorXd q_energy_total = q_energy.colwise().sum().transpose();
-    residual_known = true;
-    for (Index i = 0; i < p; ++i) {
-      sum_sq(i) = q_energy_total(i) - 2.0 * sol.x.col(i).dot(rhs.col(i)) + sol.x.col(i).dot(phi_x.col(i));
-      residual_known = residual_known && sum_sq(i) >= kAnalyticResidualMinFraction * q_energy_total(i);
-    }
-    if (regularized) {
-      res.report.termination = fmt::format(
-          "regularised: TC kernel, hyperparameters by marginal likelihood on the first {} lags "
-          "(decay per lag {:.4g}..{:.4g}); {}",
-          res.kernel_tuning_lags, res.kernel_decay.minCoeff(), res.kernel_decay.maxCoeff(),
-          sol.iterations == 0 ? std::string(sol.converged ? "solved exactly (dense Cholesky)" : "the dense solve failed")
-                              : fmt::format("CG {} in {} iterations (relative residual {:.2e})",
-                                            sol.converged ? "converged" : "stopped", sol.iterations,
-                                            sol.worst_relative_residual));
-      if (!sol.converged) res.report.usable = false;
-    } else if (sol.converged) {
-      res.report.termination = fmt::format(
-          "PCG converged in {} iterations (relative residual {:.2e} <= tolerance {:.1e})",
-          sol.iterations, sol.worst_relative_residual, options.tolerance);
-    } else {
-      res.report.usable = false;
-      res.report.termination = fmt::format(
-          "PCG stopped at max_iterations = {} with relative residual {:.2e} > tolerance {:.1e}; "
-          "raise max_iterations or check the excitation (strongly coloured or nearly dependent "
-          "inputs)",
-          sol.iterations, sol.worst_relative_residual, options.tolerance);
-    }
-  }
-
-  if (!residual_known) {  // residual energy of the estimated model by FFT convolution
-    sum_sq.setZero();
-    for (Index e = 0; e < E; ++e) {
-      const Index n = experiments[e].excitation.rows();
-      Eigen::VectorXd part = Eigen::VectorXd::Zero(p);
-      signal_detail::accumulate_fir_residual_energy(vs[e], qs[e], n, res.g, part);
-      if (intercept) {
-        // e'(t) = (q - mean q) - sum_k g[k] v(t - k) has mean -delta_e with
-        // delta_e = sum_k g[k] mu_e(k); the residual e' + delta_e has energy
-        // sum e'^2 - n |delta_e|^2 per output.
-        Eigen::VectorXd delta = Eigen::VectorXd::Zero(p);
-        for (Index a = 0; a < m; ++a) {
-          if (!vs[e][a].active) continue;
-          const Eigen::VectorXd means = lag_means_of(vs[e][a].data, n, L);
-          for (Index k = 0; k <= L; ++k) delta += res.g[k].col(a) * means(k);
-        }
-        part -= static_cast<double>(n) * delta.cwiseAbs2();
-      }
-      sum_sq += part.cwiseMax(0.0);
-    }
-  }
   // kRegularized: the prior keeps the effective number of parameters far below m (L + 1);
   // the residual energy over the samples is its noise estimate (slightly high).
   const double dof = static_cast<double>(
