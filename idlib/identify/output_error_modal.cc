@@ -235,15 +235,12 @@ class CostFn final : public ceres::CostFunction {
   const Data& d_;
 };
 
-OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const StateSpace& start,
-                         const OutputErrorOptions& options) {
-  output_error_detail::check_arguments(experiments, start, options);
+// θ's layout for `start` on these logs (everything but the modal blocks, modal_basis),
+// and the records' rows.
+void lay_out(const std::vector<ExperimentView>& experiments, const StateSpace& start, const OutputErrorOptions& options,
+             Layout& l, Data& d) {
   const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
   const auto E = static_cast<Index>(experiments.size());
-  OutputErrorResult res;
-  res.model = start;
-  res.form = "modal";
-  Layout l;
   l.n = n;
   l.m = m;
   l.p = p;
@@ -254,42 +251,22 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
   l.oX = l.oB + n * m;
   l.P = l.oX + (l.free_x0 ? n * E : 0);
   l.k = n + (l.free_d ? m : 0) + E;
-  Data d;
   for (const auto& e : experiments) {
     d.first_row.push_back(d.rows);
     d.rows += e.excitation.rows();
   }
-  res.parameters = l.P;
-  res.residuals = d.rows * p;
-  Index longest = 0;
-  for (const auto& e : experiments) longest = std::max(longest, e.excitation.rows());
-  l.rho_max = std::exp(-1.0 / (kSlowestDecayRecords * static_cast<double>(std::max<Index>(1, longest))));
-  if (n == 0) {
-    res.reason = "not refined: the model has no states";
-    return res;
-  }
-  if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
-    res.reason = fmt::format("not refined: even in modal form with C and D eliminated, the output-error Jacobian "
-                             "would hold {:.3g} entries ({} residuals x {} parameters), above the {:.3g} this "
-                             "refinement allows",
-                             static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
-                             kMaxOutputErrorJacobianEntries);
-    return res;
-  }
-  if (d.rows <= l.k + 1) {
-    res.reason = "not refined: the logs are too short for the output map's least squares";
-    return res;
-  }
-  // Real modal basis of the start: T⁻¹ A T block diagonal.
+}
+
+// Real modal basis of the start: T⁻¹ A T block diagonal (l.blocks), and the start's modal
+// parameters a0.  Returns why the start cannot be refined in modal form ("": it can).
+std::string modal_basis(const StateSpace& start, Layout& l, Eigen::MatrixXd& T, Eigen::VectorXd& a0) {
+  const Index n = l.n;
   const Eigen::EigenSolver<Eigen::MatrixXd> es(start.A);
-  if (es.info() != Eigen::Success) {
-    res.reason = "not refined: the start's eigenvalues could not be computed";
-    return res;
-  }
+  if (es.info() != Eigen::Success) return "not refined: the start's eigenvalues could not be computed";
   const Eigen::VectorXcd lam = es.eigenvalues();
   const Eigen::MatrixXcd V = es.eigenvectors();
-  Eigen::MatrixXd T(n, n);
-  Eigen::VectorXd a0(n);
+  T.resize(n, n);
+  a0.resize(n);
   {
     std::vector<bool> used(static_cast<std::size_t>(n), false);
     Index col = 0;
@@ -311,10 +288,7 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
         if (!used[static_cast<std::size_t>(j)] && std::abs(lam(j) - std::conj(lam(i))) <= 1e-6 * std::max(1.0, std::abs(lam(i))) &&
             (partner < 0 || std::abs(lam(j) - std::conj(lam(i))) < std::abs(lam(partner) - std::conj(lam(i)))))
           partner = j;
-      if (partner < 0 || col + 2 > n) {
-        res.reason = "not refined: the start's complex poles do not come in conjugate pairs";
-        return res;
-      }
+      if (partner < 0 || col + 2 > n) return "not refined: the start's complex poles do not come in conjugate pairs";
       used[static_cast<std::size_t>(partner)] = true;
       const Complex z = lam(i).imag() > 0 ? lam(i) : std::conj(lam(i));
       const Eigen::VectorXcd v = lam(i).imag() > 0 ? Eigen::VectorXcd(V.col(i)) : Eigen::VectorXcd(V.col(i).conjugate());
@@ -329,15 +303,20 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
   }
   const Eigen::JacobiSVD<Eigen::MatrixXd> tsvd(T);
   const double cond = tsvd.singularValues()(0) / tsvd.singularValues()(n - 1);
-  if (!(cond < kMaxModalCondition)) {
-    res.reason = fmt::format("not refined: the start's modal basis is too ill-conditioned ({:.3g}: nearly repeated "
-                             "poles)",
-                             cond);
-    return res;
-  }
-  const Eigen::PartialPivLU<Eigen::MatrixXd> Tlu(T);
-  // Channel scales as in refine_output_error: each output counts alike.
-  const auto [su, sy] = output_error_detail::channel_scales(experiments);
+  if (!(cond < kMaxModalCondition))
+    return fmt::format("not refined: the start's modal basis is too ill-conditioned ({:.3g}: nearly repeated "
+                       "poles)",
+                       cond);
+  return "";
+}
+
+// The scaled records (d.u, d.y, d.Y), the start's θ (modal parameters a0, B and the initial
+// states in the modal basis T) and the start's cost as refine_output_error measures it:
+// its own C and D, the offsets (and initial states) by least squares.
+double start_point(const std::vector<ExperimentView>& experiments, const StateSpace& start, const Layout& l,
+                   const Eigen::VectorXd& a0, const Eigen::PartialPivLU<Eigen::MatrixXd>& Tlu,
+                   const Eigen::VectorXd& su, const Eigen::VectorXd& sy, Data& d, Eigen::VectorXd& theta) {
+  const Index n = l.n, m = l.m, p = l.p, E = l.E;
   d.Y.resize(d.rows, p);
   for (Index e = 0; e < E; ++e) {
     const auto& ex = experiments[static_cast<std::size_t>(e)];
@@ -345,10 +324,8 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
     d.y.push_back(ex.output * sy.cwiseInverse().asDiagonal());
     d.Y.middleRows(d.first_row[static_cast<std::size_t>(e)], ex.output.rows()) = d.y.back();
   }
-  // The start's cost as refine_output_error measures it: its own C and D, the offsets (and
-  // initial states) by least squares.
-  res.start_cost = 0.0;
-  Eigen::VectorXd theta = Eigen::VectorXd::Zero(l.P);
+  double start_cost = 0.0;
+  theta = Eigen::VectorXd::Zero(l.P);
   theta.head(n) = a0;
   const Eigen::MatrixXd Bm = Tlu.solve(start.B * su.asDiagonal());
   theta.segment(l.oB, n * m) = Eigen::Map<const Eigen::VectorXd>(Bm.data(), n * m);
@@ -356,12 +333,186 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
     const auto& ex = experiments[static_cast<std::size_t>(e)];
     const SimulatedOutput s = simulate_with_fitted_start(start, ex.excitation, ex.output, l.free_x0);
     if (s.predicted.size() == 0) {
-      res.start_cost = std::numeric_limits<double>::infinity();
+      start_cost = std::numeric_limits<double>::infinity();
       continue;
     }
-    res.start_cost += ((ex.output - s.predicted) * sy.cwiseInverse().asDiagonal()).squaredNorm();
+    start_cost += ((ex.output - s.predicted) * sy.cwiseInverse().asDiagonal()).squaredNorm();
     if (l.free_x0) theta.segment(l.oX + n * e, n) = Tlu.solve(s.initial_state);
   }
+  return start_cost;
+}
+
+// The full problem φ = [θ; Θ(:,1); ...; Θ(:,p)] at the optimum: ∂R/∂θ_j with Θ fixed
+// (a[j], N × p) and the Gauss-Newton matrix H, assembled from blocks.
+struct FullProblem {
+  std::vector<Eigen::MatrixXd> a;
+  Eigen::MatrixXd H;
+};
+FullProblem full_problem(const Layout& l, const Data& d, const Eigen::VectorXd& theta, const Eval& ev) {
+  const Index p = l.p, k = l.k, Pn = l.P, Pf = Pn + p * k;
+  FullProblem fp;
+  const std::vector<Sensitivity> sens = sensitivities(l, d, theta.data(), ev.X);
+  std::vector<Eigen::MatrixXd>& a = fp.a;
+  a.resize(static_cast<std::size_t>(Pn));  // ∂R/∂θ_j with Θ fixed: N × p
+  for (Index j = 0; j < Pn; ++j) {
+    const Sensitivity& s = sens[static_cast<std::size_t>(j)];
+    a[static_cast<std::size_t>(j)] = s.S * ev.Theta.middleRows(s.col, s.width);
+  }
+  Eigen::MatrixXd& H = fp.H;
+  H = Eigen::MatrixXd::Zero(Pf, Pf);
+  const Eigen::MatrixXd PtP = ev.Phi.transpose() * ev.Phi;
+  for (Index j = 0; j < Pn; ++j) {
+    const Eigen::MatrixXd& aj = a[static_cast<std::size_t>(j)];
+    for (Index q = 0; q <= j; ++q) H(j, q) = H(q, j) = (aj.array() * a[static_cast<std::size_t>(q)].array()).sum();
+    const Eigen::MatrixXd Pa = ev.Phi.transpose() * aj;  // k × p
+    for (Index i = 0; i < p; ++i) {
+      H.block(Pn + i * k, j, k, 1) = Pa.col(i);
+      H.block(j, Pn + i * k, 1, k) = Pa.col(i).transpose();
+    }
+  }
+  for (Index i = 0; i < p; ++i) H.block(Pn + i * k, Pn + i * k, k, k) = PtP;
+  return fp;
+}
+
+// Similarity directions of the modal form in φ: a real state's scale; a complex block's
+// scale and rotation (B's rows and x(0) by T, C's columns by −T).  One column each.
+Eigen::MatrixXd similarity_directions(const Layout& l, const Eigen::VectorXd& theta, const Eval& ev) {
+  const Index n = l.n, m = l.m, p = l.p, E = l.E, k = l.k, Pn = l.P, Pf = Pn + p * k;
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(Pf, n);
+  Index g = 0;
+  const Eigen::Map<const Eigen::MatrixXd> Bt(theta.data() + l.oB, n, m);
+  for (const Block& b : l.blocks) {
+    const Index w = b.complex ? 2 : 1;
+    std::vector<Eigen::Matrix2d> Ts;
+    Ts.push_back(Eigen::Matrix2d::Identity());
+    if (b.complex) Ts.push_back((Eigen::Matrix2d() << 0, 1, -1, 0).finished());
+    for (const Eigen::Matrix2d& Tb : Ts) {
+      const Eigen::MatrixXd Tw = Tb.topLeftCorner(w, w);
+      const Eigen::MatrixXd dB = Tw * Bt.middleRows(b.start, w);
+      for (Index c = 0; c < m; ++c)
+        for (Index r = 0; r < w; ++r) G(l.oB + b.start + r + n * c, g) = dB(r, c);
+      if (l.free_x0)
+        for (Index e = 0; e < E; ++e)
+          G.block(l.oX + n * e + b.start, g, w, 1) = Tw * theta.segment(l.oX + n * e + b.start, w);
+      const Eigen::MatrixXd dCt = -(ev.Theta.middleRows(b.start, w).transpose() * Tw).transpose();  // w × p
+      for (Index i = 0; i < p; ++i) G.block(Pn + i * k + b.start, g, w, 1) = dCt.col(i);
+      ++g;
+    }
+  }
+  return G.leftCols(g);
+}
+
+// [vec A; vec B; vec C] of the refined model as linear functions of φ (the Jacobian of the
+// map, at θ).
+Eigen::MatrixXd abc_map(const Layout& l, const Eigen::VectorXd& theta, const Eigen::VectorXd& su,
+                        const Eigen::VectorXd& sy) {
+  const Index n = l.n, m = l.m, p = l.p, k = l.k, Pn = l.P, Pf = Pn + p * k;
+  const Index nabc = n * n + n * m + p * n;
+  Eigen::MatrixXd Mmap = Eigen::MatrixXd::Zero(nabc, Pf);
+  for (const Block& b : l.blocks) {
+    const Index w = b.complex ? 2 : 1;
+    const BlockMatrices bm = block_matrices(b, theta.data() + b.start, l.rho_max);
+    for (Index c = 0; c < w; ++c)
+      for (Index r = 0; r < w; ++r) {
+        const Index e = (b.start + r) + n * (b.start + c);
+        Mmap(e, b.start) = bm.dM0(r, c);
+        if (b.complex) Mmap(e, b.start + 1) = bm.dM1(r, c);
+      }
+  }
+  for (Index c = 0; c < m; ++c)
+    for (Index i = 0; i < n; ++i) Mmap(n * n + i + n * c, l.oB + i + n * c) = 1.0 / su(c);
+  for (Index j = 0; j < n; ++j)
+    for (Index i = 0; i < p; ++i) Mmap(n * n + n * m + i + p * j, Pn + i * k + j) = sy(i);
+  return Mmap;
+}
+
+// Sandwich covariance of the full problem φ over record segments, on the complement of
+// the similarity directions; res.covariance ([vec A; vec B; vec C]), res.replicates and
+// res.feedthrough_variance from it.
+void sandwich_covariance(const Layout& l, const Data& d, const Eigen::VectorXd& theta, const Eval& ev,
+                         const Eigen::VectorXd& su, const Eigen::VectorXd& sy, const OutputErrorOptions& options,
+                         OutputErrorResult& res) {
+  const Index m = l.m, p = l.p, n = l.n;
+  const Index N = d.rows, k = l.k, Pn = l.P, Pf = Pn + p * k;
+  const FullProblem fp = full_problem(l, d, theta, ev);
+  const std::vector<Eigen::MatrixXd>& a = fp.a;
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> gqr(similarity_directions(l, theta, ev));
+  const Eigen::MatrixXd Qg = gqr.householderQ();
+  const Eigen::MatrixXd Qc = Qg.rightCols(Pf - gqr.rank());
+  const Eigen::MatrixXd Hz = Qc.transpose() * fp.H * Qc;
+  const Eigen::MatrixXd Hinv = Hz.completeOrthogonalDecomposition().pseudoInverse();
+  const Index seg = std::max(options.min_segment_samples, N / 8);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Pf, Pf);
+  Index segments = 0;
+  for (Index r0 = 0; r0 < N; r0 += seg) {
+    const Index len = std::min(seg, N - r0);
+    Eigen::VectorXd gs(Pf);
+    const auto Rs = ev.R.middleRows(r0, len);
+    for (Index j = 0; j < Pn; ++j) gs(j) = (a[static_cast<std::size_t>(j)].middleRows(r0, len).array() * Rs.array()).sum();
+    const Eigen::MatrixXd PR = ev.Phi.middleRows(r0, len).transpose() * Rs;  // k × p
+    for (Index i = 0; i < p; ++i) gs.segment(Pn + i * k, k) = PR.col(i);
+    S += gs * gs.transpose();
+    ++segments;
+  }
+  Eigen::MatrixXd cov_z;
+  if (segments >= 2) {
+    cov_z = Hinv * (Qc.transpose() * S * Qc) * Hinv * (static_cast<double>(segments) / static_cast<double>(segments - 1));
+    res.replicates = segments;
+  } else {
+    cov_z = Hinv * (res.cost / static_cast<double>(std::max<Index>(1, res.residuals - Qc.cols())));
+  }
+  const Eigen::MatrixXd cov_phi = Qc * cov_z * Qc.transpose();
+  const Eigen::MatrixXd Mmap = abc_map(l, theta, su, sy);
+  res.covariance = Mmap * cov_phi * Mmap.transpose();
+  res.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
+  if (l.free_d)
+    for (Index c = 0; c < m; ++c)
+      for (Index i = 0; i < p; ++i) {
+        const Index e = Pn + i * k + n + c;
+        res.feedthrough_variance(i, c) = cov_phi(e, e) * sy(i) * sy(i) / (su(c) * su(c));
+      }
+}
+
+OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                         const OutputErrorOptions& options) {
+  output_error_detail::check_arguments(experiments, start, options);
+  const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
+  OutputErrorResult res;
+  res.model = start;
+  res.form = "modal";
+  Layout l;
+  Data d;
+  lay_out(experiments, start, options, l, d);
+  res.parameters = l.P;
+  res.residuals = d.rows * p;
+  Index longest = 0;
+  for (const auto& e : experiments) longest = std::max(longest, e.excitation.rows());
+  l.rho_max = std::exp(-1.0 / (kSlowestDecayRecords * static_cast<double>(std::max<Index>(1, longest))));
+  if (n == 0) {
+    res.reason = "not refined: the model has no states";
+    return res;
+  }
+  if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
+    res.reason = fmt::format("not refined: even in modal form with C and D eliminated, the output-error Jacobian "
+                             "would hold {:.3g} entries ({} residuals x {} parameters), above the {:.3g} this "
+                             "refinement allows",
+                             static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
+                             kMaxOutputErrorJacobianEntries);
+    return res;
+  }
+  if (d.rows <= l.k + 1) {
+    res.reason = "not refined: the logs are too short for the output map's least squares";
+    return res;
+  }
+  Eigen::MatrixXd T;
+  Eigen::VectorXd a0;
+  res.reason = modal_basis(start, l, T, a0);
+  if (!res.reason.empty()) return res;
+  const Eigen::PartialPivLU<Eigen::MatrixXd> Tlu(T);
+  // Channel scales as in refine_output_error: each output counts alike.
+  const auto [su, sy] = output_error_detail::channel_scales(experiments);
+  Eigen::VectorXd theta;
+  res.start_cost = start_point(experiments, start, l, a0, Tlu, su, sy, d, theta);
   if (!evaluate(l, d, theta.data()).ok) {
     res.reason = "not refined: the start model diverges on the logs";
     return res;
@@ -400,99 +551,7 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
   }
 
   // Sandwich covariance of the full problem φ = [θ; Θ(:,1); ...; Θ(:,p)] from blocks.
-  const Index N = d.rows, k = l.k, Pn = l.P, Pf = Pn + p * k;
-  const std::vector<Sensitivity> sens = sensitivities(l, d, theta.data(), ev.X);
-  std::vector<Eigen::MatrixXd> a(static_cast<std::size_t>(Pn));  // ∂R/∂θ_j with Θ fixed: N × p
-  for (Index j = 0; j < Pn; ++j) {
-    const Sensitivity& s = sens[static_cast<std::size_t>(j)];
-    a[static_cast<std::size_t>(j)] = s.S * ev.Theta.middleRows(s.col, s.width);
-  }
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(Pf, Pf);
-  const Eigen::MatrixXd PtP = ev.Phi.transpose() * ev.Phi;
-  for (Index j = 0; j < Pn; ++j) {
-    const Eigen::MatrixXd& aj = a[static_cast<std::size_t>(j)];
-    for (Index q = 0; q <= j; ++q) H(j, q) = H(q, j) = (aj.array() * a[static_cast<std::size_t>(q)].array()).sum();
-    const Eigen::MatrixXd Pa = ev.Phi.transpose() * aj;  // k × p
-    for (Index i = 0; i < p; ++i) {
-      H.block(Pn + i * k, j, k, 1) = Pa.col(i);
-      H.block(j, Pn + i * k, 1, k) = Pa.col(i).transpose();
-    }
-  }
-  for (Index i = 0; i < p; ++i) H.block(Pn + i * k, Pn + i * k, k, k) = PtP;
-  // Similarity directions of the modal form: a real state's scale; a complex block's scale
-  // and rotation (B's rows and x(0) by T, C's columns by −T).
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(Pf, n);
-  Index g = 0;
-  const Eigen::Map<const Eigen::MatrixXd> Bt(theta.data() + l.oB, n, m);
-  for (const Block& b : l.blocks) {
-    const Index w = b.complex ? 2 : 1;
-    std::vector<Eigen::Matrix2d> Ts;
-    Ts.push_back(Eigen::Matrix2d::Identity());
-    if (b.complex) Ts.push_back((Eigen::Matrix2d() << 0, 1, -1, 0).finished());
-    for (const Eigen::Matrix2d& Tb : Ts) {
-      const Eigen::MatrixXd Tw = Tb.topLeftCorner(w, w);
-      const Eigen::MatrixXd dB = Tw * Bt.middleRows(b.start, w);
-      for (Index c = 0; c < m; ++c)
-        for (Index r = 0; r < w; ++r) G(l.oB + b.start + r + n * c, g) = dB(r, c);
-      if (l.free_x0)
-        for (Index e = 0; e < E; ++e)
-          G.block(l.oX + n * e + b.start, g, w, 1) = Tw * theta.segment(l.oX + n * e + b.start, w);
-      const Eigen::MatrixXd dCt = -(ev.Theta.middleRows(b.start, w).transpose() * Tw).transpose();  // w × p
-      for (Index i = 0; i < p; ++i) G.block(Pn + i * k + b.start, g, w, 1) = dCt.col(i);
-      ++g;
-    }
-  }
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> gqr(G.leftCols(g));
-  const Eigen::MatrixXd Qg = gqr.householderQ();
-  const Eigen::MatrixXd Qc = Qg.rightCols(Pf - gqr.rank());
-  const Eigen::MatrixXd Hz = Qc.transpose() * H * Qc;
-  const Eigen::MatrixXd Hinv = Hz.completeOrthogonalDecomposition().pseudoInverse();
-  const Index seg = std::max(options.min_segment_samples, N / 8);
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Pf, Pf);
-  Index segments = 0;
-  for (Index r0 = 0; r0 < N; r0 += seg) {
-    const Index len = std::min(seg, N - r0);
-    Eigen::VectorXd gs(Pf);
-    const auto Rs = ev.R.middleRows(r0, len);
-    for (Index j = 0; j < Pn; ++j) gs(j) = (a[static_cast<std::size_t>(j)].middleRows(r0, len).array() * Rs.array()).sum();
-    const Eigen::MatrixXd PR = ev.Phi.middleRows(r0, len).transpose() * Rs;  // k × p
-    for (Index i = 0; i < p; ++i) gs.segment(Pn + i * k, k) = PR.col(i);
-    S += gs * gs.transpose();
-    ++segments;
-  }
-  Eigen::MatrixXd cov_z;
-  if (segments >= 2) {
-    cov_z = Hinv * (Qc.transpose() * S * Qc) * Hinv * (static_cast<double>(segments) / static_cast<double>(segments - 1));
-    res.replicates = segments;
-  } else {
-    cov_z = Hinv * (res.cost / static_cast<double>(std::max<Index>(1, res.residuals - Qc.cols())));
-  }
-  const Eigen::MatrixXd cov_phi = Qc * cov_z * Qc.transpose();
-  // [vec A; vec B; vec C] of `refined` as functions of φ.
-  const Index nabc = n * n + n * m + p * n;
-  Eigen::MatrixXd Mmap = Eigen::MatrixXd::Zero(nabc, Pf);
-  for (const Block& b : l.blocks) {
-    const Index w = b.complex ? 2 : 1;
-    const BlockMatrices bm = block_matrices(b, theta.data() + b.start, l.rho_max);
-    for (Index c = 0; c < w; ++c)
-      for (Index r = 0; r < w; ++r) {
-        const Index e = (b.start + r) + n * (b.start + c);
-        Mmap(e, b.start) = bm.dM0(r, c);
-        if (b.complex) Mmap(e, b.start + 1) = bm.dM1(r, c);
-      }
-  }
-  for (Index c = 0; c < m; ++c)
-    for (Index i = 0; i < n; ++i) Mmap(n * n + i + n * c, l.oB + i + n * c) = 1.0 / su(c);
-  for (Index j = 0; j < n; ++j)
-    for (Index i = 0; i < p; ++i) Mmap(n * n + n * m + i + p * j, Pn + i * k + j) = sy(i);
-  res.covariance = Mmap * cov_phi * Mmap.transpose();
-  res.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
-  if (l.free_d)
-    for (Index c = 0; c < m; ++c)
-      for (Index i = 0; i < p; ++i) {
-        const Index e = Pn + i * k + n + c;
-        res.feedthrough_variance(i, c) = cov_phi(e, e) * sy(i) * sy(i) / (su(c) * su(c));
-      }
+  sandwich_covariance(l, d, theta, ev, su, sy, options, res);
   res.model = refined;
   res.accepted = true;
   Index on_bound = 0;

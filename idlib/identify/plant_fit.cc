@@ -10,7 +10,6 @@
 #include <limits>
 
 #include "idlib/core/parallel.h"
-#include "idlib/signal/real_fft.h"
 
 namespace lpvid {
 namespace {
@@ -185,6 +184,45 @@ class Model {
                   const std::vector<std::vector<MatrixXcd>>* reps = nullptr, MatrixXd* rep_grads = nullptr) const;
 
  private:
+  // Only the (α, β) pairs of the basis columns enter evaluate's Gram sums (Gu's row α,
+  // Gv's row β): α < n with every β (group 0), n ≤ α < N with β in [n + m, n + 2m)
+  // (group 1), α ≥ N with β < n (group 2); so the products are taken per pair of groups
+  // (about 4x fewer flops than all NU² × NV² pairs).
+  struct Group {
+    Index a0, na, b0, nb;
+  };
+  std::array<Group, 3> group_layout() const {
+    const Index n = n_, m = m_, p = p_, N = N_, nk = N - n;
+    return {Group{0, n, 0, n + 2 * m}, Group{n, nk, n + m, m}, Group{N, p, 0, n}};
+  }
+  // Pair (g, h) of groups, g ≤ h: index g * 3 + h − g (g + 1) / 2.
+  static Index pair_index(Index g, Index h) { return g * 3 + h - g * (g + 1) / 2; }
+  // What the pass over the bins reads: the closed loop at θ and the controller's blocks,
+  // complex (see evaluate).
+  struct BinInputs {
+    MatrixXcd Ac, Bq, Cc, D2, DkC, BDk, Ckc, Bkc;
+    bool jac = false;
+    const std::vector<std::vector<MatrixXcd>>* reps = nullptr;
+    std::size_t S = 0;  // replicates
+  };
+  // What it sums: per pair of groups, Gu's and Gv's blocks (real and imaginary parts; one
+  // column per bin, the block in column-major order); per chunk of bins, the cost's and
+  // the gradient terms' partial sums (GJsum's and GJrep's, see evaluate).
+  struct BinSums {
+    std::array<MatrixXd, 6> AuRe, AuIm, AvRe, AvIm;
+    std::vector<double> cost_part;
+    std::vector<MatrixXcd> GJpart;
+    std::vector<std::vector<MatrixXcd>> GJrep_part;
+  };
+  // The bins of chunk `chunk` of `chunks` (contiguous runs), into sums.
+  void bin_chunk(Index chunk, Index chunks, const BinInputs& in, BinSums& sums) const;
+  // The normal matrix M and gradient g over the basis columns (column c: Gu's row
+  // col_alpha[c], Gv's row col_beta[c]), from the bins' sums.
+  void basis_normal_equations(const BinSums& sums, const MatrixXcd& GJsum, MatrixXd& M, VectorXd& g,
+                              std::vector<Index>& col_alpha, std::vector<Index>& col_beta) const;
+  // The map T from θ to the basis columns, and their signs (r = Ĝ − H: −1 for the direct
+  // columns, +1 for the truncation basis).
+  MatrixXd basis_map(const MatrixXd& DQ, VectorXd& sgn) const;
   MatrixXd truncation_derivatives(const Loop& l, const MatrixXd& AL, const MatrixXd& B, const MatrixXd& C) const;
 
   const MarkovBins& data_;
@@ -275,168 +313,195 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
   const Loop l = close(A, B, C, k_);
   rho = Eigen::EigenSolver<MatrixXd>(l.A, false).eigenvalues().cwiseAbs().maxCoeff();
   const MatrixXd AL = matrix_power(l.A, L);
-  const MatrixXcd Bq = (l.B - AL * l.B).cast<Complex>();
-  const MatrixXcd Cc = l.C.cast<Complex>();
-  const MatrixXcd D2 = data_.excitation_gram.cast<Complex>() / static_cast<double>(L);
+  BinInputs in;
+  in.Bq = (l.B - AL * l.B).cast<Complex>();
+  in.Cc = l.C.cast<Complex>();
+  in.D2 = data_.excitation_gram.cast<Complex>() / static_cast<double>(L);
 
   MatrixXd DQ;
-  const Index NU = N + p, NV = n + 2 * m;
+  const Index NV = n + 2 * m;
   const Index ncol = n * NV + nk * m + p * n;  // columns of the outer-product basis
   const Index F = data_.num_bins();
   // Per bin, the Gram matrices s_f Gu = s_f Uᴴ Φ⁻¹ U (NU²) and Gv = Vᴴ (R₀/L) V (NV²) are
   // stored as columns; Σ_f Re(Gu_f(α, α') Gv_f(β, β')) for every pair is then one pair of
-  // real matrix products (Re Au Re Avᵀ − Im Au Im Avᵀ).
-  // Only the (α, β) pairs of the basis columns enter: α < n with every β (group 0),
-  // n ≤ α < N with β in [n + m, n + 2m) (group 1), α ≥ N with β < n (group 2); so the
-  // products are taken per pair of groups (about 4x fewer flops than all NU² × NV² pairs).
-  struct Group {
-    Index a0, na, b0, nb;
-  };
-  const std::array<Group, 3> groups = {Group{0, n, 0, n + 2 * m}, Group{n, nk, n + m, m}, Group{N, p, 0, n}};
-  std::array<MatrixXd, 6> AuRe, AuIm, AvRe, AvIm;  // pair (g, h), g ≤ h, index g * 3 + h − g (g + 1) / 2
-  auto pair_index = [](Index g, Index h) { return g * 3 + h - g * (g + 1) / 2; };
+  // real matrix products (Re Au Re Avᵀ − Im Au Im Avᵀ), per pair of groups (Group).
+  const std::array<Group, 3> groups = group_layout();
+  BinSums sums;
   MatrixXcd GJsum;
   const std::size_t S = reps != nullptr ? reps->size() : 0;
   std::vector<MatrixXcd> GJrep(S);
-  const MatrixXcd DkC = (k_.Dk * C).cast<Complex>(), BDk = (B * k_.Dk).cast<Complex>();
-  const MatrixXcd Ckc = k_.Ck.cast<Complex>(), Bkc = k_.Bk.cast<Complex>();
+  in.DkC = (k_.Dk * C).cast<Complex>();
+  in.BDk = (B * k_.Dk).cast<Complex>();
+  in.Ckc = k_.Ck.cast<Complex>();
+  in.Bkc = k_.Bk.cast<Complex>();
+  in.jac = jac;
+  in.reps = reps;
+  in.S = S;
   if (jac) {
     DQ = truncation_derivatives(l, AL, B, C);
     for (Index g = 0; g < 3; ++g)
       for (Index h = g; h < 3; ++h) {
         const Index k = pair_index(g, h);
-        AuRe[k].resize(groups[g].na * groups[h].na, F);
-        AuIm[k].resize(groups[g].na * groups[h].na, F);
-        AvRe[k].resize(groups[g].nb * groups[h].nb, F);
-        AvIm[k].resize(groups[g].nb * groups[h].nb, F);
+        sums.AuRe[k].resize(groups[g].na * groups[h].na, F);
+        sums.AuIm[k].resize(groups[g].na * groups[h].na, F);
+        sums.AvRe[k].resize(groups[g].nb * groups[h].nb, F);
+        sums.AvIm[k].resize(groups[g].nb * groups[h].nb, F);
       }
   }
-  const MatrixXcd Ac = l.A.cast<Complex>();
+  in.Ac = l.A.cast<Complex>();
   // The bins run as kEvaluateChunks contiguous runs (fewer for few bins), one task each
   // (idlib/core/parallel.h) with its own workspace and partial sums, added in chunk order.
   const Index chunks = std::max<Index>(1, std::min<Index>(kEvaluateChunks, F / kMinBinsPerChunk));
-  std::vector<double> cost_part(static_cast<std::size_t>(chunks), 0.0);
-  std::vector<MatrixXcd> GJpart(static_cast<std::size_t>(chunks));
-  std::vector<std::vector<MatrixXcd>> GJrep_part(static_cast<std::size_t>(chunks), std::vector<MatrixXcd>(S));
-  parallel_for(chunks, [&](Index chunk) {
-    MatrixXcd Z(N, N), X, Y, U, V;
-    SmallLu lu;
-    double cost = 0.0;
-    MatrixXcd gj;  // Σ over this chunk's bins of GJsum's terms, and of GJrep's
-    std::vector<MatrixXcd>& gj_rep = GJrep_part[static_cast<std::size_t>(chunk)];
-    if (jac) {
-      gj.setZero(NU, NV);
-      for (auto& x : gj_rep) x.setZero(NU, NV);
-      U.resize(p, NU);
-      V.resize(m, NV);
-      V.rightCols(m).setIdentity();
-    }
-    for (Index f = chunk * F / chunks; f < (chunk + 1) * F / chunks; ++f) {
-      const double w = data_.omega_rad_s(f) * data_.sample_period_s;
-      const Complex z = std::polar(1.0, w);
-      Z = -Ac;
-      Z.diagonal().array() += z;
-      lu.factor(Z);
-      X = Bq;
-      lu.solve_right(X);
-      const MatrixXcd Rf = data_.response[static_cast<std::size_t>(f)] - Cc * X;
-      const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
-      const bool real_bin = f == 0 || 2 * f == L;
-      const double s = real_bin ? 1.0 : 2.0;
-      const MatrixXcd& D2f = data_.excitation_spectrum.empty()
-                                 ? D2
-                                 : data_.excitation_spectrum[static_cast<std::size_t>(f)];
-      const MatrixXcd RD = Rf * D2f;
-      cost += s * (Rf.adjoint() * Phi * RD).trace().real();
-      if (!jac) continue;
-      // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
-      Y = Cc;
-      lu.solve_left(Y);
-      U.leftCols(N) = Y;
-      MatrixXcd Wt = -(Y.leftCols(n) * BDk + Y.rightCols(nk) * Bkc);
-      Wt.diagonal().array() += 1.0;
-      U.rightCols(p) = Wt;
-      V.leftCols(n) = X.topRows(n).transpose();
-      MatrixXcd Zt = -DkC * X.topRows(n) + Ckc * X.bottomRows(nk);  // m × m
-      Zt.diagonal().array() += 1.0;
-      V.middleCols(n, m) = Zt.transpose();
-      const MatrixXcd T1 = Phi * U;
-      const MatrixXcd Gu = s * (U.adjoint() * T1);
-      const MatrixXcd Gv = V.adjoint() * (D2f * V);
-      for (Index g = 0; g < 3; ++g)
-        for (Index h = g; h < 3; ++h) {
-          const Index k = pair_index(g, h);
-          const Group &G1 = groups[g], &G2 = groups[h];
-          // Column f holds the block in column-major order (no temporaries).
-          for (Index j = 0, r = 0; j < G2.na; ++j)
-            for (Index i = 0; i < G1.na; ++i, ++r) {
-              const Complex x = Gu(G1.a0 + i, G2.a0 + j);
-              AuRe[k](r, f) = x.real();
-              AuIm[k](r, f) = x.imag();
-            }
-          for (Index j = 0, r = 0; j < G2.nb; ++j)
-            for (Index i = 0; i < G1.nb; ++i, ++r) {
-              const Complex x = Gv(G1.b0 + i, G2.b0 + j);
-              AvRe[k](r, f) = x.real();
-              AvIm[k](r, f) = x.imag();
-            }
-        }
-      gj.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
-      for (std::size_t r = 0; r < S; ++r)
-        gj_rep[r].noalias() += s * ((T1.adjoint() * ((*reps)[r][static_cast<std::size_t>(f)] * D2f)) * V.conjugate());
-    }
-    cost_part[static_cast<std::size_t>(chunk)] = cost;
-    GJpart[static_cast<std::size_t>(chunk)] = std::move(gj);
-  });
+  sums.cost_part.assign(static_cast<std::size_t>(chunks), 0.0);
+  sums.GJpart.resize(static_cast<std::size_t>(chunks));
+  sums.GJrep_part.assign(static_cast<std::size_t>(chunks), std::vector<MatrixXcd>(S));
+  parallel_for(chunks, [&](Index chunk) { bin_chunk(chunk, chunks, in, sums); });
   double cost = 0.0;
-  for (const double c : cost_part) cost += c;
-  if (jac) {
-    GJsum = GJpart.front();
-    for (Index c = 1; c < chunks; ++c) GJsum += GJpart[static_cast<std::size_t>(c)];
-    for (std::size_t r = 0; r < S; ++r) {
-      GJrep[r] = GJrep_part.front()[r];
-      for (Index c = 1; c < chunks; ++c) GJrep[r] += GJrep_part[static_cast<std::size_t>(c)][r];
-    }
-  }
-  // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
-  std::array<MatrixXd, 6> K2;
-  if (jac)
-    parallel_for(6, [&](Index k) {  // one task per pair of groups
-      K2[k].noalias() = AuRe[k] * AvRe[k].transpose();
-      K2[k].noalias() -= AuIm[k] * AvIm[k].transpose();
-    });
-  // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
-  std::vector<Index> col_alpha, col_beta, col_group;
-  if (jac) {
-    for (Index ga = 0; ga < NU; ++ga) {
-      const Index grp = ga < n ? 0 : (ga < N ? 1 : 2);
-      for (Index c = 0; c < groups[grp].nb; ++c) {
-        col_alpha.push_back(ga);
-        col_beta.push_back(groups[grp].b0 + c);
-        col_group.push_back(grp);
-      }
-    }
+  for (const double c : sums.cost_part) cost += c;
+  if (!jac) return cost;
+  GJsum = sums.GJpart.front();
+  for (Index c = 1; c < chunks; ++c) GJsum += sums.GJpart[static_cast<std::size_t>(c)];
+  for (std::size_t r = 0; r < S; ++r) {
+    GJrep[r] = sums.GJrep_part.front()[r];
+    for (Index c = 1; c < chunks; ++c) GJrep[r] += sums.GJrep_part[static_cast<std::size_t>(c)][r];
   }
   MatrixXd M;
   VectorXd g;
-  if (jac) {
-    M.resize(ncol, ncol);
-    g.resize(ncol);
-    for (Index c2 = 0; c2 < ncol; ++c2) {
-      g(c2) = GJsum(col_alpha[c2], col_beta[c2]).real();
-      for (Index c1 = 0; c1 <= c2; ++c1) {
-        const Index g1 = col_group[c1], g2 = col_group[c2];  // g1 ≤ g2: columns are ordered by group
-        const Group &G1 = groups[g1], &G2 = groups[g2];
-        M(c1, c2) = M(c2, c1) =
-            K2[pair_index(g1, g2)]((col_alpha[c1] - G1.a0) + G1.na * (col_alpha[c2] - G2.a0),
-                                   (col_beta[c1] - G1.b0) + G1.nb * (col_beta[c2] - G2.b0));
-      }
+  std::vector<Index> col_alpha, col_beta;
+  basis_normal_equations(sums, GJsum, M, g, col_alpha, col_beta);
+  VectorXd sgn;
+  const MatrixXd T = basis_map(DQ, sgn);
+  const MatrixXd St = sgn.asDiagonal() * T;
+  *JtJ = St.transpose() * M * St;
+  *Jtr = St.transpose() * g;
+  if (rep_grads != nullptr) {
+    rep_grads->resize(np_, static_cast<Index>(S));
+    for (std::size_t r = 0; r < S; ++r) {
+      VectorXd gr(ncol);
+      for (Index c = 0; c < ncol; ++c) gr(c) = GJrep[r](col_alpha[c], col_beta[c]).real();
+      rep_grads->col(static_cast<Index>(r)) = St.transpose() * gr;
     }
   }
-  if (!jac) return cost;
-  // Signs (r = Ĝ − H: −1 for the direct columns, +1 for the truncation basis) and the
-  // map T from θ to basis columns.
-  VectorXd sgn(ncol);
+  return cost;
+}
+
+void Model::bin_chunk(Index chunk, Index chunks, const BinInputs& in, BinSums& sums) const {
+  const Index n = n_, m = m_, p = p_, N = N_, nk = N - n, L = data_.num_lags;
+  const Index NU = N + p, NV = n + 2 * m;
+  const Index F = data_.num_bins();
+  const std::array<Group, 3> groups = group_layout();
+  const bool jac = in.jac;
+  MatrixXcd Z(N, N), X, Y, U, V;
+  SmallLu lu;
+  double cost = 0.0;
+  MatrixXcd gj;  // Σ over this chunk's bins of GJsum's terms, and of GJrep's
+  std::vector<MatrixXcd>& gj_rep = sums.GJrep_part[static_cast<std::size_t>(chunk)];
+  if (jac) {
+    gj.setZero(NU, NV);
+    for (auto& x : gj_rep) x.setZero(NU, NV);
+    U.resize(p, NU);
+    V.resize(m, NV);
+    V.rightCols(m).setIdentity();
+  }
+  for (Index f = chunk * F / chunks; f < (chunk + 1) * F / chunks; ++f) {
+    const double w = data_.omega_rad_s(f) * data_.sample_period_s;
+    const Complex z = std::polar(1.0, w);
+    Z = -in.Ac;
+    Z.diagonal().array() += z;
+    lu.factor(Z);
+    X = in.Bq;
+    lu.solve_right(X);
+    const MatrixXcd Rf = data_.response[static_cast<std::size_t>(f)] - in.Cc * X;
+    const MatrixXcd& Phi = data_.noise_inverse[static_cast<std::size_t>(f)];
+    const bool real_bin = f == 0 || 2 * f == L;
+    const double s = real_bin ? 1.0 : 2.0;
+    const MatrixXcd& D2f = data_.excitation_spectrum.empty()
+                               ? in.D2
+                               : data_.excitation_spectrum[static_cast<std::size_t>(f)];
+    const MatrixXcd RD = Rf * D2f;
+    cost += s * (Rf.adjoint() * Phi * RD).trace().real();
+    if (!jac) continue;
+    // Y = C_cl Z⁻¹ from the LU factors: P Z = L U  ⇒  Z⁻¹ = U⁻¹ L⁻¹ P.
+    Y = in.Cc;
+    lu.solve_left(Y);
+    U.leftCols(N) = Y;
+    MatrixXcd Wt = -(Y.leftCols(n) * in.BDk + Y.rightCols(nk) * in.Bkc);
+    Wt.diagonal().array() += 1.0;
+    U.rightCols(p) = Wt;
+    V.leftCols(n) = X.topRows(n).transpose();
+    MatrixXcd Zt = -in.DkC * X.topRows(n) + in.Ckc * X.bottomRows(nk);  // m × m
+    Zt.diagonal().array() += 1.0;
+    V.middleCols(n, m) = Zt.transpose();
+    const MatrixXcd T1 = Phi * U;
+    const MatrixXcd Gu = s * (U.adjoint() * T1);
+    const MatrixXcd Gv = V.adjoint() * (D2f * V);
+    for (Index g = 0; g < 3; ++g)
+      for (Index h = g; h < 3; ++h) {
+        const Index k = pair_index(g, h);
+        const Group &G1 = groups[g], &G2 = groups[h];
+        // Column f holds the block in column-major order (no temporaries).
+        for (Index j = 0, r = 0; j < G2.na; ++j)
+          for (Index i = 0; i < G1.na; ++i, ++r) {
+            const Complex x = Gu(G1.a0 + i, G2.a0 + j);
+            sums.AuRe[k](r, f) = x.real();
+            sums.AuIm[k](r, f) = x.imag();
+          }
+        for (Index j = 0, r = 0; j < G2.nb; ++j)
+          for (Index i = 0; i < G1.nb; ++i, ++r) {
+            const Complex x = Gv(G1.b0 + i, G2.b0 + j);
+            sums.AvRe[k](r, f) = x.real();
+            sums.AvIm[k](r, f) = x.imag();
+          }
+      }
+    gj.noalias() += s * ((T1.adjoint() * RD) * V.conjugate());
+    for (std::size_t r = 0; r < in.S; ++r)
+      gj_rep[r].noalias() += s * ((T1.adjoint() * ((*in.reps)[r][static_cast<std::size_t>(f)] * D2f)) * V.conjugate());
+  }
+  sums.cost_part[static_cast<std::size_t>(chunk)] = cost;
+  sums.GJpart[static_cast<std::size_t>(chunk)] = std::move(gj);
+}
+
+void Model::basis_normal_equations(const BinSums& sums, const MatrixXcd& GJsum, MatrixXd& M, VectorXd& g,
+                                   std::vector<Index>& col_alpha, std::vector<Index>& col_beta) const {
+  const Index n = n_, m = m_, p = p_, N = N_, nk = N - n;
+  const Index NU = N + p, NV = n + 2 * m;
+  const Index ncol = n * NV + nk * m + p * n;  // columns of the outer-product basis
+  const std::array<Group, 3> groups = group_layout();
+  // K2[g, h](i + na_g i', j + nb_g j') = Σ_f s_f Re(Gu_f(a0_g + i, a0_h + i') Gv_f(b0_g + j, b0_h + j'))
+  std::array<MatrixXd, 6> K2;
+  parallel_for(6, [&](Index k) {  // one task per pair of groups
+    K2[k].noalias() = sums.AuRe[k] * sums.AvRe[k].transpose();
+    K2[k].noalias() -= sums.AuIm[k] * sums.AvIm[k].transpose();
+  });
+  // Groups: α = Y_i (i < n) with all NV v's; α = Y_a (a ≥ n) with e_b; α = W̃_i with X_j.
+  std::vector<Index> col_group;
+  for (Index ga = 0; ga < NU; ++ga) {
+    const Index grp = ga < n ? 0 : (ga < N ? 1 : 2);
+    for (Index c = 0; c < groups[grp].nb; ++c) {
+      col_alpha.push_back(ga);
+      col_beta.push_back(groups[grp].b0 + c);
+      col_group.push_back(grp);
+    }
+  }
+  M.resize(ncol, ncol);
+  g.resize(ncol);
+  for (Index c2 = 0; c2 < ncol; ++c2) {
+    g(c2) = GJsum(col_alpha[c2], col_beta[c2]).real();
+    for (Index c1 = 0; c1 <= c2; ++c1) {
+      const Index g1 = col_group[c1], g2 = col_group[c2];  // g1 ≤ g2: columns are ordered by group
+      const Group &G1 = groups[g1], &G2 = groups[g2];
+      M(c1, c2) = M(c2, c1) =
+          K2[pair_index(g1, g2)]((col_alpha[c1] - G1.a0) + G1.na * (col_alpha[c2] - G2.a0),
+                                 (col_beta[c1] - G1.b0) + G1.nb * (col_beta[c2] - G2.b0));
+    }
+  }
+}
+
+MatrixXd Model::basis_map(const MatrixXd& DQ, VectorXd& sgn) const {
+  const Index n = n_, m = m_, p = p_, N = N_, nk = N - n;
+  const Index NU = N + p, NV = n + 2 * m;
+  const Index ncol = n * NV + nk * m + p * n;  // columns of the outer-product basis
+  sgn.resize(ncol);
   MatrixXd T = MatrixXd::Zero(ncol, np_);
   Index off = 0;
   for (Index ga = 0; ga < NU; ++ga) {
@@ -452,18 +517,7 @@ double Model::evaluate(const VectorXd& theta, bool jac, MatrixXd* JtJ, VectorXd*
       for (Index j = 0; j < n; ++j) sgn(off) = -1, T(off++, n * n + n * m + i + j * p) = 1.0;  // C(i, j)
     }
   }
-  const MatrixXd St = sgn.asDiagonal() * T;
-  *JtJ = St.transpose() * M * St;
-  *Jtr = St.transpose() * g;
-  if (rep_grads != nullptr) {
-    rep_grads->resize(np_, static_cast<Index>(S));
-    for (std::size_t r = 0; r < S; ++r) {
-      VectorXd gr(ncol);
-      for (Index c = 0; c < ncol; ++c) gr(c) = GJrep[r](col_alpha[c], col_beta[c]).real();
-      rep_grads->col(static_cast<Index>(r)) = St.transpose() * gr;
-    }
-  }
-  return cost;
+  return T;
 }
 
 // θ in the plant's own coordinates from scaled θ (B = B_s diag(1/su), C = diag(sq) C_s).
@@ -509,71 +563,6 @@ MatrixXd normal_pseudo_inverse(const Model& model, const VectorXd& theta, Index 
 }
 
 }  // namespace
-
-Index MarkovBins::real_residuals() const {
-  if (response.empty()) return 0;
-  const Index pm = response.front().size();
-  Index r = 0;
-  for (Index f = 0; f < num_bins(); ++f) r += (f == 0 || 2 * f == num_lags) ? pm : 2 * pm;
-  return r;
-}
-
-MarkovBins make_markov_bins(const MarkovSequence& g, Index num_lags, Index num_bins,
-                            const std::vector<Eigen::MatrixXcd>& noise_spectrum, const Eigen::MatrixXd& excitation_gram,
-                            double sample_period_s, double relative_accuracy) {
-  if (num_lags < 2) throw InputError(fmt::format("Markov bins: num_lags = {}; at least 2 are needed", num_lags));
-  if (static_cast<Index>(g.size()) < num_lags + 1)
-    throw InputError(fmt::format("Markov bins: g has {} lags but the transform needs {} (0..{})", g.size(), num_lags + 1,
-                                 num_lags));
-  if (num_bins < 1 || num_bins > num_lags / 2 + 1)
-    throw InputError(fmt::format("Markov bins: {} bins asked of a {}-point transform; 1..{} are available", num_bins,
-                                 num_lags, num_lags / 2 + 1));
-  if (!(sample_period_s > 0.0)) throw InputError("Markov bins: the sample period must be > 0");
-  const Index p = g.front().rows(), m = g.front().cols();
-  if (static_cast<Index>(noise_spectrum.size()) != num_bins)
-    throw InputError(fmt::format("Markov bins: {} noise spectra for {} bins", noise_spectrum.size(), num_bins));
-  for (const auto& s : noise_spectrum)
-    if (s.rows() != p || s.cols() != p || !s.allFinite())
-      throw InputError(fmt::format("Markov bins: every noise spectrum must be a finite {}x{} matrix", p, p));
-  if (excitation_gram.rows() != m || excitation_gram.cols() != m)
-    throw InputError(fmt::format("Markov bins: excitation_gram is {}x{} for {} inputs", excitation_gram.rows(),
-                                 excitation_gram.cols(), m));
-  MarkovBins bins;
-  bins.num_lags = num_lags;
-  bins.sample_period_s = sample_period_s;
-  bins.excitation_gram = excitation_gram;
-  bins.omega_rad_s.resize(num_bins);
-  for (Index f = 0; f < num_bins; ++f)
-    bins.omega_rad_s(f) = 2.0 * M_PI * static_cast<double>(f) / (static_cast<double>(num_lags) * sample_period_s);
-  bins.response.assign(static_cast<std::size_t>(num_bins), Eigen::MatrixXcd::Zero(p, m));
-  signal_detail::RealFft fft(num_lags);
-  auto in = signal_detail::alloc_real(num_lags);
-  auto out = signal_detail::alloc_complex(fft.bins());
-  for (Index i = 0; i < p; ++i)
-    for (Index j = 0; j < m; ++j) {
-      for (Index k = 0; k < num_lags; ++k) in[k] = g[static_cast<std::size_t>(k + 1)](i, j);
-      fft.forward(in.get(), out.get());
-      for (Index f = 0; f < num_bins; ++f)  // Σ_{k≥1} g[k] z^-k = z^-1 Σ_{k'≥0} g[k'+1] z^-k'
-        bins.response[static_cast<std::size_t>(f)](i, j) =
-            out[f] * std::polar(1.0, -2.0 * M_PI * static_cast<double>(f) / static_cast<double>(num_lags));
-    }
-  if (!(relative_accuracy > 0.0 && relative_accuracy < 1.0))
-    throw InputError(fmt::format("Markov bins: relative accuracy {} must be in (0, 1)", relative_accuracy));
-  Eigen::VectorXd floor = Eigen::VectorXd::Zero(p);
-  for (Index f = 0; f < num_bins; ++f)
-    for (Index i = 0; i < p; ++i)
-      for (Index j = 0; j < m; ++j)
-        floor(i) = std::max(floor(i), std::norm(bins.response[static_cast<std::size_t>(f)](i, j)) *
-                                          excitation_gram(j, j) / static_cast<double>(num_lags));
-  floor *= relative_accuracy * relative_accuracy;
-  floor = floor.cwiseMax(std::numeric_limits<double>::min());
-  for (const auto& s : noise_spectrum) {
-    Eigen::MatrixXcd h = 0.5 * (s + s.adjoint());
-    h.diagonal().real() += floor;
-    bins.noise_inverse.push_back(h.inverse());
-  }
-  return bins;
-}
 
 void PlantFitOptions::validate() const {
   if (max_iterations < 0) throw InputError(fmt::format("plant fit: max_iterations = {}; must be >= 0", max_iterations));
@@ -766,54 +755,6 @@ void use_replicate_covariance(PlantFitResult& fit, const MarkovBins& data, const
   fit.covariance = coordinate_map(n, m, p, st.su, st.sq).asDiagonal() * cov_s *
                    coordinate_map(n, m, p, st.su, st.sq).asDiagonal();
   fit.replicates = static_cast<Index>(replicates.size());
-}
-
-std::vector<Eigen::MatrixXd> plant_response_variance(const PlantFitResult& fit, const Eigen::VectorXd& omega_rad_s) {
-  const StateSpace& P = fit.plant;
-  const Index n = P.order(), m = P.num_inputs(), p = P.num_outputs();
-  const Index np = n * n + n * m + p * n;
-  if (fit.covariance.rows() != np || fit.covariance.cols() != np)
-    throw InputError(fmt::format("plant response variance: covariance is {}x{} for {} parameters",
-                                 fit.covariance.rows(), fit.covariance.cols(), np));
-  std::vector<Eigen::MatrixXd> out;
-  out.reserve(static_cast<std::size_t>(omega_rad_s.size()));
-  const Eigen::MatrixXcd A = P.A.cast<Complex>(), B = P.B.cast<Complex>(), C = P.C.cast<Complex>();
-  Eigen::MatrixXd Gre(np, p * m), Gim(np, p * m);
-  for (Index w = 0; w < omega_rad_s.size(); ++w) {
-    const Complex z = std::polar(1.0, omega_rad_s(w) * P.sample_period_s);
-    Eigen::MatrixXcd Zm = -A;
-    Zm.diagonal().array() += z;
-    const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(Zm);
-    const Eigen::MatrixXcd X = lu.solve(B);                                    // n × m
-    const Eigen::MatrixXcd Y = Eigen::PartialPivLU<Eigen::MatrixXcd>(Zm.transpose()).solve(C.transpose()).transpose();  // p × n
-    Gre.setZero();
-    Gim.setZero();
-    for (Index l = 0; l < m; ++l)
-      for (Index k = 0; k < p; ++k) {
-        const Index e = k + l * p;
-        for (Index j = 0; j < n; ++j)
-          for (Index i = 0; i < n; ++i) {  // dP/dA(i,j) = Y(:,i) X(j,:)
-            const Complex d = Y(k, i) * X(j, l);
-            Gre(i + j * n, e) = d.real();
-            Gim(i + j * n, e) = d.imag();
-          }
-        for (Index i = 0; i < n; ++i) {  // dP/dB(i,l) = Y(:,i) e_l
-          Gre(n * n + i + l * n, e) = Y(k, i).real();
-          Gim(n * n + i + l * n, e) = Y(k, i).imag();
-        }
-        for (Index j = 0; j < n; ++j) {  // dP/dC(k,j) = e_k X(j,:)
-          Gre(n * n + n * m + k + j * p, e) = X(j, l).real();
-          Gim(n * n + n * m + k + j * p, e) = X(j, l).imag();
-        }
-      }
-    const Eigen::MatrixXd a = (Gre.transpose() * fit.covariance * Gre).diagonal();
-    const Eigen::MatrixXd b = (Gim.transpose() * fit.covariance * Gim).diagonal();
-    Eigen::MatrixXd v(p, m);
-    for (Index l = 0; l < m; ++l)
-      for (Index k = 0; k < p; ++k) v(k, l) = std::max(0.0, a(k + l * p) + b(k + l * p));
-    out.push_back(v);
-  }
-  return out;
 }
 
 }  // namespace lpvid
