@@ -269,6 +269,139 @@ using WindowCost = ceres::AutoDiffCostFunction<WindowResidual, ceres::DYNAMIC, 1
 
 namespace {
 
+// The log cut into windows, each with its own initial state, and the weighted output
+// error of every window (the channel scales divide the residuals).
+struct Windows {
+  const Log& log;
+  std::vector<Eigen::Index> k0, len;
+  std::vector<Eigen::Matrix<double, 12, 1>> xs;
+  int substeps;
+  int lag_warmup_samples;
+  bool electrical_lag;
+  Vector6d scale;
+
+  WindowResidual* functor(std::size_t w) const {
+    return new WindowResidual{&log, k0[w], len[w], substeps, lag_warmup_samples, electrical_lag, scale.cwiseInverse()};
+  }
+  // The unweighted residual of every row at θ.
+  Eigen::MatrixXd raw_residual(Eigen::Index N, const Theta& theta) const {
+    Eigen::MatrixXd e(N, 6);
+    for (std::size_t w = 0; w < xs.size(); ++w) {
+      std::unique_ptr<WindowResidual> f(functor(w));
+      Eigen::VectorXd r(6 * len[w]);
+      (*f)(xs[w].data(), theta.data(), r.data());
+      for (Eigen::Index j = 0; j < len[w]; ++j)
+        e.row(k0[w] + j) = r.segment<6>(6 * j).cwiseProduct(scale).transpose();
+    }
+    return e;
+  }
+};
+
+// θ at the start (the given values, or the equation-error fit's) and which entries
+// the fit estimates (none with given values).
+Theta start_theta(const StageParameters& nominal, const StageFitModel& model, const StageOutputErrorOptions& options,
+                  const StageFitResult& s0, const Theta* given, StageOutputErrorResult& out) {
+  Theta theta;
+  if (given) {
+    theta = *given;
+  } else {
+    theta << s0.mass_kg, s0.inertia_diag_kgm2, s0.force_constant_scale, s0.com_offset_m, s0.gamma_per_m,
+        model.electrical_lag ? s0.electrical_time_constant_s : nominal.electrical_time_constant_s(),
+        s0.back_emf_damping_Ns_per_m;
+  }
+  if (!model.com_offset) theta.segment<3>(5).setZero();
+  if (!model.gap_dependence) theta(8) = 0;
+  if (!model.electrical_lag) theta(10) = 0;
+  out.free.fill(false);
+  if (!given) {
+    out.free[0] = !options.fix_mass;
+    out.free[1] = out.free[2] = out.free[3] = true;
+    out.free[4] = options.fix_mass;
+    out.free[5] = out.free[6] = out.free[7] = model.com_offset;
+    out.free[8] = model.gap_dependence;
+    out.free[9] = out.free[10] = model.electrical_lag;
+  }
+  return theta;
+}
+
+// Multiple shooting: the window states and θ's free entries by Ceres (a second pass
+// reweighted by the first's channel residuals when options.reweight).
+ceres::Solver::Summary solve_windows(Windows& win, Theta& theta, const std::vector<int>& held, int p, Eigen::Index N,
+                                     const StageOutputErrorOptions& options, int passes, StageOutputErrorResult& out) {
+  ceres::Solver::Summary summary;
+  for (int pass = 0; pass < passes; ++pass) {
+    if (pass > 0) {
+      const Eigen::MatrixXd e = win.raw_residual(N, theta);
+      for (int c = 0; c < 6; ++c) win.scale(c) = std::max(kScaleFloor, std::sqrt(e.col(c).squaredNorm() / double(N)));
+    }
+    ceres::Problem problem;
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    for (std::size_t w = 0; w < win.xs.size(); ++w) {
+      problem.AddResidualBlock(new WindowCost(win.functor(w), static_cast<int>(6 * win.len[w])), nullptr,
+                               win.xs[w].data(), theta.data());
+      ordering->AddElementToGroup(win.xs[w].data(), 0);
+    }
+    ordering->AddElementToGroup(theta.data(), 1);
+    for (int i : {0, 1, 2, 3, 4}) problem.SetParameterLowerBound(theta.data(), i, 1e-9);
+    // τ_e > 0 (it divides); 1 ns is far below any current loop.
+    problem.SetParameterLowerBound(theta.data(), 9, 1e-9);
+    if (p == 0)
+      problem.SetParameterBlockConstant(theta.data());
+    else
+      problem.SetManifold(theta.data(), new ceres::SubsetManifold(kStageThetaSize, held));
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_SCHUR;
+    so.linear_solver_ordering = ordering;
+    so.max_num_iterations = options.max_iterations;
+    so.function_tolerance = 1e-12;
+    so.parameter_tolerance = 1e-12;
+    so.gradient_tolerance = 1e-16;
+    so.num_threads = 1;
+    ceres::Solve(so, &problem, &summary);
+    out.iterations += static_cast<int>(summary.iterations.size()) - 1;
+    if (!summary.IsSolutionUsable())
+      throw NumericalError("stage output-error fit: Ceres found no usable solution (" + summary.message +
+                           "); check that the log excites all six axes and that the start is sensible");
+  }
+  return summary;
+}
+
+// Parameter covariance with the window states marginalised (Schur complement); sets
+// sigma2, covariance and std_error; returns the factorisation (its health is reported).
+Eigen::LDLT<Eigen::MatrixXd> marginal_covariance(const Windows& win, const Theta& theta,
+                                                 const std::vector<int>& free_index, double n, double k_total,
+                                                 StageOutputErrorResult& out) {
+  const int p = static_cast<int>(free_index.size());
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p);
+  double rss = 0;
+  for (std::size_t w = 0; w < win.xs.size(); ++w) {
+    const Eigen::Index m = 6 * win.len[w];
+    WindowCost cost(win.functor(w), static_cast<int>(m));
+    Eigen::VectorXd r(m);
+    Eigen::Matrix<double, Eigen::Dynamic, 12, Eigen::RowMajor> Jx(m, 12);
+    Eigen::Matrix<double, Eigen::Dynamic, kStageThetaSize, Eigen::RowMajor> Jt(m, kStageThetaSize);
+    const double* params[2] = {win.xs[w].data(), theta.data()};
+    double* jac[2] = {Jx.data(), Jt.data()};
+    if (!cost.Evaluate(params, r.data(), jac) || !Jt.allFinite() || !Jx.allFinite())
+      throw NumericalError("stage output-error fit: the model is not finite at the solution");
+    rss += r.squaredNorm();
+    if (p == 0) continue;  // nothing estimated (Eigen's solve on a 12 × 0 block reads a null pointer)
+    Eigen::MatrixXd Jf(m, p);
+    for (int i = 0; i < p; ++i) Jf.col(i) = Jt.col(free_index[static_cast<std::size_t>(i)]);
+    const Eigen::Matrix<double, 12, 12> A = Jx.transpose() * Jx;
+    const Eigen::MatrixXd B = Jx.transpose() * Jf;
+    S += Jf.transpose() * Jf - B.transpose() * A.ldlt().solve(B);
+  }
+  out.sigma2 = rss / std::max(1.0, n - k_total);
+  // Nothing estimated (p = 0): no covariance (the 1 × 1 identity only keeps Eigen
+  // off empty matrices).
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(p == 0 ? Eigen::MatrixXd(Eigen::MatrixXd::Identity(1, 1)) : S);
+  out.covariance = p == 0 ? Eigen::MatrixXd(0, 0) : Eigen::MatrixXd(out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p)));
+  for (int i = 0; i < p; ++i)
+    out.std_error(free_index[static_cast<std::size_t>(i)]) = std::sqrt(std::max(0.0, out.covariance(i, i)));
+  return ldlt;
+}
+
 // The fit (given == nullptr: θ from the equation-error start, its free entries
 // estimated) or the output error of given parameters (every θ entry held, only the
 // window states fitted).
@@ -312,106 +445,39 @@ StageOutputErrorResult output_error_impl(const StageParameters& nominal, const E
   log.r = nominal.lever_arms_m;
   log.z_ref = nominal.reference_gap_m;
 
-  Theta theta;
-  if (given) {
-    theta = *given;
-  } else {
-    theta << s0.mass_kg, s0.inertia_diag_kgm2, s0.force_constant_scale, s0.com_offset_m, s0.gamma_per_m,
-        model.electrical_lag ? s0.electrical_time_constant_s : nominal.electrical_time_constant_s(),
-        s0.back_emf_damping_Ns_per_m;
-  }
-  if (!model.com_offset) theta.segment<3>(5).setZero();
-  if (!model.gap_dependence) theta(8) = 0;
-  if (!model.electrical_lag) theta(10) = 0;
-  out.free.fill(false);
-  if (!given) {
-    out.free[0] = !options.fix_mass;
-    out.free[1] = out.free[2] = out.free[3] = true;
-    out.free[4] = options.fix_mass;
-    out.free[5] = out.free[6] = out.free[7] = model.com_offset;
-    out.free[8] = model.gap_dependence;
-    out.free[9] = out.free[10] = model.electrical_lag;
-  }
+  Theta theta = start_theta(nominal, model, options, s0, given, out);
   std::vector<int> held, free_index;
   for (int i = 0; i < kStageThetaSize; ++i) (out.free[static_cast<std::size_t>(i)] ? free_index : held).push_back(i);
   const int p = static_cast<int>(free_index.size());
 
   const Eigen::Index W = N / L;
-  std::vector<Eigen::Index> k0(static_cast<std::size_t>(W)), len(static_cast<std::size_t>(W));
+  Windows win{log, std::vector<Eigen::Index>(static_cast<std::size_t>(W)),
+              std::vector<Eigen::Index>(static_cast<std::size_t>(W)),
+              std::vector<Eigen::Matrix<double, 12, 1>>(static_cast<std::size_t>(W)),
+              options.rk4_substeps > 0 ? options.rk4_substeps : (model.electrical_lag ? 4 : 1),
+              options.lag_warmup_samples, model.electrical_lag, Vector6d()};
   for (Eigen::Index w = 0; w < W; ++w) {
-    k0[static_cast<std::size_t>(w)] = w * L;
-    len[static_cast<std::size_t>(w)] = w + 1 < W ? L : N - w * L;
+    win.k0[static_cast<std::size_t>(w)] = w * L;
+    win.len[static_cast<std::size_t>(w)] = w + 1 < W ? L : N - w * L;
   }
-  std::vector<Eigen::Matrix<double, 12, 1>> xs(static_cast<std::size_t>(W));
-  for (std::size_t w = 0; w < xs.size(); ++w) xs[w] = initial_state(log, k0[w], theta.data());
+  for (std::size_t w = 0; w < win.xs.size(); ++w) win.xs[w] = initial_state(log, win.k0[w], theta.data());
+  win.scale << kFirstPassScale_m, kFirstPassScale_m, kFirstPassScale_m,
+      Eigen::Vector3d::Constant(kFirstPassScale_m / kLeverArm_m);
 
-  const int substeps = options.rk4_substeps > 0 ? options.rk4_substeps : (model.electrical_lag ? 4 : 1);
-  Vector6d scale;
-  scale << kFirstPassScale_m, kFirstPassScale_m, kFirstPassScale_m, Eigen::Vector3d::Constant(kFirstPassScale_m / kLeverArm_m);
-  auto functor = [&](std::size_t w) {
-    return new WindowResidual{&log, k0[w], len[w], substeps, options.lag_warmup_samples, model.electrical_lag,
-                              scale.cwiseInverse()};
-  };
-  auto raw_residual = [&]() {
-    Eigen::MatrixXd e(N, 6);
-    for (std::size_t w = 0; w < xs.size(); ++w) {
-      std::unique_ptr<WindowResidual> f(functor(w));
-      Eigen::VectorXd r(6 * len[w]);
-      (*f)(xs[w].data(), theta.data(), r.data());
-      for (Eigen::Index j = 0; j < len[w]; ++j)
-        e.row(k0[w] + j) = r.segment<6>(6 * j).cwiseProduct(scale).transpose();
-    }
-    return e;
-  };
-
-  ceres::Solver::Summary summary;
   const int passes = options.reweight ? 2 : 1;
-  for (int pass = 0; pass < passes; ++pass) {
-    if (pass > 0) {
-      const Eigen::MatrixXd e = raw_residual();
-      for (int c = 0; c < 6; ++c) scale(c) = std::max(kScaleFloor, std::sqrt(e.col(c).squaredNorm() / double(N)));
-    }
-    ceres::Problem problem;
-    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-    for (std::size_t w = 0; w < xs.size(); ++w) {
-      problem.AddResidualBlock(new WindowCost(functor(w), static_cast<int>(6 * len[w])), nullptr, xs[w].data(),
-                               theta.data());
-      ordering->AddElementToGroup(xs[w].data(), 0);
-    }
-    ordering->AddElementToGroup(theta.data(), 1);
-    for (int i : {0, 1, 2, 3, 4}) problem.SetParameterLowerBound(theta.data(), i, 1e-9);
-    // τ_e > 0 (it divides); 1 ns is far below any current loop.
-    problem.SetParameterLowerBound(theta.data(), 9, 1e-9);
-    if (p == 0)
-      problem.SetParameterBlockConstant(theta.data());
-    else
-      problem.SetManifold(theta.data(), new ceres::SubsetManifold(kStageThetaSize, held));
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_SCHUR;
-    so.linear_solver_ordering = ordering;
-    so.max_num_iterations = options.max_iterations;
-    so.function_tolerance = 1e-12;
-    so.parameter_tolerance = 1e-12;
-    so.gradient_tolerance = 1e-16;
-    so.num_threads = 1;
-    ceres::Solve(so, &problem, &summary);
-    out.iterations += static_cast<int>(summary.iterations.size()) - 1;
-    if (!summary.IsSolutionUsable())
-      throw NumericalError("stage output-error fit: Ceres found no usable solution (" + summary.message +
-                           "); check that the log excites all six axes and that the start is sensible");
-  }
-  out.channel_scale = scale;
+  const ceres::Solver::Summary summary = solve_windows(win, theta, held, p, N, options, passes, out);
+  out.channel_scale = win.scale;
 
   // Residuals, per channel and per window.
-  out.residual = raw_residual();
+  out.residual = win.raw_residual(N, theta);
   out.num_windows = static_cast<int>(W);
   out.num_parameters = p;
   out.num_residuals = 6 * N;
-  out.window_start = k0;
+  out.window_start = win.k0;
   out.rms_per_window.resize(W, 6);
-  for (std::size_t w = 0; w < xs.size(); ++w)
+  for (std::size_t w = 0; w < win.xs.size(); ++w)
     out.rms_per_window.row(static_cast<Eigen::Index>(w)) =
-        (out.residual.middleRows(k0[w], len[w]).colwise().squaredNorm() / double(len[w])).cwiseSqrt();
+        (out.residual.middleRows(win.k0[w], win.len[w]).colwise().squaredNorm() / double(win.len[w])).cwiseSqrt();
   out.rms_per_channel = (out.residual.colwise().squaredNorm() / double(N)).cwiseSqrt().transpose();
   const double n = 6.0 * double(N);
   const double k_total = p + 12.0 * double(W);
@@ -419,34 +485,7 @@ StageOutputErrorResult output_error_impl(const StageParameters& nominal, const E
   for (int c = 0; c < 6; ++c)
     out.bic += double(N) * std::log(std::max(out.residual.col(c).squaredNorm(), 1e-300) / double(N));
 
-  // Parameter covariance with the window states marginalised (Schur complement).
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p);
-  double rss = 0;
-  for (std::size_t w = 0; w < xs.size(); ++w) {
-    const Eigen::Index m = 6 * len[w];
-    WindowCost cost(functor(w), static_cast<int>(m));
-    Eigen::VectorXd r(m);
-    Eigen::Matrix<double, Eigen::Dynamic, 12, Eigen::RowMajor> Jx(m, 12);
-    Eigen::Matrix<double, Eigen::Dynamic, kStageThetaSize, Eigen::RowMajor> Jt(m, kStageThetaSize);
-    const double* params[2] = {xs[w].data(), theta.data()};
-    double* jac[2] = {Jx.data(), Jt.data()};
-    if (!cost.Evaluate(params, r.data(), jac) || !Jt.allFinite() || !Jx.allFinite())
-      throw NumericalError("stage output-error fit: the model is not finite at the solution");
-    rss += r.squaredNorm();
-    if (p == 0) continue;  // nothing estimated (Eigen's solve on a 12 × 0 block reads a null pointer)
-    Eigen::MatrixXd Jf(m, p);
-    for (int i = 0; i < p; ++i) Jf.col(i) = Jt.col(free_index[static_cast<std::size_t>(i)]);
-    const Eigen::Matrix<double, 12, 12> A = Jx.transpose() * Jx;
-    const Eigen::MatrixXd B = Jx.transpose() * Jf;
-    S += Jf.transpose() * Jf - B.transpose() * A.ldlt().solve(B);
-  }
-  out.sigma2 = rss / std::max(1.0, n - k_total);
-  // Nothing estimated (p = 0): no covariance (the 1 × 1 identity only keeps Eigen
-  // off empty matrices).
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(p == 0 ? Eigen::MatrixXd(Eigen::MatrixXd::Identity(1, 1)) : S);
-  out.covariance = p == 0 ? Eigen::MatrixXd(0, 0) : Eigen::MatrixXd(out.sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(p, p)));
-  for (int i = 0; i < p; ++i)
-    out.std_error(free_index[static_cast<std::size_t>(i)]) = std::sqrt(std::max(0.0, out.covariance(i, i)));
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt = marginal_covariance(win, theta, free_index, n, k_total, out);
 
   out.theta = theta;
   out.mass_kg = theta(0);
