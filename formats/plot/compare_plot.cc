@@ -144,6 +144,124 @@ CompareErrorAxis compare_error_axis(const std::vector<CompareSeries>& series, In
   return error_axis(series, i, j);
 }
 
+namespace {
+
+// A panel's magnitude range: the data's, widened by the model's by at most
+// kModelReachDb; none (a ±10 dB placeholder) when neither is finite.
+struct MagnitudeRange {
+  plot::Range range;
+  double step = 0;
+  bool none = false;
+};
+
+MagnitudeRange magnitude_range(const std::vector<CompareSeries>& series, Index i, Index j) {
+  // Magnitude: the data's range, widened by the model's by at most kModelReachDb
+  // (a model that is numerically zero on a channel must not squash the data).
+  double dlo = kInf, dhi = -kInf, mlo = kInf, mhi = -kInf;
+  for (const auto& s : series)
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      if (!shown(s, f)) continue;
+      const double vd = db(s.data[f](i, j)), vm = db(s.model[f](i, j));
+      if (std::isfinite(vd)) dlo = std::min(dlo, vd), dhi = std::max(dhi, vd);
+      if (std::isfinite(vm)) mlo = std::min(mlo, vm), mhi = std::max(mhi, vm);
+    }
+  if (std::isfinite(mlo)) {
+    if (!std::isfinite(dlo)) dlo = mlo, dhi = mhi;
+    dlo = std::min(dlo, std::max(mlo, dlo - kModelReachDb));
+    dhi = std::max(dhi, std::min(mhi, dhi + kModelReachDb));
+  }
+  const bool no_magnitude = !std::isfinite(dlo);
+  if (no_magnitude) dlo = -10, dhi = 10;
+  const double mid = 0.5 * (dlo + dhi);
+  const double span = std::max(dhi - dlo, kMinMagnitudeSpanDb);
+  const double step = plot::nice_step(span * 1.06, kMaxMagnitudeIntervals);
+  const plot::Range mr = plot::snap_outward(mid - 0.53 * span, mid + 0.53 * span, step);
+  return {mr, step, no_magnitude};
+}
+
+// Noise region of each series (grey) on the error axes.
+void draw_noise_regions(cv::Mat& image, const std::vector<CompareSeries>& series, Index i, Index j, const cv::Rect& err,
+                        const AxisMap& x, const AxisMap& ye) {
+  for (const auto& s : series) {
+    std::vector<cv::Point> poly;
+    const double base = err.br().y - 1;
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      if (!shown(s, f)) continue;
+      const double r = s.scale[f](i, j) > 0 ? percent_of_scale(s, f, i, j, s.radius[f](i, j)) : kInf;
+      const double py = std::isfinite(r) ? std::clamp(ye.to_px(std::max(r, ye.lo)), double(err.y), base) : err.y;
+      const double px = x.to_px(s.omega_rad_s(f));
+      if (poly.empty()) poly.emplace_back(cvRound(px), cvRound(base));
+      poly.emplace_back(cvRound(px), cvRound(py));
+    }
+    if (!poly.empty()) {
+      poly.emplace_back(poly.back().x, cvRound(base));
+      cv::Mat roi = image(err);
+      std::vector<cv::Point> shifted;
+      for (const auto& q : poly) shifted.emplace_back(std::clamp(q.x - err.x, 0, err.width - 1), q.y - err.y);
+      cv::fillPoly(roi, std::vector<std::vector<cv::Point>>{shifted}, kNoiseFill, cv::LINE_AA);
+    }
+  }
+}
+
+// Failing bands: a translucent red over the grids and the noise band, then their edges.
+void draw_failing_bands(cv::Mat& image, const std::vector<CompareBandMark>& bands, Index i, Index j,
+                        const cv::Rect& mag, const cv::Rect& err, const AxisMap& x) {
+  for (const auto& b : bands) {
+    if (b.output != i || b.input != j) continue;
+    for (const cv::Rect& r : {mag, err}) {
+      double xa = std::max(x.to_px(b.lo_rad_s), static_cast<double>(r.x));
+      double xb = std::min(x.to_px(b.hi_rad_s), static_cast<double>(r.br().x - 1));
+      if (xb - xa < 3) xa -= 1.5, xb += 1.5;  // a band of one pixel stays visible
+      const cv::Rect sr = cv::Rect(cv::Point(cvRound(xa), r.y), cv::Point(cvRound(xb) + 1, r.br().y)) & r;
+      if (sr.area() == 0) continue;
+      cv::Mat roi = image(sr);
+      cv::Mat fill(roi.size(), roi.type(), kFailFill);
+      cv::addWeighted(roi, 1.0 - kFailAlpha, fill, kFailAlpha, 0.0, roi);
+    }
+  }
+  // The failing bands' edges.
+  for (const auto& b : bands) {
+    if (b.output != i || b.input != j) continue;
+    for (double w : {b.lo_rad_s, b.hi_rad_s}) {
+      const double px = x.to_px(w);
+      for (const cv::Rect& r : {mag, err})
+        plot::draw_polyline(image, {{px, double(r.y)}, {px, double(r.br().y - 1)}}, kFailEdge, 1,
+                            plot::LineStyle::kDashed, r);
+    }
+  }
+}
+
+// The measured curves, the model's, and the error of each series.
+void draw_curves(cv::Mat& image, const std::vector<CompareSeries>& series, const ComparePlotOptions& o, Index i,
+                 Index j, const cv::Rect& mag, const cv::Rect& err, const AxisMap& x, const AxisMap& ym,
+                 const AxisMap& ye) {
+  for (std::size_t si = 0; si < series.size(); ++si) {
+    const auto& s = series[si];
+    std::vector<cv::Point2d> pd, pm, pe;
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      const double px = x.to_px(s.omega_rad_s(f));
+      if (!shown(s, f)) {
+        pd.emplace_back(kNaN, kNaN);
+        pe.emplace_back(kNaN, kNaN);
+      } else {
+        pd.emplace_back(px, ym.to_px(db(s.data[f](i, j))));
+        const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
+        pe.emplace_back(px, e > 0 ? ye.to_px(std::max(e, ye.lo)) : kNaN);
+      }
+      pm.emplace_back(px, ym.to_px(db(s.model[f](i, j))));
+    }
+    const cv::Scalar c = plot::series_color(si);
+    plot::draw_polyline(image, pd, c, 1, plot::LineStyle::kSolid, mag);
+    plot::draw_polyline(image, pe, c, 1, plot::LineStyle::kSolid, err);
+    if (!o.same_model)
+      plot::draw_polyline(image, pm, c, 2, plot::LineStyle::kDashed, mag);
+    else if (si == 0)
+      plot::draw_polyline(image, pm, plot::kBlack, 2, plot::LineStyle::kSolid, mag);
+  }
+}
+
+}  // namespace
+
 cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vector<CompareBandMark>& bands,
                        const ComparePlotOptions& o) {
   validate(series, o);
@@ -194,28 +312,10 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
       const cv::Rect err(x0, mag.br().y + kAxesGap, o.panel_width_px, o.error_height_px);
       const AxisMap x{wlo, whi, static_cast<double>(mag.x), static_cast<double>(mag.br().x - 1), true};
 
-      // Ranges.
-      // Magnitude: the data's range, widened by the model's by at most kModelReachDb
-      // (a model that is numerically zero on a channel must not squash the data).
-      double dlo = kInf, dhi = -kInf, mlo = kInf, mhi = -kInf;
-      for (const auto& s : series)
-        for (std::size_t f = 0; f < s.data.size(); ++f) {
-          if (!shown(s, f)) continue;
-          const double vd = db(s.data[f](i, j)), vm = db(s.model[f](i, j));
-          if (std::isfinite(vd)) dlo = std::min(dlo, vd), dhi = std::max(dhi, vd);
-          if (std::isfinite(vm)) mlo = std::min(mlo, vm), mhi = std::max(mhi, vm);
-        }
-      if (std::isfinite(mlo)) {
-        if (!std::isfinite(dlo)) dlo = mlo, dhi = mhi;
-        dlo = std::min(dlo, std::max(mlo, dlo - kModelReachDb));
-        dhi = std::max(dhi, std::min(mhi, dhi + kModelReachDb));
-      }
-      const bool no_magnitude = !std::isfinite(dlo);
-      if (no_magnitude) dlo = -10, dhi = 10;
-      const double mid = 0.5 * (dlo + dhi);
-      const double span = std::max(dhi - dlo, kMinMagnitudeSpanDb);
-      const double step = plot::nice_step(span * 1.06, kMaxMagnitudeIntervals);
-      const plot::Range mr = plot::snap_outward(mid - 0.53 * span, mid + 0.53 * span, step);
+      const MagnitudeRange mrange = magnitude_range(series, i, j);
+      const plot::Range mr = mrange.range;
+      const double step = mrange.step;
+      const bool no_magnitude = mrange.none;
       const AxisMap ym{mr.lo, mr.hi, static_cast<double>(mag.br().y - 1), static_cast<double>(mag.y), false};
       const CompareErrorAxis ea = error_axis(series, i, j);
       const AxisMap ye{ea.lo_percent, ea.hi_percent, static_cast<double>(err.br().y - 1), static_cast<double>(err.y), true};
@@ -231,73 +331,9 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
                           plot::kGridMajor);
         plot::draw_grid_y(image, area, yy, values(ticks), plot::kGridMajor);
       }
-      // Noise region of each series (grey), then the curves.
-      for (const auto& s : series) {
-        std::vector<cv::Point> poly;
-        const double base = err.br().y - 1;
-        for (std::size_t f = 0; f < s.data.size(); ++f) {
-          if (!shown(s, f)) continue;
-          const double r = s.scale[f](i, j) > 0 ? percent_of_scale(s, f, i, j, s.radius[f](i, j)) : kInf;
-          const double py = std::isfinite(r) ? std::clamp(ye.to_px(std::max(r, ye.lo)), double(err.y), base) : err.y;
-          const double px = x.to_px(s.omega_rad_s(f));
-          if (poly.empty()) poly.emplace_back(cvRound(px), cvRound(base));
-          poly.emplace_back(cvRound(px), cvRound(py));
-        }
-        if (!poly.empty()) {
-          poly.emplace_back(poly.back().x, cvRound(base));
-          cv::Mat roi = image(err);
-          std::vector<cv::Point> shifted;
-          for (const auto& q : poly) shifted.emplace_back(std::clamp(q.x - err.x, 0, err.width - 1), q.y - err.y);
-          cv::fillPoly(roi, std::vector<std::vector<cv::Point>>{shifted}, kNoiseFill, cv::LINE_AA);
-        }
-      }
-      // Failing bands: a translucent red over the grids and the noise band.
-      for (const auto& b : bands) {
-        if (b.output != i || b.input != j) continue;
-        for (const cv::Rect& r : {mag, err}) {
-          double xa = std::max(x.to_px(b.lo_rad_s), static_cast<double>(r.x));
-          double xb = std::min(x.to_px(b.hi_rad_s), static_cast<double>(r.br().x - 1));
-          if (xb - xa < 3) xa -= 1.5, xb += 1.5;  // a band of one pixel stays visible
-          const cv::Rect sr = cv::Rect(cv::Point(cvRound(xa), r.y), cv::Point(cvRound(xb) + 1, r.br().y)) & r;
-          if (sr.area() == 0) continue;
-          cv::Mat roi = image(sr);
-          cv::Mat fill(roi.size(), roi.type(), kFailFill);
-          cv::addWeighted(roi, 1.0 - kFailAlpha, fill, kFailAlpha, 0.0, roi);
-        }
-      }
-      // The failing bands' edges.
-      for (const auto& b : bands) {
-        if (b.output != i || b.input != j) continue;
-        for (double w : {b.lo_rad_s, b.hi_rad_s}) {
-          const double px = x.to_px(w);
-          for (const cv::Rect& r : {mag, err})
-            plot::draw_polyline(image, {{px, double(r.y)}, {px, double(r.br().y - 1)}}, kFailEdge, 1,
-                                plot::LineStyle::kDashed, r);
-        }
-      }
-      for (std::size_t si = 0; si < series.size(); ++si) {
-        const auto& s = series[si];
-        std::vector<cv::Point2d> pd, pm, pe;
-        for (std::size_t f = 0; f < s.data.size(); ++f) {
-          const double px = x.to_px(s.omega_rad_s(f));
-          if (!shown(s, f)) {
-            pd.emplace_back(kNaN, kNaN);
-            pe.emplace_back(kNaN, kNaN);
-          } else {
-            pd.emplace_back(px, ym.to_px(db(s.data[f](i, j))));
-            const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
-            pe.emplace_back(px, e > 0 ? ye.to_px(std::max(e, ye.lo)) : kNaN);
-          }
-          pm.emplace_back(px, ym.to_px(db(s.model[f](i, j))));
-        }
-        const cv::Scalar c = plot::series_color(si);
-        plot::draw_polyline(image, pd, c, 1, plot::LineStyle::kSolid, mag);
-        plot::draw_polyline(image, pe, c, 1, plot::LineStyle::kSolid, err);
-        if (!o.same_model)
-          plot::draw_polyline(image, pm, c, 2, plot::LineStyle::kDashed, mag);
-        else if (si == 0)
-          plot::draw_polyline(image, pm, plot::kBlack, 2, plot::LineStyle::kSolid, mag);
-      }
+      draw_noise_regions(image, series, i, j, err, x, ye);
+      draw_failing_bands(image, bands, i, j, mag, err, x);
+      draw_curves(image, series, o, i, j, mag, err, x, ym, ye);
       for (const auto& [area, yy, ticks] : {std::tuple{mag, ym, mt}, std::tuple{err, ye, et}}) {
         plot::draw_frame(image, area);
         plot::draw_y_tick_labels(image, area, yy, ticks);
