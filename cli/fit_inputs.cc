@@ -124,18 +124,11 @@ constexpr double kSameRateTolerance = 1e-6;
 
 }  // namespace
 
-FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
-  FitInputs in;
-  if (o.data.empty() == o.datasets.empty())
-    throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
-                                    : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
-  DatasetManifest m;
-  if (!o.datasets.empty()) {
-    m = read_dataset_manifest(o.datasets);
-    for (const ManifestDataset& d : m.datasets) in.specs.push_back({d.files, d.beam_position_m, d.label});
-  } else {
-    for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
-  }
+namespace {
+
+// The fit's options from the flags (or the manifest): target, global start, rate,
+// noise, band, grid, and the controller's path; returns the rate (NaN: none given).
+double fit_options_from(const FitInputOptions& o, const DatasetManifest& m, FitInputs& in) {
   FitOptions& options = in.options;
   const std::string target = !o.target.empty() ? o.target : !m.target.empty() ? m.target : "plant";
   options.target = parse_target(target);
@@ -184,6 +177,64 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c; or its "
                                  "measured response C.csv)",
                                  target));
+  return rate;
+}
+
+// FRD data (and a measured controller) that lpvid frf estimated from a log record
+// the log's rate: the response of held samples at that rate.  The fit's rate must be
+// that one; without any, the continuous model misses the ZOH (said below).
+void check_recorded_rates(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, double ts,
+                          const FitInputs& in) {
+  const FitOptions& options = in.options;
+  struct Recorded {
+    std::string path;
+    double rate_hz;
+  };
+  std::vector<Recorded> recorded;
+  for (const auto& l : loaded)
+    if (l.frd && l.frd->sample_rate_hz > 0) recorded.push_back({l.path, l.frd->sample_rate_hz});
+  const bool controller_used = options.measured_controller && options.target != FitTarget::kPlant;
+  if (controller_used && options.measured_controller->sample_rate_hz > 0)
+    recorded.push_back({in.controller_path, options.measured_controller->sample_rate_hz});
+  if (ts > 0.0)
+    for (const Recorded& r : recorded)
+      if (std::abs(r.rate_hz * ts - 1.0) > kSameRateTolerance) {
+        const std::string source =
+            in.sample_period_source == "--rate-hz" ? fmt::format("--rate-hz {}", 1.0 / ts)
+            : in.sample_period_source == o.datasets ? fmt::format("{}: rate_hz {}", o.datasets, 1.0 / ts)
+            : fmt::format("{} (discrete, ts = {} s, {} Hz)", in.sample_period_source, ts, 1.0 / ts);
+        throw InputError(fmt::format(
+            "{} was estimated from a log sampled at {} Hz (its sample_rate_hz) but the fit's rate is {}; the ZOH "
+            "response is fitted at one rate, the rate of the log: give --rate-hz {} (or re-estimate the FRD from a "
+            "log at the loop's rate)",
+            r.path, r.rate_hz, source, r.rate_hz));
+      }
+  // Without a rate the continuous model stands in for data of a sampled loop.  Said
+  // once, after every input check (a bad input stays a one-line error): the recorded
+  // rate when some file has one, else the measured controller's missing rate.
+  if (ts == 0.0 && !recorded.empty() && !o.measured_input)
+    std::fprintf(stderr, "%s\n",
+                 recorded_rate_warning(recorded.front().path, recorded.front().rate_hz, recorded.size() - 1).c_str());
+  else if (controller_used && ts == 0.0)
+    std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
+}
+
+}  // namespace
+
+FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
+  FitInputs in;
+  if (o.data.empty() == o.datasets.empty())
+    throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
+                                    : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
+  DatasetManifest m;
+  if (!o.datasets.empty()) {
+    m = read_dataset_manifest(o.datasets);
+    for (const ManifestDataset& d : m.datasets) in.specs.push_back({d.files, d.beam_position_m, d.label});
+  } else {
+    for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
+  }
+  const double rate = fit_options_from(o, m, in);
+  FitOptions& options = in.options;
   // A data file without an @ tag: only a base without a scheduling variable
   // (mechanical) takes one; the model says which (read again below, after the checks).
   for (const auto& s : in.specs)
@@ -253,40 +304,7 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                                              : d.label);
     in.data.push_back(std::move(d));
   }
-  // FRD data (and a measured controller) that lpvid frf estimated from a log record
-  // the log's rate: the response of held samples at that rate.  The fit's rate must be
-  // that one; without any, the continuous model misses the ZOH (said below).
-  struct Recorded {
-    std::string path;
-    double rate_hz;
-  };
-  std::vector<Recorded> recorded;
-  for (const auto& l : loaded)
-    if (l.frd && l.frd->sample_rate_hz > 0) recorded.push_back({l.path, l.frd->sample_rate_hz});
-  const bool controller_used = options.measured_controller && options.target != FitTarget::kPlant;
-  if (controller_used && options.measured_controller->sample_rate_hz > 0)
-    recorded.push_back({in.controller_path, options.measured_controller->sample_rate_hz});
-  if (ts > 0.0)
-    for (const Recorded& r : recorded)
-      if (std::abs(r.rate_hz * ts - 1.0) > kSameRateTolerance) {
-        const std::string source =
-            in.sample_period_source == "--rate-hz" ? fmt::format("--rate-hz {}", 1.0 / ts)
-            : in.sample_period_source == o.datasets ? fmt::format("{}: rate_hz {}", o.datasets, 1.0 / ts)
-            : fmt::format("{} (discrete, ts = {} s, {} Hz)", in.sample_period_source, ts, 1.0 / ts);
-        throw InputError(fmt::format(
-            "{} was estimated from a log sampled at {} Hz (its sample_rate_hz) but the fit's rate is {}; the ZOH "
-            "response is fitted at one rate, the rate of the log: give --rate-hz {} (or re-estimate the FRD from a "
-            "log at the loop's rate)",
-            r.path, r.rate_hz, source, r.rate_hz));
-      }
-  // Without a rate the continuous model stands in for data of a sampled loop.  Said
-  // once, after every input check (a bad input stays a one-line error): the recorded
-  // rate when some file has one, else the measured controller's missing rate.
-  if (ts == 0.0 && !recorded.empty() && !o.measured_input)
-    std::fprintf(stderr, "%s\n",
-                 recorded_rate_warning(recorded.front().path, recorded.front().rate_hz, recorded.size() - 1).c_str());
-  else if (controller_used && ts == 0.0)
-    std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
+  check_recorded_rates(o, loaded, ts, in);
   return in;
 }
 

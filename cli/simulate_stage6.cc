@@ -116,6 +116,109 @@ std::vector<unsigned char> plot(const Eigen::VectorXd& t, const Eigen::MatrixXd&
   return time_plot_png({TimeSeries{"simulation", t, values}}, o);
 }
 
+// A designed excitation (lpvid excite): its v1..v6 replace the white excitation
+// sample for sample at the control rate; the log copies its design line for frf.  Sets
+// the run's duration from the file's length.
+ExcitationFile read_stage_excitation(const Stage6Options& o, double& duration_s) {
+  ExcitationFile excitation = read_excitation_file(o.excitation);
+  const ExcitationDesign& d = excitation.design;
+  if (d.channels != 6)
+    throw InputError(fmt::format("--excitation {}: {} channel{} but the stage has 6 inputs (v1..v6: F_x..tau_z); "
+                                 "write it with lpvid excite --channels 6",
+                                 o.excitation, d.channels, d.channels == 1 ? "" : "s"));
+  // 1e-6 relative: the same rate written with different rounding.
+  if (!(std::abs(d.sample_rate_hz - o.rate_hz) <= 1e-6 * o.rate_hz))
+    throw InputError(fmt::format("--excitation {} is sampled at {} Hz but the control rate --rate-hz is {}; give "
+                                 "--rate-hz {} or write the signal at {} Hz (lpvid excite --rate-hz)",
+                                 o.excitation, d.sample_rate_hz, o.rate_hz, d.sample_rate_hz, o.rate_hz));
+  // The run has duration x rate + 1 rows: one per sample of the file.
+  duration_s = static_cast<double>(excitation.log.num_samples() - 1) / o.rate_hz;
+  check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
+  return excitation;
+}
+
+stage6::StageEffects stage_effects(const Stage6Options& o) {
+  stage6::StageEffects effects;
+  for (const auto& e : o.effects) {
+    if (e == "gap") effects.gap_dependence = true;
+    else if (e == "lag") effects.electrical_lag = true;
+    else throw InputError(fmt::format("--effects: unknown effect '{}'; use gap or lag", e));
+  }
+  if (!o.com_offset_mm.empty()) {
+    if (o.com_offset_mm.size() != 3)
+      throw InputError(fmt::format("--com-offset-mm: {} values; give x,y,z in mm (e.g. 2,-1.5,1)", o.com_offset_mm.size()));
+    effects.com_offset_m = Eigen::Vector3d(o.com_offset_mm[0], o.com_offset_mm[1], o.com_offset_mm[2]) * 1e-3;
+  }
+  effects.input_delay_s = o.input_delay_ms * 1e-3;
+  effects.force_constant_scale = o.force_constant_scale;
+  return effects;
+}
+
+// The identification experiment: its log and the truth (the plant at hover, continuous
+// and sampled, and the simulated stage as a physical model), staged and committed.
+std::string write_experiment(OutputSet& out, const Stage6Options& o, const stage6::StageRun& r,
+                             const stage6::StageParameters& truth, const stage6::StageEffects& effects,
+                             const stage6::Vector6d& qr, const std::optional<ExcitationFile>& excitation,
+                             const std::string& provenance_line, const std::string& gap_text,
+                             nlohmann::json& summary) {
+  using namespace lpvid::stage6;
+  const StageLog log = experiment_log(r);
+  const StateSpace plant_c = linearize_hover(truth, qr(2));
+  const StateSpace plant_d = discretize_zoh(plant_c, 1.0 / o.rate_hz);
+  const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", qr(2)},
+                               {"seed", o.seed}};
+  std::vector<std::string> comments = {provenance_line};
+  if (excitation) {
+    comments.front() += " excitation=" + o.excitation;
+    comments.push_back(excitation_design_comment(excitation->design));
+  }
+  write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, comments);
+  out.stage(join_path(o.out_dir, "truth_plant_continuous.json"), state_space_to_json(plant_c, {{"provenance", prov}}));
+  out.stage(join_path(o.out_dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", prov}}));
+  out.stage(join_path(o.out_dir, "truth_model.json"), physical_model_to_json(truth_physical_model(truth, effects, r)));
+  out.commit();
+  const std::string text = fmt::format(
+      "wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json (the rigid body at hover), "
+      "truth_model.json (the simulated stage with its effects, base stage6)\n{}",
+      o.out_dir, log.data.rows(), gap_text);
+  summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
+  return text;
+}
+
+// The paper's run (Fig. 6): the log and the four figures, staged and committed.
+std::string write_paper_run(OutputSet& out, const Stage6Options& o, const stage6::StageRun& r,
+                            const stage6::Vector6d& qr, const std::string& provenance, nlohmann::json& summary) {
+  std::vector<std::string> cols = {"t", "x", "y", "z", "psi", "theta", "phi", "xd", "yd", "zd", "psid", "thetad",
+                                   "phid"};
+  for (const auto& n : names("sigma", 6)) cols.push_back(n);
+  for (const char* n : {"F_x", "F_y", "F_z", "tau_x", "tau_y", "tau_z", "f1x", "f1z", "f2y", "f2z", "f3x", "f3z",
+                        "f4y", "f4z"})
+    cols.push_back(n);
+  Eigen::MatrixXd data(r.t_s.size(), 33);
+  data << r.t_s, r.q, r.qd, r.sigma, r.wrench, r.forces;
+  write_log(out.stage(join_path(o.out_dir, "stage6_run.csv")), cols, data, {provenance});
+  const Eigen::MatrixXd xyz_um = r.q.leftCols(3) * 1e6;
+  Eigen::MatrixXd angles(r.q.rows(), 3);  // the paper's order phi, theta, psi
+  angles << r.q.col(5), r.q.col(4), r.q.col(3);
+  auto stage_png = [&](const std::string& name, const std::vector<unsigned char>& bytes) {
+    out.stage(join_path(o.out_dir, name), bytes);
+  };
+  stage_png("fig6a_xyz.png", plot(r.t_s, xyz_um, "Fig. 6(a): states x, y, z (time in s)", {"x [um]", "y [um]", "z [um]"}));
+  stage_png("fig6b_angles.png", plot(r.t_s, angles, "Fig. 6(b): states phi, theta, psi (time in s)",
+                                     {"phi [rad]", "theta [rad]", "psi [rad]"}));
+  stage_png("fig6c_forces.png", plot(r.t_s, r.wrench.leftCols(3), "Fig. 6(c): control forces, body axes (time in s)",
+                                     {"F_x [N]", "F_y [N]", "F_z [N]"}));
+  stage_png("fig6d_torques.png", plot(r.t_s, r.wrench.rightCols(3), "Fig. 6(d): control torques, body axes (time in s)",
+                                      {"tau_x [N m]", "tau_y [N m]", "tau_z [N m]"}));
+  out.commit();
+  const stage6::Vector6d e_end = r.q.bottomRows(1).transpose() - qr;
+  summary["final_position_error_m"] = e_end.head<3>().cwiseAbs().maxCoeff();
+  summary["final_angle_error_rad"] = e_end.tail<3>().cwiseAbs().maxCoeff();
+  summary["files"] = {"stage6_run.csv", "fig6a_xyz.png", "fig6b_angles.png", "fig6c_forces.png", "fig6d_torques.png"};
+  return fmt::format("wrote {}/stage6_run.csv and fig6a..d PNGs; final |e| = {:.3g} m, {:.3g} rad\n", o.out_dir,
+                     e_end.head<3>().cwiseAbs().maxCoeff(), e_end.tail<3>().cwiseAbs().maxCoeff());
+}
+
 void run(const Stage6Options& o) {
   using namespace lpvid::stage6;
   if (!o.excitation.empty()) {
@@ -140,38 +243,10 @@ void run(const Stage6Options& o) {
                                                                   "fig6c_forces.png", "fig6d_torques.png"})
     out.file_in(o.out_dir, name);
   out.check();
-  // A designed excitation (lpvid excite): its v1..v6 replace the white excitation
-  // sample for sample at the control rate; the log copies its design line for frf.
+  // A designed excitation (lpvid excite): its v1..v6 replace the white excitation.
   std::optional<ExcitationFile> excitation;
-  if (!o.excitation.empty()) {
-    excitation = read_excitation_file(o.excitation);
-    const ExcitationDesign& d = excitation->design;
-    if (d.channels != 6)
-      throw InputError(fmt::format("--excitation {}: {} channel{} but the stage has 6 inputs (v1..v6: F_x..tau_z); "
-                                   "write it with lpvid excite --channels 6",
-                                   o.excitation, d.channels, d.channels == 1 ? "" : "s"));
-    // 1e-6 relative: the same rate written with different rounding.
-    if (!(std::abs(d.sample_rate_hz - o.rate_hz) <= 1e-6 * o.rate_hz))
-      throw InputError(fmt::format("--excitation {} is sampled at {} Hz but the control rate --rate-hz is {}; give "
-                                   "--rate-hz {} or write the signal at {} Hz (lpvid excite --rate-hz)",
-                                   o.excitation, d.sample_rate_hz, o.rate_hz, d.sample_rate_hz, o.rate_hz));
-    // The run has duration x rate + 1 rows: one per sample of the file.
-    duration_s = static_cast<double>(excitation->log.num_samples() - 1) / o.rate_hz;
-    check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
-  }
-  StageEffects effects;
-  for (const auto& e : o.effects) {
-    if (e == "gap") effects.gap_dependence = true;
-    else if (e == "lag") effects.electrical_lag = true;
-    else throw InputError(fmt::format("--effects: unknown effect '{}'; use gap or lag", e));
-  }
-  if (!o.com_offset_mm.empty()) {
-    if (o.com_offset_mm.size() != 3)
-      throw InputError(fmt::format("--com-offset-mm: {} values; give x,y,z in mm (e.g. 2,-1.5,1)", o.com_offset_mm.size()));
-    effects.com_offset_m = Eigen::Vector3d(o.com_offset_mm[0], o.com_offset_mm[1], o.com_offset_mm[2]) * 1e-3;
-  }
-  effects.input_delay_s = o.input_delay_ms * 1e-3;
-  effects.force_constant_scale = o.force_constant_scale;
+  if (!o.excitation.empty()) excitation = read_stage_excitation(o, duration_s);
+  const StageEffects effects = stage_effects(o);
   SlidingModeOptions smc;
   smc.gain_K = o.gain_K;
   smc.boundary_layer = o.delta;
@@ -255,58 +330,10 @@ void run(const Stage6Options& o) {
           1e6 * flown.first_gaps.min_gap_m, 1e6 * flown.first_gaps.max_gap_m, flown.scale, kSafeGapFraction.first,
           kSafeGapFraction.second);
   }
-  if (o.experiment) {
-    const StageLog log = experiment_log(r);
-    const StateSpace plant_c = linearize_hover(truth, qr(2));
-    const StateSpace plant_d = discretize_zoh(plant_c, 1.0 / o.rate_hz);
-    const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", qr(2)},
-                                 {"seed", o.seed}};
-    std::vector<std::string> comments = {provenance + levels};
-    if (excitation) {
-      comments.front() += " excitation=" + o.excitation;
-      comments.push_back(excitation_design_comment(excitation->design));
-    }
-    write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, comments);
-    out.stage(join_path(o.out_dir, "truth_plant_continuous.json"), state_space_to_json(plant_c, {{"provenance", prov}}));
-    out.stage(join_path(o.out_dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", prov}}));
-    out.stage(join_path(o.out_dir, "truth_model.json"), physical_model_to_json(truth_physical_model(truth, effects, r)));
-    out.commit();
-    text = fmt::format(
-        "wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json (the rigid body at hover), "
-        "truth_model.json (the simulated stage with its effects, base stage6)\n{}",
-        o.out_dir, log.data.rows(), gap_text);
-    summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
-  } else {
-    std::vector<std::string> cols = {"t", "x", "y", "z", "psi", "theta", "phi", "xd", "yd", "zd", "psid", "thetad",
-                                     "phid"};
-    for (const auto& n : names("sigma", 6)) cols.push_back(n);
-    for (const char* n : {"F_x", "F_y", "F_z", "tau_x", "tau_y", "tau_z", "f1x", "f1z", "f2y", "f2z", "f3x", "f3z",
-                          "f4y", "f4z"})
-      cols.push_back(n);
-    Eigen::MatrixXd data(r.t_s.size(), 33);
-    data << r.t_s, r.q, r.qd, r.sigma, r.wrench, r.forces;
-    write_log(out.stage(join_path(o.out_dir, "stage6_run.csv")), cols, data, {provenance});
-    const Eigen::MatrixXd xyz_um = r.q.leftCols(3) * 1e6;
-    Eigen::MatrixXd angles(r.q.rows(), 3);  // the paper's order phi, theta, psi
-    angles << r.q.col(5), r.q.col(4), r.q.col(3);
-    auto stage_png = [&](const std::string& name, const std::vector<unsigned char>& bytes) {
-      out.stage(join_path(o.out_dir, name), bytes);
-    };
-    stage_png("fig6a_xyz.png", plot(r.t_s, xyz_um, "Fig. 6(a): states x, y, z (time in s)", {"x [um]", "y [um]", "z [um]"}));
-    stage_png("fig6b_angles.png", plot(r.t_s, angles, "Fig. 6(b): states phi, theta, psi (time in s)",
-                                       {"phi [rad]", "theta [rad]", "psi [rad]"}));
-    stage_png("fig6c_forces.png", plot(r.t_s, r.wrench.leftCols(3), "Fig. 6(c): control forces, body axes (time in s)",
-                                       {"F_x [N]", "F_y [N]", "F_z [N]"}));
-    stage_png("fig6d_torques.png", plot(r.t_s, r.wrench.rightCols(3), "Fig. 6(d): control torques, body axes (time in s)",
-                                        {"tau_x [N m]", "tau_y [N m]", "tau_z [N m]"}));
-    out.commit();
-    const Vector6d e_end = r.q.bottomRows(1).transpose() - qr;
-    summary["final_position_error_m"] = e_end.head<3>().cwiseAbs().maxCoeff();
-    summary["final_angle_error_rad"] = e_end.tail<3>().cwiseAbs().maxCoeff();
-    summary["files"] = {"stage6_run.csv", "fig6a_xyz.png", "fig6b_angles.png", "fig6c_forces.png", "fig6d_torques.png"};
-    text = fmt::format("wrote {}/stage6_run.csv and fig6a..d PNGs; final |e| = {:.3g} m, {:.3g} rad\n", o.out_dir,
-                       e_end.head<3>().cwiseAbs().maxCoeff(), e_end.tail<3>().cwiseAbs().maxCoeff());
-  }
+  if (o.experiment)
+    text = write_experiment(out, o, r, truth, effects, qr, excitation, provenance + levels, gap_text, summary);
+  else
+    text = write_paper_run(out, o, r, qr, provenance, summary);
   print_summary(o.json, summary, text);
 }
 
