@@ -122,10 +122,8 @@ double pick(double flag, double manifest) { return std::isnan(flag) ? manifest :
 // on logs of a second or more; the ZOH phase a 1e-6 difference moves is < 2e-6 rad.
 constexpr double kSameRateTolerance = 1e-6;
 
-}  // namespace
-
-FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
-  FitInputs in;
+// The data sets' specs: from --data or from the manifest (returned; empty without one).
+DatasetManifest read_fit_specs(const FitInputOptions& o, FitInputs& in) {
   if (o.data.empty() == o.datasets.empty())
     throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
                                     : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
@@ -136,6 +134,12 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   } else {
     for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
   }
+  return m;
+}
+
+// The fit's options from the flags, else the manifest, each checked; returns the
+// sample rate given (NaN: none).
+double fit_options_from_flags(const FitInputOptions& o, const DatasetManifest& m, FitInputs& in) {
   FitOptions& options = in.options;
   const std::string target = !o.target.empty() ? o.target : !m.target.empty() ? m.target : "plant";
   options.target = parse_target(target);
@@ -184,28 +188,10 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     throw InputError(fmt::format("--target {} needs --controller C.json (the known controller, e = -q -> u_c; or its "
                                  "measured response C.csv)",
                                  target));
-  // A data file without an @ tag: only a base without a scheduling variable
-  // (mechanical) takes one; the model says which (read again below, after the checks).
-  for (const auto& s : in.specs)
-    if (std::isnan(s.beam_position_m) && !read_physical_model(o.model).base_info().schedule_name.empty())
-      throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
-                                   "e.g. P_left.csv@-0.1, or give the data sets once with --datasets",
-                                   s.label));
-  in.inputs = {o.model};
-  if (!o.datasets.empty()) in.inputs.push_back(o.datasets);
-  for (const auto& s : in.specs)
-    for (const auto& f : s.files) in.inputs.push_back(f);
-  if (!in.controller_path.empty()) in.inputs.push_back(in.controller_path);
-  outputs.inputs(in.inputs);
-  outputs.check();
+  return rate;
+}
 
-  in.start = read_physical_model(o.model);
-  if (!in.controller_path.empty()) {
-    if (is_measured_controller(in.controller_path))
-      options.measured_controller = read_measured_controller(in.controller_path);
-    else
-      options.controller = read_controller(in.controller_path);
-  }
+std::vector<LoadedResponse> load_fit_responses(const FitInputs& in) {
   std::vector<LoadedResponse> loaded;
   for (const auto& s : in.specs) {
     if (s.files.size() > 1) {
@@ -217,7 +203,13 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
       loaded.push_back(load_response(s.files.front()));
     }
   }
-  // Sample period: flag (or manifest), else a discrete data model's, else the controller's.
+  return loaded;
+}
+
+// Sample period: flag (or manifest), else a discrete data model's, else the controller's.
+double fit_sample_period(const FitInputOptions& o, const DatasetManifest& m, double rate,
+                         const std::vector<LoadedResponse>& loaded, FitInputs& in) {
+  const FitOptions& options = in.options;
   double ts = !std::isnan(rate) ? 1.0 / rate : 0.0;
   in.sample_period_source = !std::isnan(o.rate_hz) ? "--rate-hz" : !std::isnan(m.rate_hz) ? o.datasets : "";
   for (const auto& l : loaded)
@@ -229,9 +221,11 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     ts = options.controller->sample_period_s;
     in.sample_period_source = in.controller_path;
   }
-  options.sample_period_s = ts;
-  options.validate();
+  return ts;
+}
 
+void fit_datasets_from(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, FitInputs& in) {
+  const FitOptions& options = in.options;
   for (std::size_t i = 0; i < in.specs.size(); ++i) {
     FitDataset d;
     d.beam_position_m = in.specs[i].beam_position_m;
@@ -253,9 +247,14 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                                              : d.label);
     in.data.push_back(std::move(d));
   }
-  // FRD data (and a measured controller) that lpvid frf estimated from a log record
-  // the log's rate: the response of held samples at that rate.  The fit's rate must be
-  // that one; without any, the continuous model misses the ZOH (said below).
+}
+
+// FRD data (and a measured controller) that lpvid frf estimated from a log record
+// the log's rate: the response of held samples at that rate.  The fit's rate must be
+// that one; without any, the continuous model misses the ZOH (said below).
+void check_recorded_rates(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, const FitInputs& in) {
+  const FitOptions& options = in.options;
+  const double ts = options.sample_period_s;
   struct Recorded {
     std::string path;
     double rate_hz;
@@ -287,6 +286,42 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
                  recorded_rate_warning(recorded.front().path, recorded.front().rate_hz, recorded.size() - 1).c_str());
   else if (controller_used && ts == 0.0)
     std::fprintf(stderr, "%s\n", measured_controller_rate_warning(in.controller_path).c_str());
+}
+
+}  // namespace
+
+FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
+  FitInputs in;
+  const DatasetManifest m = read_fit_specs(o, in);
+  const double rate = fit_options_from_flags(o, m, in);
+  // A data file without an @ tag: only a base without a scheduling variable
+  // (mechanical) takes one; the model says which (read again below, after the checks).
+  for (const auto& s : in.specs)
+    if (std::isnan(s.beam_position_m) && !read_physical_model(o.model).base_info().schedule_name.empty())
+      throw InputError(fmt::format("--data '{}': missing @x_b tag; write FILE@X_B with the beam position in metres, "
+                                   "e.g. P_left.csv@-0.1, or give the data sets once with --datasets",
+                                   s.label));
+  in.inputs = {o.model};
+  if (!o.datasets.empty()) in.inputs.push_back(o.datasets);
+  for (const auto& s : in.specs)
+    for (const auto& f : s.files) in.inputs.push_back(f);
+  if (!in.controller_path.empty()) in.inputs.push_back(in.controller_path);
+  outputs.inputs(in.inputs);
+  outputs.check();
+
+  FitOptions& options = in.options;
+  in.start = read_physical_model(o.model);
+  if (!in.controller_path.empty()) {
+    if (is_measured_controller(in.controller_path))
+      options.measured_controller = read_measured_controller(in.controller_path);
+    else
+      options.controller = read_controller(in.controller_path);
+  }
+  const std::vector<LoadedResponse> loaded = load_fit_responses(in);
+  options.sample_period_s = fit_sample_period(o, m, rate, loaded, in);
+  options.validate();
+  fit_datasets_from(o, loaded, in);
+  check_recorded_rates(o, loaded, in);
   return in;
 }
 
