@@ -108,17 +108,7 @@ std::vector<std::string> channel_columns(const std::string& given, const std::st
   return names;
 }
 
-}  // namespace compare_model_time
-
-void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
-  using namespace compare_model_time;
-  OutputSet out;  // nothing is read before every output is checked
-  out.input(o.log);
-  out.input(o.params);
-  out.input(o.controller);
-  out.file("--out-png", o.out_png);
-  out.file("--out", out_json);
-  out.check();
+void check_model_compare_flags(const TimeCompareCliOptions& o) {
   if (!o.overrides.empty() || o.substeps != 1)
     throw InputError("compare --log with a state-space model: --set and --substeps are for the platform's physical "
                      "model; edit or re-identify the model instead");
@@ -136,163 +126,215 @@ void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& o
   if (closed && o.excitation.empty())
     throw InputError("compare --log with --controller: give --excitation NAME[,NAME...], the log's excitation columns "
                      "(added at the plant's input, or the setpoints with --excitation-at reference)");
+}
 
-  TimeFitOptions fo;
-  StateSpace model = read_state_space(o.params);
-  const Log log = read_log(o.log, o.layout.read_options());
-  const double Ts = log.sample_period_s;
-  const Index N = log.num_samples();
-  std::string sampling;
-  if (!model.is_discrete()) {
-    model = discretize_zoh(model, Ts);
-    sampling = fmt::format("a continuous model, sampled here with a zero-order hold at the log's {:.6g} s", Ts);
-  } else if (std::abs(model.sample_period_s - Ts) > 1e-6 * Ts) {
-    throw InputError(fmt::format("{}: the model samples at {:.6g} s but the log '{}' at {:.6g} s; give a model of the "
-                                 "log's rate (or a continuous one, which compare samples with a zero-order hold)",
-                                 o.params, model.sample_period_s, o.log, Ts));
-  }
-  const Index m = model.num_inputs(), p = model.num_outputs();
-  const std::vector<std::string> out_names =
-      channel_columns(o.output, "--output", model.output_names, p, "output", o.params);
-  const Eigen::MatrixXd y = log.columns(out_names);
-
+// One compare of a model with a log, filled stage by stage.
+struct ModelTimeCompare {
+  bool closed = false, at_reference = false;
+  StateSpace model;  // at the log's rate
+  Log log;
+  double Ts = 0;
+  Index N = 0;
+  std::string sampling;  // how a continuous model was sampled (empty: it was discrete)
+  std::vector<std::string> out_names;
+  Eigen::MatrixXd y;
   // What is simulated, from what, and what the residual is tested against.
-  StateSpace simulated = model;
+  StateSpace simulated;
   Eigen::MatrixXd sim_input, cross_input, plant_input;
   std::vector<std::string> cross_names, in_names;
   std::string route;
-  if (!closed) {
-    in_names = channel_columns(o.input, "--input", model.input_names, m, "input", o.params);
-    sim_input = log.columns(in_names);
-    cross_input = sim_input;
-    cross_names = in_names;
-    route = fmt::format("open loop: the model simulated from the logged input {}", fmt::join(in_names, ","));
+  // The model's stability and its simulations.
+  double radius = 0;
+  bool stable = false, growing = false;
+  std::string stability;
+  SimulatedOutput with_x0, from_rest;
+  Eigen::MatrixXd test_predicted;
+  std::string tested_on;
+  // The residual tests.
+  TimeFitOptions fo;
+  Eigen::VectorXd t;
+  TimeFitResult r;
+  Eigen::VectorXd fit_zero;
+};
+
+// The model at the log's rate and the log's outputs.
+void read_model_and_log(ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  c.model = read_state_space(o.params);
+  c.log = read_log(o.log, o.layout.read_options());
+  c.Ts = c.log.sample_period_s;
+  c.N = c.log.num_samples();
+  const double Ts = c.Ts;
+  if (!c.model.is_discrete()) {
+    c.model = discretize_zoh(c.model, Ts);
+    c.sampling = fmt::format("a continuous model, sampled here with a zero-order hold at the log's {:.6g} s", Ts);
+  } else if (std::abs(c.model.sample_period_s - Ts) > 1e-6 * Ts) {
+    throw InputError(fmt::format("{}: the model samples at {:.6g} s but the log '{}' at {:.6g} s; give a model of the "
+                                 "log's rate (or a continuous one, which compare samples with a zero-order hold)",
+                                 o.params, c.model.sample_period_s, o.log, Ts));
+  }
+  c.out_names = channel_columns(o.output, "--output", c.model.output_names, c.model.num_outputs(), "output", o.params);
+  c.y = c.log.columns(c.out_names);
+}
+
+// What is simulated, from what, and what the residual is tested against.
+void model_compare_route(ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  const StateSpace& model = c.model;
+  const Log& log = c.log;
+  const Index m = model.num_inputs(), p = model.num_outputs();
+  c.simulated = model;
+  if (!c.closed) {
+    c.in_names = channel_columns(o.input, "--input", model.input_names, m, "input", o.params);
+    c.sim_input = log.columns(c.in_names);
+    c.cross_input = c.sim_input;
+    c.cross_names = c.in_names;
+    c.route = fmt::format("open loop: the model simulated from the logged input {}", fmt::join(c.in_names, ","));
   } else {
     const StateSpace controller = read_controller(o.controller);
-    cross_names = split_names(o.excitation, "--excitation");
-    check_controller_matches(controller, Ts, p, at_reference ? controller.num_outputs() : static_cast<Index>(cross_names.size()),
+    c.cross_names = split_names(o.excitation, "--excitation");
+    check_controller_matches(controller, c.Ts, p,
+                             c.at_reference ? controller.num_outputs() : static_cast<Index>(c.cross_names.size()),
                              1e-6);
     if (controller.num_outputs() != m || controller.num_inputs() != p)
       throw InputError(fmt::format("{}: the controller maps {} error(s) to {} input(s) but the model {} has {} input(s) "
                                    "and {} output(s); give the controller of the loop the model's plant ran in",
                                    o.controller, controller.num_inputs(), controller.num_outputs(), o.params, m, p));
-    cross_input = log.columns(cross_names);
-    sim_input = at_reference ? reference_as_input_excitation(controller, cross_input) : cross_input;
-    simulated = closed_loop_output(model, controller);
-    route = fmt::format("closed loop with {}: the model's loop simulated from the logged {} {}", o.controller,
-                        at_reference ? "references" : "excitation", fmt::join(cross_names, ","));
+    c.cross_input = log.columns(c.cross_names);
+    c.sim_input = c.at_reference ? reference_as_input_excitation(controller, c.cross_input) : c.cross_input;
+    c.simulated = closed_loop_output(model, controller);
+    c.route = fmt::format("closed loop with {}: the model's loop simulated from the logged {} {}", o.controller,
+                          c.at_reference ? "references" : "excitation", fmt::join(c.cross_names, ","));
     if (!o.input.empty()) {
-      in_names = channel_columns(o.input, "--input", model.input_names, m, "input", o.params);
-      plant_input = log.columns(in_names);
+      c.in_names = channel_columns(o.input, "--input", model.input_names, m, "input", o.params);
+      c.plant_input = log.columns(c.in_names);
     }
   }
+}
 
-  const Eigen::VectorXcd eig = poles(model);
-  const double radius = eig.size() > 0 ? eig.cwiseAbs().maxCoeff() : 0.0;
-  const bool stable = is_stable(model);
+// The model's stability, its simulations from rest and from the fitted start, and the
+// prediction the residual tests judge.
+void simulate_model_on_log(ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  const bool closed = c.closed;
+  const Eigen::VectorXcd eig = poles(c.model);
+  c.radius = eig.size() > 0 ? eig.cwiseAbs().maxCoeff() : 0.0;
+  c.stable = is_stable(c.model);
   // An integrator (|z| = 1, to rounding) is simulated from a logged input as it is; only a
   // growing mode makes a simulation outside the loop meaningless.
-  const bool growing = radius > 1.0 + 1e-9;
-  const std::string stability =
-      stable ? "stable"
-             : growing ? fmt::format("UNSTABLE: largest pole |z| = {:.6g}", radius)
-                       : "marginally stable: a pole on the unit circle (an integrator)";
-  const SimulatedOutput with_x0 = simulate_with_fitted_start(simulated, sim_input, y, true);
-  const SimulatedOutput from_rest = simulate_with_fitted_start(simulated, sim_input, y, false);
-  if (with_x0.predicted.size() == 0 || from_rest.predicted.size() == 0)
+  c.growing = c.radius > 1.0 + 1e-9;
+  c.stability =
+      c.stable ? "stable"
+             : c.growing ? fmt::format("UNSTABLE: largest pole |z| = {:.6g}", c.radius)
+                         : "marginally stable: a pole on the unit circle (an integrator)";
+  c.with_x0 = simulate_with_fitted_start(c.simulated, c.sim_input, c.y, true);
+  c.from_rest = simulate_with_fitted_start(c.simulated, c.sim_input, c.y, false);
+  if (c.with_x0.predicted.size() == 0 || c.from_rest.predicted.size() == 0)
     throw InputError(fmt::format(
         "{}: the {} diverges on the log '{}' ({} samples; the model's largest pole |z| = {:.6g}), so there is nothing "
         "to compare; {}",
-        o.params, closed ? "model's closed loop with the controller" : "model", o.log, N, radius,
+        o.params, closed ? "model's closed loop with the controller" : "model", o.log, c.N, c.radius,
         closed ? "check that the controller is the one that ran and its sign (u = C(-q) + v)"
                : "an unstable plant can only be simulated in its loop: give --controller C.json and --excitation"));
 
   // The residual tests: in closed loop on the open-loop prediction from the logged plant
   // input when it is given and the plant can be simulated alone (a correct model then
   // leaves the sensor noise alone, white); otherwise on the simulation's residual.
-  Eigen::MatrixXd test_predicted;
-  std::string tested_on = closed ? "the closed-loop simulation's residual (the noise fed back through the loop is "
-                                   "coloured: whiteness is not expected; the cross test with the excitation judges)"
-                                 : "the simulation's residual";
-  if (closed && plant_input.size() > 0) {
-    const SimulatedOutput open = simulate_with_fitted_start(model, plant_input, y, true);
-    if (!growing && open.predicted.size() > 0) {
-      test_predicted = open.predicted;
-      tested_on = fmt::format("the open-loop prediction from the logged plant input {} (a correct model leaves the "
-                              "sensor noise alone)",
-                              fmt::join(in_names, ","));
+  c.tested_on = closed ? "the closed-loop simulation's residual (the noise fed back through the loop is "
+                         "coloured: whiteness is not expected; the cross test with the excitation judges)"
+                       : "the simulation's residual";
+  if (closed && c.plant_input.size() > 0) {
+    const SimulatedOutput open = simulate_with_fitted_start(c.model, c.plant_input, c.y, true);
+    if (!c.growing && open.predicted.size() > 0) {
+      c.test_predicted = open.predicted;
+      c.tested_on = fmt::format("the open-loop prediction from the logged plant input {} (a correct model leaves the "
+                                "sensor noise alone)",
+                                fmt::join(c.in_names, ","));
     } else {
-      tested_on += "; --input not used: the plant is unstable, so it cannot be simulated outside its loop";
+      c.tested_on += "; --input not used: the plant is unstable, so it cannot be simulated outside its loop";
     }
   }
+}
 
+void model_compare_residual_tests(ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  TimeFitOptions& fo = c.fo;
+  const Index N = c.N;
   fo.max_lag = o.max_lag;
   fo.window_threshold_percent = o.threshold_percent;
-  fo.window_s = o.window_s > 0 ? o.window_s : static_cast<double>(std::max(kMinWindowSamples, N / 20)) * Ts;
+  fo.window_s = o.window_s > 0 ? o.window_s : static_cast<double>(std::max(kMinWindowSamples, N / 20)) * c.Ts;
   fo.validate();
   if (N < fo.max_lag + 2)
     throw InputError(fmt::format("{}: {} samples are too few for residual tests over {} lags; give --max-lag below {}",
                                  o.log, N, fo.max_lag, std::max<Index>(1, N - 2)));
-  const Eigen::VectorXd t = log.data.col(log.column("t"));
-  const TimeFitResult r = time_fit(y, with_x0.predicted, cross_input, t(0), Ts, fo, test_predicted);
-  const Eigen::VectorXd fit_zero = nrmse_fit_percent(y, from_rest.predicted);
+  c.t = c.log.data.col(c.log.column("t"));
+  c.r = time_fit(c.y, c.with_x0.predicted, c.cross_input, c.t(0), c.Ts, fo, c.test_predicted);
+  c.fit_zero = nrmse_fit_percent(c.y, c.from_rest.predicted);
+}
 
+nlohmann::json model_compare_summary(const ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  const TimeFitResult& r = c.r;
+  const auto& out_names = c.out_names;
+  const auto& cross_names = c.cross_names;
   nlohmann::json white = nlohmann::json::array(), cross = nlohmann::json::array(), failures = nlohmann::json::array();
   for (const auto& w : r.whiteness) white.push_back(correlation_test_json(w, out_names, cross_names));
-  for (const auto& c : r.cross) cross.push_back(correlation_test_json(c, out_names, cross_names));
+  for (const auto& x : r.cross) cross.push_back(correlation_test_json(x, out_names, cross_names));
   for (const auto& f : r.failures)
     failures.push_back({{"channel", out_names[static_cast<std::size_t>(f.channel)]},
                         {"t_start_s", f.t_start_s},
                         {"t_end_s", f.t_end_s},
                         {"size_percent", f.size_percent}});
-  const nlohmann::json summary = {
+  return {
       {"log", o.log},
       {"model", o.params},
-      {"controller", closed ? nlohmann::json(o.controller) : nlohmann::json(nullptr)},
-      {"route", route},
-      {"sampling", sampling.empty() ? nlohmann::json(nullptr) : nlohmann::json(sampling)},
-      {"samples", N},
-      {"sample_period_s", Ts},
-      {"order", model.order()},
-      {"stable", stable},
-      {"stability", stability},
-      {"largest_pole_magnitude", radius},
+      {"controller", c.closed ? nlohmann::json(o.controller) : nlohmann::json(nullptr)},
+      {"route", c.route},
+      {"sampling", c.sampling.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.sampling)},
+      {"samples", c.N},
+      {"sample_period_s", c.Ts},
+      {"order", c.model.order()},
+      {"stable", c.stable},
+      {"stability", c.stability},
+      {"largest_pole_magnitude", c.radius},
       {"outputs", out_names},
-      {"inputs", closed ? cross_names : in_names},
+      {"inputs", c.closed ? cross_names : c.in_names},
       {"fit_percent", per_output(out_names, r.fit_percent)},
-      {"fit_zero_state_percent", per_output(out_names, fit_zero)},
-      {"output_offsets", per_output(out_names, with_x0.offsets)},
+      {"fit_zero_state_percent", per_output(out_names, c.fit_zero)},
+      {"output_offsets", per_output(out_names, c.with_x0.offsets)},
       {"noise_floor", per_output(out_names, r.noise_floor)},
       {"fit_ceiling_percent", per_output(out_names, r.fit_ceiling_percent)},
       {"prediction", "the model has no noise model (K = 0): its k-step prediction is its simulation, so the "
                      "prediction fit equals fit_percent"},
-      {"residual_tests_on", tested_on},
+      {"residual_tests_on", c.tested_on},
       {"whiteness", white},
       {"cross_correlation", cross},
       {"failures", failures},
-      {"window_s", fo.window_s},
-      {"threshold_percent", fo.window_threshold_percent}};
+      {"window_s", c.fo.window_s},
+      {"threshold_percent", c.fo.window_threshold_percent}};
+}
 
+std::string model_compare_text(const ModelTimeCompare& c, const TimeCompareCliOptions& o) {
+  const TimeFitResult& r = c.r;
+  const TimeFitOptions& fo = c.fo;
+  const auto& out_names = c.out_names;
   std::string text = fmt::format("compare {} with {} (time domain, {} samples every {:.6g} s; order {}, {})\n", o.log,
-                                 o.params, N, Ts, model.order(), stability);
-  text += fmt::format("  {}\n", route);
-  if (!sampling.empty()) text += fmt::format("  {}\n", sampling);
+                                 o.params, c.N, c.Ts, c.model.order(), c.stability);
+  text += fmt::format("  {}\n", c.route);
+  if (!c.sampling.empty()) text += fmt::format("  {}\n", c.sampling);
   text += "  fit [%] from x(0) = 0 ('z') and with the initial state fitted ('e', compare's default), each with an offset per output:\n";
   text += fmt::format("  {:<12} {:>9} {:>9} {:>14}   whiteness (max |r|/bound at lag)\n", "output", "fit z", "fit e",
                       "noise allows");
-  for (Index i = 0; i < p; ++i) {
+  for (Index i = 0; i < c.model.num_outputs(); ++i) {
     const auto& w = r.whiteness[static_cast<std::size_t>(i)];
     text += fmt::format("  {:<12} {:9.2f} {:9.2f} {:14.2f}   {} ({:.2f} at lag {})\n",
-                        out_names[static_cast<std::size_t>(i)], fit_zero(i), r.fit_percent(i), r.fit_ceiling_percent(i),
+                        out_names[static_cast<std::size_t>(i)], c.fit_zero(i), r.fit_percent(i),
+                        r.fit_ceiling_percent(i),
                         w.pass ? "pass" : "FAIL", w.worst_ratio, w.worst_lag);
   }
-  text += fmt::format("  residual tests on {}\n", tested_on);
-  for (const auto& c : r.cross)
-    if (!c.pass)
+  text += fmt::format("  residual tests on {}\n", c.tested_on);
+  for (const auto& x : r.cross)
+    if (!x.pass)
       text += fmt::format("  residual {} correlates with {}: max |r|/bound {:.2f} at lag {}{}\n",
-                          out_names[static_cast<std::size_t>(c.channel)], cross_names[static_cast<std::size_t>(c.input)],
-                          c.worst_ratio, c.worst_lag,
-                          c.worst_lag < 0 ? " (before the input: feedback, or a non-causal error)" : "");
+                          out_names[static_cast<std::size_t>(x.channel)],
+                          c.cross_names[static_cast<std::size_t>(x.input)],
+                          x.worst_ratio, x.worst_lag,
+                          x.worst_lag < 0 ? " (before the input: feedback, or a non-causal error)" : "");
   if (r.failures.empty()) {
     text += fmt::format("  no window of {:.6g} s with a residual above {} % of its output's rms\n", fo.window_s,
                         fo.window_threshold_percent);
@@ -303,12 +345,38 @@ void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& o
                           out_names[static_cast<std::size_t>(f.channel)], f.t_start_s, f.t_end_s, f.size_percent);
   }
   text += "  (no noise model: the prediction fit equals the simulation fit 'e')\n";
-  if (growing && !closed)
+  if (c.growing && !c.closed)
     text += "  the model is unstable: simulated outside its loop it runs away from the log; if the log is of a closed "
             "loop, give --controller C.json and --excitation\n";
+  return text;
+}
+
+}  // namespace compare_model_time
+
+void run_model_time_compare(const TimeCompareCliOptions& o, const std::string& out_json, bool json) {
+  using namespace compare_model_time;
+  OutputSet out;  // nothing is read before every output is checked
+  out.input(o.log);
+  out.input(o.params);
+  out.input(o.controller);
+  out.file("--out-png", o.out_png);
+  out.file("--out", out_json);
+  out.check();
+  check_model_compare_flags(o);
+
+  ModelTimeCompare c;
+  c.closed = !o.controller.empty();
+  c.at_reference = o.excitation_at == "reference";
+  read_model_and_log(c, o);
+  model_compare_route(c, o);
+  simulate_model_on_log(c, o);
+  model_compare_residual_tests(c, o);
+  const nlohmann::json summary = model_compare_summary(c, o);
+  const std::string text = model_compare_text(c, o);
 
   if (!o.out_png.empty()) {
-    const auto png = overlay_png(t, y, with_x0.predicted, r, out_names, fmt::format("{}: measured vs {}", o.log, o.params));
+    const auto png = overlay_png(c.t, c.y, c.with_x0.predicted, c.r, c.out_names,
+                                 fmt::format("{}: measured vs {}", o.log, o.params));
     out.stage(o.out_png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   }
   if (!out_json.empty()) out.stage(out_json, json_text(summary));

@@ -111,46 +111,237 @@ nlohmann::json phenomena_json(const std::vector<Phenomenon>& phenomena, const st
   return out;
 }
 
-void run(const DiagnoseCliOptions& o) {
-  if (!o.log.empty()) {
-    if (!o.in.data.empty() || !o.in.datasets.empty())
-      throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
-    PhysicalModel model = read_physical_model(o.in.model);
-    if (model.user_base != nullptr) {
-      if (!o.out_effect.empty())
-        throw InputError("diagnose --log: --out-effect is for the frequency route; the force-error route writes --out "
-                         "(the named effect fitted), --report and --png");
-      MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
-                                                          o.in.measured_input, o.json);
-      req.report = o.report;
-      req.png = o.png;
-      req.png_flag = "--png";
-      if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
-      req.delta_bic = o.delta_bic;
-      return run_mechanical_time_diagnose(req);
-    }
-    if (o.window_s > 0.0)
-      throw InputError("diagnose --window-s: the smoothing window is the force-error route's (a mechanical base)");
-    if (!o.png.empty() || !o.out_effect.empty() || !o.report.empty())
-      throw InputError("diagnose --log: --png, --out-effect and --report are for the frequency route; see where the model "
-                       "fails in time with lpvid compare --log RUN.csv --model MODEL.json --out-png F.png");
-    {
-      OutputSet guard;
-      guard.input(o.in.model);
-      guard.file("--out", o.out);
-      guard.check();
-    }
-    StageTimeDiagnoseRequest req;
-    req.current = read_physical_model(o.in.model);
-    req.model_label = o.in.model;
-    req.log = o.log;
-    req.out = o.out;
-    req.command = "diagnose";
+// The time-domain routes of --log: the force-error route of a mechanical base
+// (cli/mechanical_time.h) or the stage's equation-error route (cli/stage6_time.h).
+void run_diagnose_on_log(const DiagnoseCliOptions& o) {
+  if (!o.in.data.empty() || !o.in.datasets.empty())
+    throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+  PhysicalModel model = read_physical_model(o.in.model);
+  if (model.user_base != nullptr) {
+    if (!o.out_effect.empty())
+      throw InputError("diagnose --log: --out-effect is for the frequency route; the force-error route writes --out "
+                       "(the named effect fitted), --report and --png");
+    MechanicalTimeRequest req = mechanical_time_request(std::move(model), o.in.model, o.log, o.out, o.window_s,
+                                                        o.in.measured_input, o.json);
+    req.report = o.report;
+    req.png = o.png;
+    req.png_flag = "--png";
     if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
     req.delta_bic = o.delta_bic;
-    req.json = o.json;
-    return run_stage_time_diagnose(req);
+    return run_mechanical_time_diagnose(req);
   }
+  if (o.window_s > 0.0)
+    throw InputError("diagnose --window-s: the smoothing window is the force-error route's (a mechanical base)");
+  if (!o.png.empty() || !o.out_effect.empty() || !o.report.empty())
+    throw InputError("diagnose --log: --png, --out-effect and --report are for the frequency route; see where the model "
+                     "fails in time with lpvid compare --log RUN.csv --model MODEL.json --out-png F.png");
+  {
+    OutputSet guard;
+    guard.input(o.in.model);
+    guard.file("--out", o.out);
+    guard.check();
+  }
+  StageTimeDiagnoseRequest req;
+  req.current = read_physical_model(o.in.model);
+  req.model_label = o.in.model;
+  req.log = o.log;
+  req.out = o.out;
+  req.command = "diagnose";
+  if (!o.candidates.empty()) req.candidates = split_names(o.candidates, "--candidates");
+  req.delta_bic = o.delta_bic;
+  req.json = o.json;
+  return run_stage_time_diagnose(req);
+}
+
+// Every candidate (and combination) with its fitted values: `lpvid model add
+// EFFECT --from-diagnosis REPORT.json` starts the user's refit from them, so the
+// refit reaches what diagnose reported (issue 25).
+nlohmann::json diagnose_outcome_json(const CandidateOutcome& c) {
+  nlohmann::json params = nlohmann::json::array();
+  for (const ParameterEstimate& p : c.effect_parameters)
+    params.push_back({{"name", p.name}, {"estimate", p.estimate}, {"std_error", number_or_null(p.std_error)},
+                      {"unit", p.unit}, {"at_bound", p.at_bound}});
+  nlohmann::json values = nlohmann::json::object();
+  if (c.fitted)
+    for (const PhysicalParameter& p : c.fit.model.parameters) values[p.name] = p.value;
+  nlohmann::json j = {{"effect", c.effect},
+                      {"members", c.members},
+                      {"fitted", c.fitted},
+                      {"failure", c.failure},
+                      {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
+                      {"excess_share", c.fitted ? number_or_null(c.excess_share) : nlohmann::json(nullptr)},
+                      {"band_share", c.fitted ? number_or_null(c.band_share) : nlohmann::json(nullptr)},
+                      {"delta_bic", c.fitted ? number_or_null(c.delta_bic) : nlohmann::json(nullptr)},
+                      {"delta_aic", c.fitted ? number_or_null(c.delta_aic) : nlohmann::json(nullptr)},
+                      {"own_parameter_at_bound", c.own_parameter_at_bound},
+                      {"significant", c.significant},
+                      {"verdict", c.verdict},
+                      {"seconds", c.fitted ? c.fit.seconds : 0.0},
+                      {"parameters", params},
+                      {"values", values}};
+  if (c.members.size() > 1) {
+    j["member_shares"] = c.member_shares;
+    j["member_needed"] = c.member_needed;
+    nlohmann::json we = nlohmann::json::array(), wb = nlohmann::json::array();
+    for (std::size_t k = 0; k < c.members.size(); ++k) {
+      we.push_back(number_or_null(c.member_without_error[k]));
+      wb.push_back(number_or_null(c.member_without_delta_bic[k]));
+    }
+    j["member_without_error"] = we;
+    j["member_without_delta_bic"] = wb;
+  }
+  return j;
+}
+
+// The candidates and combinations for the report, and their table for the summary.
+struct DiagnoseCandidates {
+  nlohmann::json ranked = nlohmann::json::array(), combinations = nlohmann::json::array();
+  std::string table;
+};
+
+DiagnoseCandidates diagnose_candidates(const Diagnosis& d) {
+  DiagnoseCandidates out;
+  std::string& table = out.table;
+  table = fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  {}\n", "rank", "candidate", "error %",
+                      "x lower", "% excess", "% bands", "ΔBIC", "verdict");
+  auto row = [&](int rank, const CandidateOutcome& c) {
+    if (c.fitted)
+      table += fmt::format("{:<4} {:<34} {:>10.4g} {:>8.3g} {:>9.0f} {:>9.0f} {:>10.1f}  {}\n", rank, c.effect,
+                           100.0 * c.error, c.error > 0 ? d.baseline_error / c.error : INFINITY,
+                           100.0 * c.excess_share, 100.0 * c.band_share, c.delta_bic, c.verdict);
+    else
+      table += fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  refit failed: {}\n", rank, c.effect, "-", "-",
+                           "-", "-", "-", c.failure);
+  };
+  int rank = 0;
+  for (const CandidateOutcome& c : d.ranked) {
+    out.ranked.push_back(diagnose_outcome_json(c));
+    row(++rank, c);
+  }
+  if (!d.combinations.empty()) {
+    table += "combinations (no single effect left only noise; each refitted, every member tested against the rest):\n";
+    rank = 0;
+    for (const CandidateOutcome& c : d.combinations) {
+      out.combinations.push_back(diagnose_outcome_json(c));
+      row(++rank, c);
+    }
+  }
+  return out;
+}
+
+// An output the result cannot fill is not written; the report is still printed,
+// then the run ends with exit 1 and one line saying why (no other file is written
+// either: all or nothing).  Empty when every output asked for can be filled.
+std::string diagnose_unmet(const DiagnoseCliOptions& o, const Diagnosis& d) {
+  std::string unmet;
+  if (!o.out.empty() && d.missing.empty())
+    unmet = fmt::format("diagnose: no candidate is significant, so there is no model to write to --out {}; "
+                        "nothing was written",
+                        o.out);
+  else if (!o.out_effect.empty() && d.descriptions.empty())
+    unmet = fmt::format("diagnose: {}, so there is no effect to write to --out-effect {}; nothing was written",
+                        d.explained ? fmt::format("{} explains the error within the noise", d.missing)
+                                    : std::string("the residual was not described"),
+                        o.out_effect);
+  return unmet;
+}
+
+// Where the baseline fails: data and refitted model per x_b, the error over the
+// noise band, the failing bands shaded (formats/plot/compare_plot.h).
+std::vector<unsigned char> diagnose_png(const Diagnosis& d, const FitInputs& in, const DiagnoseOptions& options) {
+  const ModelErrorSet mes = model_errors(d.baseline.model, in.data, options.fit, options.model_error);
+  std::vector<CompareSeries> series;
+  std::vector<CompareBandMark> marks;
+  for (std::size_t k = 0; k < in.data.size(); ++k) {
+    const ModelErrorModel& mem = mes.models[k];
+    // a base without a scheduling variable: the data set's name
+    series.push_back({std::isnan(in.data[k].beam_position_m) ? in.data[k].label
+                                                             : fmt::format("x_b = {:g} m", in.data[k].beam_position_m),
+                      mem.omega_rad_s, mem.data, mem.model,
+                      mem.radius, mem.scale, mem.skipped});
+  }
+  for (const auto& set : d.baseline_failures)
+    for (const FailingBand& b : set) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
+  ComparePlotOptions po;
+  po.title = fmt::format("lpvid diagnose: where the model fails ({} target; red: failing bands){}",
+                         target_name(options.fit.target), d.missing.empty() ? "" : "; missing: " + d.missing);
+  po.same_model = false;
+  po.input_labels = d.baseline.input_names;
+  po.output_labels = d.baseline.output_names;
+  return compare_png(series, marks, po);
+}
+
+// The report (--report, --json).
+nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d, const std::vector<FitDataset>& data,
+                                const DiagnoseCandidates& candidates) {
+  nlohmann::json descriptions = nlohmann::json::array();
+  for (const ResidualDescription& r : d.descriptions)
+    descriptions.push_back({{"text", r.text},
+                            {"kind", r.kind},
+                            {"side", r.side},
+                            {"channel", r.channel},
+                            {"error", r.error},
+                            {"excess_share", r.excess_share},
+                            {"effect", nlohmann::json::parse(effect_definition_json(r.effect).dump())},
+                            {"effect_name", r.effect.name}});
+  nlohmann::json hints = nlohmann::json::array();
+  for (const DesignHint& h : d.design_hints)
+    hints.push_back({{"parameter", h.parameter},
+                     {"bound", h.bound},
+                     {"lower", h.lower},
+                     {"upper", h.upper},
+                     {"wanted", number_or_null(h.wanted)},
+                     {"design", h.design.empty() ? nlohmann::json(nullptr) : nlohmann::json(h.design)},
+                     {"design_value", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.design_value)},
+                     {"suggested", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.suggested)},
+                     {"effects", h.effects}});
+  return {
+      {"explained", d.explained},
+      {"indistinguishable", d.indistinguishable},
+      {"separated_by_priors", d.separated_by_priors},
+      {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
+      {"missing_effects", d.missing_effects},
+      {"noise_floor", number_or_null(d.noise_floor)},
+      {"effective_floor", d.effective_floor},
+      {"noise_source", d.noise_source},
+      {"baseline", {{"error", d.baseline_error}, {"bic", d.baseline.bic}, {"aic", d.baseline.aic},
+                    {"free_parameters", d.baseline.parameters.size()}, {"residuals", d.baseline.residual_count},
+                    {"failing_band_points", d.baseline_band_points}}},
+      {"phenomena", phenomena_json(d.phenomena, data)},
+      {"baseline_failures", bands_json(d.baseline_failures, data, d.baseline)},
+      {"remaining_phenomena", phenomena_json(d.remaining_phenomena, data)},
+      {"remaining_failures", bands_json(d.remaining_failures, data, d.baseline)},
+      {"candidates", candidates.ranked},
+      {"combinations", candidates.combinations},
+      {"descriptions", descriptions},
+      {"design_hints", hints},
+      {"widened_error", d.design_hints.empty() ? nlohmann::json(nullptr) : number_or_null(d.widened_error)},
+      {"delta_bic_threshold", o.delta_bic},
+      {"summary", d.summary},
+      {"out", o.out}};
+}
+
+// The summary printed after the files are published.
+std::string diagnose_text(const DiagnoseCliOptions& o, const Diagnosis& d, const std::string& table,
+                          const std::string& unmet) {
+  std::string text;
+  for (const std::string& line : d.summary) text += line + "\n";
+  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
+  if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
+  if (unmet.empty() && !o.out_effect.empty())
+    text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
+                        o.out_effect, d.descriptions.front().effect.name, o.out_effect);
+  if (unmet.empty() && !o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
+  if (unmet.empty() && !o.report.empty())
+    text += fmt::format("wrote {} (the report as JSON: lpvid model add {} --model ... --from-diagnosis {})\n", o.report,
+                        d.missing_effects.empty() ? std::string("EFFECT")
+                                                  : fmt::format("{}", fmt::join(d.missing_effects, ",")),
+                        o.report);
+  return text;
+}
+
+void run(const DiagnoseCliOptions& o) {
+  if (!o.log.empty()) return run_diagnose_on_log(o);
   DiagnoseOptions options;
   options.significance_delta_bic = o.delta_bic;
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
@@ -178,84 +369,8 @@ void run(const DiagnoseCliOptions& o) {
   const Diagnosis d = diagnose(in.start, in.data, options);
   progress.finish();
 
-  // Every candidate (and combination) with its fitted values: `lpvid model add
-  // EFFECT --from-diagnosis REPORT.json` starts the user's refit from them, so the
-  // refit reaches what diagnose reported (issue 25).
-  auto outcome_json = [&](const CandidateOutcome& c) {
-    nlohmann::json params = nlohmann::json::array();
-    for (const ParameterEstimate& p : c.effect_parameters)
-      params.push_back({{"name", p.name}, {"estimate", p.estimate}, {"std_error", number_or_null(p.std_error)},
-                        {"unit", p.unit}, {"at_bound", p.at_bound}});
-    nlohmann::json values = nlohmann::json::object();
-    if (c.fitted)
-      for (const PhysicalParameter& p : c.fit.model.parameters) values[p.name] = p.value;
-    nlohmann::json j = {{"effect", c.effect},
-                        {"members", c.members},
-                        {"fitted", c.fitted},
-                        {"failure", c.failure},
-                        {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
-                        {"excess_share", c.fitted ? number_or_null(c.excess_share) : nlohmann::json(nullptr)},
-                        {"band_share", c.fitted ? number_or_null(c.band_share) : nlohmann::json(nullptr)},
-                        {"delta_bic", c.fitted ? number_or_null(c.delta_bic) : nlohmann::json(nullptr)},
-                        {"delta_aic", c.fitted ? number_or_null(c.delta_aic) : nlohmann::json(nullptr)},
-                        {"own_parameter_at_bound", c.own_parameter_at_bound},
-                        {"significant", c.significant},
-                        {"verdict", c.verdict},
-                        {"seconds", c.fitted ? c.fit.seconds : 0.0},
-                        {"parameters", params},
-                        {"values", values}};
-    if (c.members.size() > 1) {
-      j["member_shares"] = c.member_shares;
-      j["member_needed"] = c.member_needed;
-      nlohmann::json we = nlohmann::json::array(), wb = nlohmann::json::array();
-      for (std::size_t k = 0; k < c.members.size(); ++k) {
-        we.push_back(number_or_null(c.member_without_error[k]));
-        wb.push_back(number_or_null(c.member_without_delta_bic[k]));
-      }
-      j["member_without_error"] = we;
-      j["member_without_delta_bic"] = wb;
-    }
-    return j;
-  };
-  nlohmann::json ranked = nlohmann::json::array(), combinations = nlohmann::json::array();
-  std::string table = fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  {}\n", "rank", "candidate", "error %",
-                                  "x lower", "% excess", "% bands", "ΔBIC", "verdict");
-  auto row = [&](int rank, const CandidateOutcome& c) {
-    if (c.fitted)
-      table += fmt::format("{:<4} {:<34} {:>10.4g} {:>8.3g} {:>9.0f} {:>9.0f} {:>10.1f}  {}\n", rank, c.effect,
-                           100.0 * c.error, c.error > 0 ? d.baseline_error / c.error : INFINITY,
-                           100.0 * c.excess_share, 100.0 * c.band_share, c.delta_bic, c.verdict);
-    else
-      table += fmt::format("{:<4} {:<34} {:>10} {:>8} {:>9} {:>9} {:>10}  refit failed: {}\n", rank, c.effect, "-", "-",
-                           "-", "-", "-", c.failure);
-  };
-  int rank = 0;
-  for (const CandidateOutcome& c : d.ranked) {
-    ranked.push_back(outcome_json(c));
-    row(++rank, c);
-  }
-  if (!d.combinations.empty()) {
-    table += "combinations (no single effect left only noise; each refitted, every member tested against the rest):\n";
-    rank = 0;
-    for (const CandidateOutcome& c : d.combinations) {
-      combinations.push_back(outcome_json(c));
-      row(++rank, c);
-    }
-  }
-
-  // An output the result cannot fill is not written; the report is still printed,
-  // then the run ends with exit 1 and one line saying why (no other file is written
-  // either: all or nothing).
-  std::string unmet;
-  if (!o.out.empty() && d.missing.empty())
-    unmet = fmt::format("diagnose: no candidate is significant, so there is no model to write to --out {}; "
-                        "nothing was written",
-                        o.out);
-  else if (!o.out_effect.empty() && d.descriptions.empty())
-    unmet = fmt::format("diagnose: {}, so there is no effect to write to --out-effect {}; nothing was written",
-                        d.explained ? fmt::format("{} explains the error within the noise", d.missing)
-                                    : std::string("the residual was not described"),
-                        o.out_effect);
+  const DiagnoseCandidates candidates = diagnose_candidates(d);
+  const std::string unmet = diagnose_unmet(o, d);
   if (unmet.empty() && !o.out.empty()) {
     const FitResult& won = d.winner()->fit;
     outputs.stage(o.out, physical_model_to_json(won.model, nlohmann::json()));
@@ -266,92 +381,12 @@ void run(const DiagnoseCliOptions& o) {
   }
   if (unmet.empty() && !o.out_effect.empty())
     outputs.stage(o.out_effect, effect_definition_file(d.descriptions.front().effect));
-  if (unmet.empty() && !o.png.empty()) {
-    // Where the baseline fails: data and refitted model per x_b, the error over the
-    // noise band, the failing bands shaded (formats/plot/compare_plot.h).
-    const ModelErrorSet mes = model_errors(d.baseline.model, in.data, options.fit, options.model_error);
-    std::vector<CompareSeries> series;
-    std::vector<CompareBandMark> marks;
-    for (std::size_t k = 0; k < in.data.size(); ++k) {
-      const ModelErrorModel& mem = mes.models[k];
-      // a base without a scheduling variable: the data set's name
-      series.push_back({std::isnan(in.data[k].beam_position_m) ? in.data[k].label
-                                                               : fmt::format("x_b = {:g} m", in.data[k].beam_position_m),
-                        mem.omega_rad_s, mem.data, mem.model,
-                        mem.radius, mem.scale, mem.skipped});
-    }
-    for (const auto& set : d.baseline_failures)
-      for (const FailingBand& b : set) marks.push_back({b.output, b.input, b.lo_rad_s, b.hi_rad_s});
-    ComparePlotOptions po;
-    po.title = fmt::format("lpvid diagnose: where the model fails ({} target; red: failing bands){}",
-                           target_name(options.fit.target), d.missing.empty() ? "" : "; missing: " + d.missing);
-    po.same_model = false;
-    po.input_labels = d.baseline.input_names;
-    po.output_labels = d.baseline.output_names;
-    const auto bytes = compare_png(series, marks, po);
-    outputs.stage(o.png, bytes);
-  }
-  nlohmann::json descriptions = nlohmann::json::array();
-  for (const ResidualDescription& r : d.descriptions)
-    descriptions.push_back({{"text", r.text},
-                            {"kind", r.kind},
-                            {"side", r.side},
-                            {"channel", r.channel},
-                            {"error", r.error},
-                            {"excess_share", r.excess_share},
-                            {"effect", nlohmann::json::parse(effect_definition_json(r.effect).dump())},
-                            {"effect_name", r.effect.name}});
-  nlohmann::json hints = nlohmann::json::array();
-  for (const DesignHint& h : d.design_hints)
-    hints.push_back({{"parameter", h.parameter},
-                     {"bound", h.bound},
-                     {"lower", h.lower},
-                     {"upper", h.upper},
-                     {"wanted", number_or_null(h.wanted)},
-                     {"design", h.design.empty() ? nlohmann::json(nullptr) : nlohmann::json(h.design)},
-                     {"design_value", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.design_value)},
-                     {"suggested", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.suggested)},
-                     {"effects", h.effects}});
-  const nlohmann::json summary = {
-      {"explained", d.explained},
-      {"indistinguishable", d.indistinguishable},
-      {"separated_by_priors", d.separated_by_priors},
-      {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
-      {"missing_effects", d.missing_effects},
-      {"noise_floor", number_or_null(d.noise_floor)},
-      {"effective_floor", d.effective_floor},
-      {"noise_source", d.noise_source},
-      {"baseline", {{"error", d.baseline_error}, {"bic", d.baseline.bic}, {"aic", d.baseline.aic},
-                    {"free_parameters", d.baseline.parameters.size()}, {"residuals", d.baseline.residual_count},
-                    {"failing_band_points", d.baseline_band_points}}},
-      {"phenomena", phenomena_json(d.phenomena, in.data)},
-      {"baseline_failures", bands_json(d.baseline_failures, in.data, d.baseline)},
-      {"remaining_phenomena", phenomena_json(d.remaining_phenomena, in.data)},
-      {"remaining_failures", bands_json(d.remaining_failures, in.data, d.baseline)},
-      {"candidates", ranked},
-      {"combinations", combinations},
-      {"descriptions", descriptions},
-      {"design_hints", hints},
-      {"widened_error", d.design_hints.empty() ? nlohmann::json(nullptr) : number_or_null(d.widened_error)},
-      {"delta_bic_threshold", o.delta_bic},
-      {"summary", d.summary},
-      {"out", o.out}};
+  if (unmet.empty() && !o.png.empty()) outputs.stage(o.png, diagnose_png(d, in, options));
+  const nlohmann::json summary = diagnose_summary(o, d, in.data, candidates);
   if (unmet.empty() && !o.report.empty()) outputs.stage(o.report, json_text(summary));
   outputs.commit();
 
-  std::string text;
-  for (const std::string& line : d.summary) text += line + "\n";
-  text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
-  if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
-  if (unmet.empty() && !o.out_effect.empty())
-    text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
-                        o.out_effect, d.descriptions.front().effect.name, o.out_effect);
-  if (unmet.empty() && !o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
-  if (unmet.empty() && !o.report.empty())
-    text += fmt::format("wrote {} (the report as JSON: lpvid model add {} --model ... --from-diagnosis {})\n", o.report,
-                        d.missing_effects.empty() ? std::string("EFFECT")
-                                                  : fmt::format("{}", fmt::join(d.missing_effects, ",")),
-                        o.report);
+  const std::string text = diagnose_text(o, d, candidates.table, unmet);
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
   if (!unmet.empty()) throw NumericalError(unmet);
 }

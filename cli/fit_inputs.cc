@@ -122,13 +122,24 @@ double pick(double flag, double manifest) { return std::isnan(flag) ? manifest :
 // on logs of a second or more; the ZOH phase a 1e-6 difference moves is < 2e-6 rad.
 constexpr double kSameRateTolerance = 1e-6;
 
-}  // namespace
+// The data sets' specs: from --data or from the manifest (returned; empty without one).
+DatasetManifest read_fit_specs(const FitInputOptions& o, FitInputs& in) {
+  if (o.data.empty() == o.datasets.empty())
+    throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
+                                    : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
+  DatasetManifest m;
+  if (!o.datasets.empty()) {
+    m = read_dataset_manifest(o.datasets);
+    for (const ManifestDataset& d : m.datasets) in.specs.push_back({d.files, d.beam_position_m, d.label});
+  } else {
+    for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
+  }
+  return m;
+}
 
-namespace {
-
-// The fit's options from the flags (or the manifest): target, global start, rate,
-// noise, band, grid, and the controller's path; returns the rate (NaN: none given).
-double fit_options_from(const FitInputOptions& o, const DatasetManifest& m, FitInputs& in) {
+// The fit's options from the flags, else the manifest, each checked; returns the
+// sample rate given (NaN: none).
+double fit_options_from_flags(const FitInputOptions& o, const DatasetManifest& m, FitInputs& in) {
   FitOptions& options = in.options;
   const std::string target = !o.target.empty() ? o.target : !m.target.empty() ? m.target : "plant";
   options.target = parse_target(target);
@@ -180,12 +191,70 @@ double fit_options_from(const FitInputOptions& o, const DatasetManifest& m, FitI
   return rate;
 }
 
+std::vector<LoadedResponse> load_fit_responses(const FitInputs& in) {
+  std::vector<LoadedResponse> loaded;
+  for (const auto& s : in.specs) {
+    if (s.files.size() > 1) {
+      LoadedResponse merged;
+      merged.path = s.label;
+      merged.frd = load_frd_merged(s.files);
+      loaded.push_back(std::move(merged));
+    } else {
+      loaded.push_back(load_response(s.files.front()));
+    }
+  }
+  return loaded;
+}
+
+// Sample period: flag (or manifest), else a discrete data model's, else the controller's.
+double fit_sample_period(const FitInputOptions& o, const DatasetManifest& m, double rate,
+                         const std::vector<LoadedResponse>& loaded, FitInputs& in) {
+  const FitOptions& options = in.options;
+  double ts = !std::isnan(rate) ? 1.0 / rate : 0.0;
+  in.sample_period_source = !std::isnan(o.rate_hz) ? "--rate-hz" : !std::isnan(m.rate_hz) ? o.datasets : "";
+  for (const auto& l : loaded)
+    if (ts == 0.0 && l.model && l.model->is_discrete()) {
+      ts = l.model->sample_period_s;
+      in.sample_period_source = l.path;
+    }
+  if (ts == 0.0 && options.controller && options.controller->is_discrete()) {
+    ts = options.controller->sample_period_s;
+    in.sample_period_source = in.controller_path;
+  }
+  return ts;
+}
+
+void fit_datasets_from(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, FitInputs& in) {
+  const FitOptions& options = in.options;
+  for (std::size_t i = 0; i < in.specs.size(); ++i) {
+    FitDataset d;
+    d.beam_position_m = in.specs[i].beam_position_m;
+    d.label = in.specs[i].label;
+    if (loaded[i].model) {
+      double top = o.grid_hi;
+      const double period = loaded[i].model->sample_period_s;
+      // Below 0.9 of the data model's Nyquist frequency.
+      if (period > 0) top = std::min(top, 0.9 * M_PI / period);
+      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, top, o.grid_count));
+    } else {
+      d.response = *loaded[i].frd;
+    }
+    // A measured controller is known only at its lines: they must be every data set's.
+    if (options.measured_controller && options.target != FitTarget::kPlant)
+      check_controller_lines(*options.measured_controller, d.response.omega_rad_s, in.controller_path,
+                             loaded[i].model ? d.label + fmt::format(" (a model, evaluated on the --grid-lo/-hi/-count "
+                                                                     "grid)")
+                                             : d.label);
+    in.data.push_back(std::move(d));
+  }
+}
+
 // FRD data (and a measured controller) that lpvid frf estimated from a log record
 // the log's rate: the response of held samples at that rate.  The fit's rate must be
 // that one; without any, the continuous model misses the ZOH (said below).
-void check_recorded_rates(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, double ts,
-                          const FitInputs& in) {
+void check_recorded_rates(const FitInputOptions& o, const std::vector<LoadedResponse>& loaded, const FitInputs& in) {
   const FitOptions& options = in.options;
+  const double ts = options.sample_period_s;
   struct Recorded {
     std::string path;
     double rate_hz;
@@ -223,18 +292,8 @@ void check_recorded_rates(const FitInputOptions& o, const std::vector<LoadedResp
 
 FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   FitInputs in;
-  if (o.data.empty() == o.datasets.empty())
-    throw InputError(o.data.empty() ? "give the data: --data FILE@X_B (repeat) or --datasets MANIFEST.json"
-                                    : "give the data once: --data FILE@X_B or --datasets MANIFEST.json, not both");
-  DatasetManifest m;
-  if (!o.datasets.empty()) {
-    m = read_dataset_manifest(o.datasets);
-    for (const ManifestDataset& d : m.datasets) in.specs.push_back({d.files, d.beam_position_m, d.label});
-  } else {
-    for (const auto& s : o.data) in.specs.push_back(parse_data_spec(s));
-  }
-  const double rate = fit_options_from(o, m, in);
-  FitOptions& options = in.options;
+  const DatasetManifest m = read_fit_specs(o, in);
+  const double rate = fit_options_from_flags(o, m, in);
   // A data file without an @ tag: only a base without a scheduling variable
   // (mechanical) takes one; the model says which (read again below, after the checks).
   for (const auto& s : in.specs)
@@ -250,6 +309,7 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
   outputs.inputs(in.inputs);
   outputs.check();
 
+  FitOptions& options = in.options;
   in.start = read_physical_model(o.model);
   if (!in.controller_path.empty()) {
     if (is_measured_controller(in.controller_path))
@@ -257,54 +317,11 @@ FitInputs load_fit_inputs(const FitInputOptions& o, OutputSet& outputs) {
     else
       options.controller = read_controller(in.controller_path);
   }
-  std::vector<LoadedResponse> loaded;
-  for (const auto& s : in.specs) {
-    if (s.files.size() > 1) {
-      LoadedResponse merged;
-      merged.path = s.label;
-      merged.frd = load_frd_merged(s.files);
-      loaded.push_back(std::move(merged));
-    } else {
-      loaded.push_back(load_response(s.files.front()));
-    }
-  }
-  // Sample period: flag (or manifest), else a discrete data model's, else the controller's.
-  double ts = !std::isnan(rate) ? 1.0 / rate : 0.0;
-  in.sample_period_source = !std::isnan(o.rate_hz) ? "--rate-hz" : !std::isnan(m.rate_hz) ? o.datasets : "";
-  for (const auto& l : loaded)
-    if (ts == 0.0 && l.model && l.model->is_discrete()) {
-      ts = l.model->sample_period_s;
-      in.sample_period_source = l.path;
-    }
-  if (ts == 0.0 && options.controller && options.controller->is_discrete()) {
-    ts = options.controller->sample_period_s;
-    in.sample_period_source = in.controller_path;
-  }
-  options.sample_period_s = ts;
+  const std::vector<LoadedResponse> loaded = load_fit_responses(in);
+  options.sample_period_s = fit_sample_period(o, m, rate, loaded, in);
   options.validate();
-
-  for (std::size_t i = 0; i < in.specs.size(); ++i) {
-    FitDataset d;
-    d.beam_position_m = in.specs[i].beam_position_m;
-    d.label = in.specs[i].label;
-    if (loaded[i].model) {
-      double top = o.grid_hi;
-      const double period = loaded[i].model->sample_period_s;
-      // Below 0.9 of the data model's Nyquist frequency.
-      if (period > 0) top = std::min(top, 0.9 * M_PI / period);
-      d.response = frequency_response(*loaded[i].model, log_frequency_grid(o.grid_lo, top, o.grid_count));
-    } else {
-      d.response = *loaded[i].frd;
-    }
-    // A measured controller is known only at its lines: they must be every data set's.
-    if (options.measured_controller && options.target != FitTarget::kPlant)
-      check_controller_lines(*options.measured_controller, d.response.omega_rad_s, in.controller_path,
-                             loaded[i].model ? d.label + fmt::format(" (a model, evaluated on the --grid-lo/-hi/-count "
-                                                                     "grid)")
-                                             : d.label);
-    in.data.push_back(std::move(d));
-  }
-  check_recorded_rates(o, loaded, ts, in);
+  fit_datasets_from(o, loaded, in);
+  check_recorded_rates(o, loaded, in);
   return in;
 }
 

@@ -133,22 +133,31 @@ std::string support_sentence(const BandSupport& b, double band_min, double band_
                      b.points, band_min, band_max, b.lowest_supported_rad_s, b.highest_supported_rad_s, why);
 }
 
-void run(const IdentifyCliOptions& o) {
+// The command line checked and turned into the library's options and the column names.
+struct IdentifyRoute {
   IdentifyOptions options;
+  bool era = false;
+  std::vector<std::string> excitation, output;
+  bool at_reference = false;
+};
+
+IdentifyRoute identify_route(const IdentifyCliOptions& o) {
+  IdentifyRoute route;
+  IdentifyOptions& options = route.options;
   if (o.method == "structured")
     options.method = IdentifyMethod::kStructured;
   else if (o.method == "era")
     options.method = IdentifyMethod::kEra;
   else
     throw InputError(fmt::format("--method {}: use 'structured' (default) or 'era' (the paper's recipe)", o.method));
-  const bool era = options.method == IdentifyMethod::kEra;
+  route.era = options.method == IdentifyMethod::kEra;
   options.num_lags = o.lags;
   options.markov_horizon_s = o.horizon_s;
   options.closed_loop_order = o.order;
   options.plant_order = o.plant_order;
   options.fit_band_max_rad_s = o.fit_band_max;
   options.refine_output_error = !o.no_refine;
-  if (!era && o.order > 0)
+  if (!route.era && o.order > 0)
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
   options.validate();
   if (!(o.band_min > 0 && o.band_max > o.band_min))
@@ -160,22 +169,25 @@ void run(const IdentifyCliOptions& o) {
                                    "input, not both"
                                  : "no controller: give --controller C.json (the controller that ran, for closed-loop "
                                    "logs) or --open-loop (the excitation is the plant's input)");
-  const auto excitation = split_names(o.excitation, "--excitation");
-  const auto output = split_names(o.output, "--output");
-  const bool at_reference = o.excitation_at == "reference";
-  if (!at_reference && o.excitation_at != "input")
+  route.excitation = split_names(o.excitation, "--excitation");
+  route.output = split_names(o.output, "--output");
+  route.at_reference = o.excitation_at == "reference";
+  if (!route.at_reference && o.excitation_at != "input")
     throw InputError(fmt::format("--excitation-at {}: use 'input' (default: v is added to the plant's input, u = u_c + "
                                  "v) or 'reference' (r is the setpoint, e = r - q)",
                                  o.excitation_at));
-  if (at_reference && o.open_loop)
+  if (route.at_reference && o.open_loop)
     throw InputError("--excitation-at reference needs the loop's controller: give --controller C.json, not --open-loop");
-  if (at_reference && excitation.size() != output.size())
+  if (route.at_reference && route.excitation.size() != route.output.size())
     throw InputError(fmt::format("--excitation-at reference: {} reference column(s) for {} output(s); give one "
                                  "reference per --output, in the same order (e = r - q)",
-                                 excitation.size(), output.size()));
-  // Every output is checked before anything is read; the directory is created
-  // only when the files are published.
-  OutputSet outputs;
+                                 route.excitation.size(), route.output.size()));
+  return route;
+}
+
+// Every output is checked before anything is read; the directory is created
+// only when the files are published.
+void check_identify_outputs(OutputSet& outputs, const IdentifyCliOptions& o) {
   outputs.inputs(o.logs);
   if (!o.open_loop) outputs.input(o.controller);
   outputs.input(o.truth);
@@ -185,88 +197,78 @@ void run(const IdentifyCliOptions& o) {
                            "hankel_sv.png", "bode.png", "report.json"})
     outputs.file_in(o.out, name);
   outputs.check();
+}
 
+// What identify reads: the controller, the known plant, the error weights and the logs.
+struct IdentifyInputs {
   StateSpace controller;
-  if (!o.open_loop) controller = read_controller(o.controller);
   std::optional<StateSpace> truth;
-  if (!o.truth.empty()) truth = read_state_space(o.truth);
-  Eigen::VectorXd weights = Eigen::VectorXd::Ones(static_cast<Index>(output.size()));
+  Eigen::VectorXd weights;
+  ExperimentSet set;
+  std::vector<std::string> loop_inputs;  // the inputs of v -> q
+};
+
+IdentifyInputs read_identify_inputs(const IdentifyCliOptions& o, const IdentifyRoute& route) {
+  IdentifyInputs in;
+  const auto& excitation = route.excitation;
+  const auto& output = route.output;
+  if (!o.open_loop) in.controller = read_controller(o.controller);
+  const StateSpace& controller = in.controller;
+  if (!o.truth.empty()) in.truth = read_state_space(o.truth);
+  in.weights = Eigen::VectorXd::Ones(static_cast<Index>(output.size()));
   if (!o.weights.empty()) {
     const auto w = split_numbers(o.weights, "--error-weights", "an output weight");
     if (w.size() != output.size())
       throw InputError(fmt::format("--error-weights has {} values for {} outputs; give one weight per --output",
                                    w.size(), output.size()));
-    for (std::size_t i = 0; i < w.size(); ++i) weights(static_cast<Index>(i)) = w[i];
+    for (std::size_t i = 0; i < w.size(); ++i) in.weights(static_cast<Index>(i)) = w[i];
   }
-  ExperimentSet set = read_experiments(o.logs, excitation, output, o.layout.read_options());
+  in.set = read_experiments(o.logs, excitation, output, o.layout.read_options());
   if (!o.open_loop)
-    check_controller_matches(controller, set.sample_period_s, static_cast<Index>(output.size()),
-                             at_reference ? controller.num_outputs() : static_cast<Index>(excitation.size()),
-                             options.sample_period_tolerance);
+    check_controller_matches(controller, in.set.sample_period_s, static_cast<Index>(output.size()),
+                             route.at_reference ? controller.num_outputs() : static_cast<Index>(excitation.size()),
+                             route.options.sample_period_tolerance);
   // The references act as the plant-input excitation v = C r (identify.h): from here on
   // the logs' excitation is v, and everything downstream (closed loop, simulation fit)
   // is v -> q.
-  std::vector<std::string> loop_inputs = excitation;
-  if (at_reference) {
-    for (auto& x : set.excitations) x = reference_as_input_excitation(controller, x);
-    loop_inputs.clear();
+  in.loop_inputs = excitation;
+  if (route.at_reference) {
+    for (auto& x : in.set.excitations) x = reference_as_input_excitation(controller, x);
+    in.loop_inputs.clear();
     for (Index j = 0; j < controller.num_outputs(); ++j)
-      loop_inputs.push_back(controller.output_names.size() == static_cast<std::size_t>(controller.num_outputs())
-                                ? "C*r->" + controller.output_names[static_cast<std::size_t>(j)]
-                                : fmt::format("v{}", j + 1));
+      in.loop_inputs.push_back(controller.output_names.size() == static_cast<std::size_t>(controller.num_outputs())
+                                   ? "C*r->" + controller.output_names[static_cast<std::size_t>(j)]
+                                   : fmt::format("v{}", j + 1));
   }
+  return in;
+}
 
+IdentifyResult identify_from_logs(const IdentifyCliOptions& o, const IdentifyRoute& route, const IdentifyInputs& in) {
+  IdentifyOptions options = route.options;  // with this run's progress line
+  const StateSpace& controller = in.controller;
   TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
   options.progress = progress.get();
   // Open loop is the closed loop with C = 0 (G(P) = P): the same route and defaults.
-  IdentifyResult r = o.open_loop ? identify_open_loop(set.views(), set.sample_period_s, options)
-                                 : identify_closed_loop(set.views(), set.sample_period_s, controller, options);
+  IdentifyResult r = o.open_loop ? identify_open_loop(in.set.views(), in.set.sample_period_s, options)
+                                 : identify_closed_loop(in.set.views(), in.set.sample_period_s, controller, options);
   progress.finish();
-  r.closed_loop.input_names = loop_inputs;
-  r.closed_loop.output_names = output;
+  r.closed_loop.input_names = in.loop_inputs;
+  r.closed_loop.output_names = route.output;
   r.plant.input_names = !controller.output_names.empty() ? controller.output_names
-                        : at_reference                 ? loop_inputs
-                                                       : excitation;
-  r.plant.output_names = output;
-  if (era) {
+                        : route.at_reference           ? in.loop_inputs
+                                                       : route.excitation;
+  r.plant.output_names = route.output;
+  if (route.era) {
     r.era.model.input_names = r.closed_loop.input_names;
     r.era.model.output_names = r.closed_loop.output_names;
   }
+  return r;
+}
 
-  // Report.
-  const double Ts = set.sample_period_s;
-  nlohmann::json report = {
-      {"logs", set.paths},
-      {"log_findings", set.findings},
-      {"controller", o.open_loop ? nlohmann::json(nullptr) : nlohmann::json(o.controller)},
-      {"route", o.open_loop      ? "open loop: the excitation is the plant's input (C = 0, G = P)"
-                : at_reference ? "closed loop with the known controller, excited at the reference (v = C r)"
-                               : "closed loop with the known controller"},
-      {"excitation_at", o.open_loop ? "input" : o.excitation_at},
-      {"loop_inputs", loop_inputs},
-      {"sample_period_s", Ts},
-      {"excitation", excitation},
-      {"output", output},
-      {"method", era ? "era" : "structured"},
-      {"markov",
-       {{"lags", r.num_lags},
-        {"horizon_s", static_cast<double>(r.num_lags) * Ts},
-        {"horizon_reason", era ? std::string(o.lags > 0 || o.horizon_s > 0 ? "given" : "the paper's 2 s")
-                               : r.choices.horizon_reason},
-        {"iterations", r.markov.iterations},
-        {"samples", r.markov.total_samples},
-        {"termination", r.markov.report.termination}}},
-      {"closed_loop",
-       {{"order", r.closed_loop.order()},
-        {"stable", is_stable(r.closed_loop)},
-        {"poles", poles_json(r.closed_loop)},
-        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))},
-        {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set, false)},
-        {"simulation_fit_initial_state_percent", simulation_fit_json(r.closed_loop, set, true)}}},
-      {"plant",
-       {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
-      {"warnings", r.warnings},
-  };
+// report.json's part that depends on the method: the ERA's order rule and unlooping,
+// or the structured fit (and, open loop, its refinement).
+void add_identify_method_report(nlohmann::json& report, const IdentifyCliOptions& o, const IdentifyResult& r,
+                                bool era) {
   if (era) {
     const auto& sel = r.era.selection;
     const Index shown = std::min<Index>(sel.singular_values.size(), 30);
@@ -308,106 +310,172 @@ void run(const IdentifyCliOptions& o) {
     report["plant"]["source"] = refined ? "output-error refinement (report.refinement)" : "structured fit (report.fit)";
     report["plant"]["termination"] = r.fit.report.termination;
   }
+}
+
+// report.json (the support of the plant's band is added by identify_bode).
+nlohmann::json identify_report(const IdentifyCliOptions& o, const IdentifyRoute& route, const IdentifyInputs& in,
+                               const IdentifyResult& r) {
+  const bool era = route.era;
+  const ExperimentSet& set = in.set;
+  const double Ts = set.sample_period_s;
+  nlohmann::json report = {
+      {"logs", set.paths},
+      {"log_findings", set.findings},
+      {"controller", o.open_loop ? nlohmann::json(nullptr) : nlohmann::json(o.controller)},
+      {"route", o.open_loop            ? "open loop: the excitation is the plant's input (C = 0, G = P)"
+                : route.at_reference ? "closed loop with the known controller, excited at the reference (v = C r)"
+                                     : "closed loop with the known controller"},
+      {"excitation_at", o.open_loop ? "input" : o.excitation_at},
+      {"loop_inputs", in.loop_inputs},
+      {"sample_period_s", Ts},
+      {"excitation", route.excitation},
+      {"output", route.output},
+      {"method", era ? "era" : "structured"},
+      {"markov",
+       {{"lags", r.num_lags},
+        {"horizon_s", static_cast<double>(r.num_lags) * Ts},
+        {"horizon_reason", era ? std::string(o.lags > 0 || o.horizon_s > 0 ? "given" : "the paper's 2 s")
+                               : r.choices.horizon_reason},
+        {"iterations", r.markov.iterations},
+        {"samples", r.markov.total_samples},
+        {"termination", r.markov.report.termination}}},
+      {"closed_loop",
+       {{"order", r.closed_loop.order()},
+        {"stable", is_stable(r.closed_loop)},
+        {"poles", poles_json(r.closed_loop)},
+        {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))},
+        {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set, false)},
+        {"simulation_fit_initial_state_percent", simulation_fit_json(r.closed_loop, set, true)}}},
+      {"plant",
+       {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
+      {"warnings", r.warnings},
+  };
+  add_identify_method_report(report, o, r, era);
   const Eigen::VectorXd band = log_frequency_grid(o.band_min, o.band_max, 200);
-  if (truth) {
-    if (truth->num_inputs() != r.plant.num_inputs() || truth->num_outputs() != r.plant.num_outputs())
+  if (in.truth) {
+    const StateSpace& truth = *in.truth;
+    if (truth.num_inputs() != r.plant.num_inputs() || truth.num_outputs() != r.plant.num_outputs())
       throw InputError(fmt::format("--truth {} is {}x{} but the identified plant is {}x{}; give the true plant of these outputs and inputs", o.truth,
-                                   truth->num_outputs(), truth->num_inputs(), r.plant.num_outputs(),
+                                   truth.num_outputs(), truth.num_inputs(), r.plant.num_outputs(),
                                    r.plant.num_inputs()));
     const auto est = evaluate_response(r.plant, band);
-    const auto ref = evaluate_response(*truth, band);
-    const ErrorSummary e = weighted_error_over(est, ref, band, weights, weights);
+    const auto ref = evaluate_response(truth, band);
+    const ErrorSummary e = weighted_error_over(est, ref, band, in.weights, in.weights);
     report["truth"] = {{"model", o.truth},
                        {"band_rad_s", {o.band_min, o.band_max}},
-                       {"weights", std::vector<double>(weights.data(), weights.data() + weights.size())},
+                       {"weights", std::vector<double>(in.weights.data(), in.weights.data() + in.weights.size())},
                        {"weighted_error_mean", e.mean},
                        {"weighted_error_max", e.max},
                        {"omega_at_max_rad_s", e.omega_at_max_rad_s}};
   }
+  return report;
+}
 
+// The plant's response with its variance, its band and what the data support (in the
+// report), and bode.png drawn from them.
+struct IdentifyBode {
+  FrequencyResponse plant_frd;
+  std::optional<BandSupport> support;
+  std::vector<unsigned char> png;
+};
+
+// The band |Ĥ| ± kBandRadiusPerSigma σ (structured only): its edges drawn in bode.png, and
+// what the data support written into the report.
+void add_identify_band(IdentifyBode& b, std::vector<BodeSeries>& series, nlohmann::json& report,
+                       const IdentifyCliOptions& o, const IdentifyResult& r, const Eigen::VectorXd& omega,
+                       double nyquist) {
+  FrequencyResponse& plant_frd = b.plant_frd;
+  plant_frd.variance = plant_response_variance(r.fit, omega);
+  if (r.feedthrough_variance.size() > 0)
+    for (auto& v : plant_frd.variance) v += r.feedthrough_variance;
+  FrequencyResponse upper = plant_frd, lower = plant_frd;
+  upper.variance.clear();
+  lower.variance.clear();
+  for (std::size_t k = 0; k < plant_frd.response.size(); ++k) {
+    const Eigen::MatrixXcd& H = plant_frd.response[k];
+    for (Index i = 0; i < H.rows(); ++i)
+      for (Index j = 0; j < H.cols(); ++j) {
+        const double a = std::abs(H(i, j)), d = kBandRadiusPerSigma * std::sqrt(plant_frd.variance[k](i, j));
+        const std::complex<double> unit = a > 0 ? H(i, j) / a : std::complex<double>(1.0, 0.0);
+        upper.response[k](i, j) = unit * (a + d);
+        // Where the band reaches zero its lower edge has no magnitude: a gap, not a plunge.
+        lower.response[k](i, j) = a > d ? unit * (a - d) : std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0);
+      }
+  }
+  // What the data support: within --band-min..--band-max when given; otherwise over the
+  // plotted grid up to the top of the fitted band (beyond it the logs hold no signal
+  // by construction; the default error band 1-400 rad/s may lie beyond the Nyquist
+  // frequency of a log whose sample time is unknown).
+  const double s_lo = o.band_given ? o.band_min : omega(0);
+  const double s_hi = o.band_given ? o.band_max : std::min(0.999 * nyquist, r.choices.fit_band_max_rad_s);
+  std::vector<Eigen::MatrixXcd> in_band;
+  std::vector<Eigen::MatrixXd> var_in_band;
+  std::vector<double> w_in_band;
+  for (Index k = 0; k < omega.size(); ++k)
+    if (omega(k) >= s_lo && omega(k) <= s_hi) {
+      in_band.push_back(plant_frd.response[static_cast<std::size_t>(k)]);
+      var_in_band.push_back(plant_frd.variance[static_cast<std::size_t>(k)]);
+      w_in_band.push_back(omega(k));
+    }
+  if (!w_in_band.empty()) {
+    b.support = band_support(in_band, var_in_band,
+                             Eigen::Map<const Eigen::VectorXd>(w_in_band.data(), static_cast<Index>(w_in_band.size())),
+                             kSupportThreshold);
+    const BandSupport& support = *b.support;
+    report["plant"]["support"] = {{"threshold", support.threshold},
+                                  {"band_rad_s", {s_lo, s_hi}},
+                                  {"points", support.points},
+                                  {"supported", support.supported},
+                                  {"lowest_supported_rad_s", support.lowest_supported_rad_s},
+                                  {"highest_supported_rad_s", support.highest_supported_rad_s},
+                                  {"worst_relative_band", support.worst_relative},
+                                  {"omega_at_worst_rad_s", support.omega_at_worst_rad_s}};
+  }
+  series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed, false});
+  series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed, false});
+}
+
+IdentifyBode identify_bode(nlohmann::json& report, const IdentifyCliOptions& o, const IdentifyRoute& route,
+                           const IdentifyInputs& in, const IdentifyResult& r) {
+  IdentifyBode b;
   // The plant's response with its variance (structured: the fit's covariance by the
   // delta method) on a log grid up to Nyquist: plant_frd.csv, and the band in bode.png.
-  const double nyquist = M_PI / Ts;
+  const double nyquist = M_PI / in.set.sample_period_s;
   // From 1 rad/s (or --band-min), but at least three decades below Nyquist: a log whose
   // sample time is unknown (t = sample index, Nyquist pi rad/s) has its dynamics below 1.
   const Eigen::VectorXd omega =
       log_frequency_grid(std::min({1.0, o.band_min, 1e-3 * nyquist}), 0.999 * nyquist, 400);
-  FrequencyResponse plant_frd = frequency_response(r.plant, omega);
-  std::optional<BandSupport> support;
+  b.plant_frd = frequency_response(r.plant, omega);
   std::vector<BodeSeries> series;
-  series.push_back({"identified plant", plant_frd, BodeSeries::Style::kLine});
-  if (!era) {
-    plant_frd.variance = plant_response_variance(r.fit, omega);
-    if (r.feedthrough_variance.size() > 0)
-      for (auto& v : plant_frd.variance) v += r.feedthrough_variance;
-    FrequencyResponse upper = plant_frd, lower = plant_frd;
-    upper.variance.clear();
-    lower.variance.clear();
-    for (std::size_t k = 0; k < plant_frd.response.size(); ++k) {
-      const Eigen::MatrixXcd& H = plant_frd.response[k];
-      for (Index i = 0; i < H.rows(); ++i)
-        for (Index j = 0; j < H.cols(); ++j) {
-          const double a = std::abs(H(i, j)), d = kBandRadiusPerSigma * std::sqrt(plant_frd.variance[k](i, j));
-          const std::complex<double> unit = a > 0 ? H(i, j) / a : std::complex<double>(1.0, 0.0);
-          upper.response[k](i, j) = unit * (a + d);
-          // Where the band reaches zero its lower edge has no magnitude: a gap, not a plunge.
-          lower.response[k](i, j) = a > d ? unit * (a - d) : std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0);
-        }
-    }
-    // What the data support: within --band-min..--band-max when given; otherwise over the
-    // plotted grid up to the top of the fitted band (beyond it the logs hold no signal
-    // by construction; the default error band 1-400 rad/s may lie beyond the Nyquist
-    // frequency of a log whose sample time is unknown).
-    const double s_lo = o.band_given ? o.band_min : omega(0);
-    const double s_hi = o.band_given ? o.band_max : std::min(0.999 * nyquist, r.choices.fit_band_max_rad_s);
-    std::vector<Eigen::MatrixXcd> in_band;
-    std::vector<Eigen::MatrixXd> var_in_band;
-    std::vector<double> w_in_band;
-    for (Index k = 0; k < omega.size(); ++k)
-      if (omega(k) >= s_lo && omega(k) <= s_hi) {
-        in_band.push_back(plant_frd.response[static_cast<std::size_t>(k)]);
-        var_in_band.push_back(plant_frd.variance[static_cast<std::size_t>(k)]);
-        w_in_band.push_back(omega(k));
-      }
-    if (!w_in_band.empty()) {
-      support = band_support(in_band, var_in_band,
-                             Eigen::Map<const Eigen::VectorXd>(w_in_band.data(), static_cast<Index>(w_in_band.size())),
-                             kSupportThreshold);
-      report["plant"]["support"] = {{"threshold", support->threshold},
-                                    {"band_rad_s", {s_lo, s_hi}},
-                                    {"points", support->points},
-                                    {"supported", support->supported},
-                                    {"lowest_supported_rad_s", support->lowest_supported_rad_s},
-                                    {"highest_supported_rad_s", support->highest_supported_rad_s},
-                                    {"worst_relative_band", support->worst_relative},
-                                    {"omega_at_worst_rad_s", support->omega_at_worst_rad_s}};
-    }
-    series.push_back({std::string(kBandLevel) + " band (upper)", upper, BodeSeries::Style::kDashed, false});
-    series.push_back({std::string(kBandLevel) + " band (lower)", lower, BodeSeries::Style::kDashed, false});
-  }
-  if (truth) series.push_back({"true plant", frequency_response(*truth, omega), BodeSeries::Style::kDashed});
+  series.push_back({"identified plant", b.plant_frd, BodeSeries::Style::kLine});
+  if (!route.era) add_identify_band(b, series, report, o, r, omega, nyquist);
+  if (in.truth) series.push_back({"true plant", frequency_response(*in.truth, omega), BodeSeries::Style::kDashed});
   BodePlotOptions bode;
-  bode.title = fmt::format("Plant identified from {} experiment(s), order {}", set.paths.size(), r.plant.order());
-  const auto bode_bytes = bode_png(series, bode);
+  bode.title = fmt::format("Plant identified from {} experiment(s), order {}", in.set.paths.size(), r.plant.order());
+  b.png = bode_png(series, bode);
+  return b;
+}
 
-  // Every computation succeeded: now write, each file atomically.
+// Stages every file (the caller commits them together); returns the list of the
+// files written, for the summary.
+std::string stage_identify_outputs(OutputSet& files, const IdentifyCliOptions& o, const IdentifyRoute& route,
+                                   const IdentifyInputs& in, const IdentifyResult& r, const IdentifyBode& b,
+                                   const nlohmann::json& report) {
+  const bool era = route.era;
   MarkovFile mf;
   mf.g = r.markov.g;
-  mf.sample_period_s = Ts;
+  mf.sample_period_s = in.set.sample_period_s;
   // The Markov parameters are of v -> q: under --excitation-at reference v = C r, so
   // the inputs are loop_inputs, not the reference columns.
-  mf.inputs = loop_inputs;
-  mf.outputs = output;
+  mf.inputs = in.loop_inputs;
+  mf.outputs = route.output;
   mf.noise_std = r.markov.noise_std;
   mf.input_rms = r.markov.excitation_rms;
   mf.output_rms = r.markov.output_rms;
   const nlohmann::json provenance = {
       {"command", "lpvid identify"},
-      {"logs", set.paths},
+      {"logs", in.set.paths},
       {"controller", o.open_loop ? nlohmann::json("none (--open-loop)") : nlohmann::json(o.controller)}};
-  // All files are staged and renamed into place together at the end: a failure
-  // while writing leaves none of them.
-  OutputSet& files = outputs;
   files.stage(join_path(o.out, "markov.csv"), markov_csv_text(mf, join_path(o.out, "markov.csv")));
   std::string written = o.open_loop ? "plant.json, plant_frd.csv, markov.csv, bode.png, report.json"
                                     : "closed_loop.json, plant.json, plant_frd.csv, markov.csv, bode.png, report.json";
@@ -428,7 +496,7 @@ void run(const IdentifyCliOptions& o) {
                 sv_bytes);
     written += ", hankel_sv.csv, hankel_sv.png";
   }
-  write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), plant_frd, "P",
+  write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), b.plant_frd, "P",
                 {"lpvid identify: identified plant u -> q",
                  era ? std::string("no variance: --method era has no covariance")
                      : r.fit.replicates > 0
@@ -437,26 +505,33 @@ void run(const IdentifyCliOptions& o) {
                                          r.fit.replicates)
                            : std::string("var_<i>_<j>: E|P^ - P|^2 from the fit's covariance under its noise model "
                                          "(delta method; too few record segments for replicates)")});
-  files.stage(join_path(o.out, "bode.png"), bode_bytes);
+  files.stage(join_path(o.out, "bode.png"), b.png);
   if (!o.open_loop)
     files.stage(join_path(o.out, "closed_loop.json"), state_space_to_json(r.closed_loop, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "plant.json"), state_space_to_json(r.plant, {{"provenance", provenance}}));
   files.stage(join_path(o.out, "report.json"), json_text(report));
-  files.commit();
-  print_log_findings(set);
+  return written;
+}
 
+// The summary printed after the files are published.
+std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& route, const IdentifyInputs& in,
+                          const IdentifyResult& r, const std::optional<BandSupport>& support,
+                          const nlohmann::json& report, const std::string& written) {
+  const bool era = route.era;
+  const auto& output = route.output;
+  const double Ts = in.set.sample_period_s;
   std::string text = fmt::format("identify ({}{}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
-                                 o.open_loop ? ", open loop" : "", set.paths.size(), Ts);
+                                 o.open_loop ? ", open loop" : "", in.set.paths.size(), Ts);
   if (era) {
     text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
                         r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
                         r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
   } else {
     const IdentifyChoices& ch = r.choices;
-    if (at_reference)
+    if (route.at_reference)
       text += fmt::format("  excitation at the reference: v = C (r - mean r), the controller's response to {} from "
                           "rest, is the plant-input excitation (e = r - q)\n",
-                          fmt::join(excitation, ","));
+                          fmt::join(route.excitation, ","));
     text += fmt::format("  excitation: {}\n", ch.excitation_reason);
     text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "
                         "{}\n",
@@ -485,13 +560,30 @@ void run(const IdentifyCliOptions& o) {
                                         o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "),
                                         fmt::join(figures_e, ", "));
   }
-  if (truth)
+  if (in.truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
                         100 * report["truth"]["weighted_error_mean"].get<double>(),
                         100 * report["truth"]["weighted_error_max"].get<double>(), o.band_min, o.band_max);
   for (const auto& w : r.warnings) text += "warning: " + w + "\n";
   text += fmt::format("  wrote {}/{{{}}}\n", o.out, written);
-  print_summary(o.json, report, text);
+  return text;
+}
+
+void run(const IdentifyCliOptions& o) {
+  const IdentifyRoute route = identify_route(o);
+  OutputSet outputs;
+  check_identify_outputs(outputs, o);
+  const IdentifyInputs in = read_identify_inputs(o, route);
+  const IdentifyResult r = identify_from_logs(o, route, in);
+  nlohmann::json report = identify_report(o, route, in, r);
+  const IdentifyBode bode = identify_bode(report, o, route, in, r);
+
+  // Every computation succeeded: now write, each file atomically.  All files are staged
+  // and renamed into place together at the end: a failure while writing leaves none of them.
+  const std::string written = stage_identify_outputs(outputs, o, route, in, r, bode, report);
+  outputs.commit();
+  print_log_findings(in.set);
+  print_summary(o.json, report, identify_text(o, route, in, r, bode.support, report, written));
 }
 
 }  // namespace

@@ -116,28 +116,43 @@ std::vector<unsigned char> plot(const Eigen::VectorXd& t, const Eigen::MatrixXd&
   return time_plot_png({TimeSeries{"simulation", t, values}}, o);
 }
 
+void check_stage6_excitation_flags(const Stage6Options& o) {
+  if (!o.excitation.empty()) {
+    if (!o.experiment)
+      throw InputError("--excitation drives the identification experiment: add --experiment");
+    if (o.duration_given)
+      throw InputError("--duration-s does not apply with --excitation (the file sets the length); leave it out");
+    if (o.excitation_scale_given)
+      throw InputError("--excitation-scale does not apply with --excitation (the file sets the amplitude: lpvid "
+                       "excite --rms/--peak); leave it out");
+  }
+}
+
 // A designed excitation (lpvid excite): its v1..v6 replace the white excitation
-// sample for sample at the control rate; the log copies its design line for frf.  Sets
-// the run's duration from the file's length.
-ExcitationFile read_stage_excitation(const Stage6Options& o, double& duration_s) {
-  ExcitationFile excitation = read_excitation_file(o.excitation);
-  const ExcitationDesign& d = excitation.design;
-  if (d.channels != 6)
-    throw InputError(fmt::format("--excitation {}: {} channel{} but the stage has 6 inputs (v1..v6: F_x..tau_z); "
-                                 "write it with lpvid excite --channels 6",
-                                 o.excitation, d.channels, d.channels == 1 ? "" : "s"));
-  // 1e-6 relative: the same rate written with different rounding.
-  if (!(std::abs(d.sample_rate_hz - o.rate_hz) <= 1e-6 * o.rate_hz))
-    throw InputError(fmt::format("--excitation {} is sampled at {} Hz but the control rate --rate-hz is {}; give "
-                                 "--rate-hz {} or write the signal at {} Hz (lpvid excite --rate-hz)",
-                                 o.excitation, d.sample_rate_hz, o.rate_hz, d.sample_rate_hz, o.rate_hz));
-  // The run has duration x rate + 1 rows: one per sample of the file.
-  duration_s = static_cast<double>(excitation.log.num_samples() - 1) / o.rate_hz;
-  check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
+// sample for sample at the control rate; the log copies its design line for frf.
+// Sets duration_s to the file's length.
+std::optional<ExcitationFile> read_stage6_excitation(const Stage6Options& o, double& duration_s) {
+  std::optional<ExcitationFile> excitation;
+  if (!o.excitation.empty()) {
+    excitation = read_excitation_file(o.excitation);
+    const ExcitationDesign& d = excitation->design;
+    if (d.channels != 6)
+      throw InputError(fmt::format("--excitation {}: {} channel{} but the stage has 6 inputs (v1..v6: F_x..tau_z); "
+                                   "write it with lpvid excite --channels 6",
+                                   o.excitation, d.channels, d.channels == 1 ? "" : "s"));
+    // 1e-6 relative: the same rate written with different rounding.
+    if (!(std::abs(d.sample_rate_hz - o.rate_hz) <= 1e-6 * o.rate_hz))
+      throw InputError(fmt::format("--excitation {} is sampled at {} Hz but the control rate --rate-hz is {}; give "
+                                   "--rate-hz {} or write the signal at {} Hz (lpvid excite --rate-hz)",
+                                   o.excitation, d.sample_rate_hz, o.rate_hz, d.sample_rate_hz, o.rate_hz));
+    // The run has duration x rate + 1 rows: one per sample of the file.
+    duration_s = static_cast<double>(excitation->log.num_samples() - 1) / o.rate_hz;
+    check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
+  }
   return excitation;
 }
 
-stage6::StageEffects stage_effects(const Stage6Options& o) {
+stage6::StageEffects stage6_simulated_effects(const Stage6Options& o) {
   stage6::StageEffects effects;
   for (const auto& e : o.effects) {
     if (e == "gap") effects.gap_dependence = true;
@@ -154,20 +169,91 @@ stage6::StageEffects stage_effects(const Stage6Options& o) {
   return effects;
 }
 
-// The identification experiment: its log and the truth (the plant at hover, continuous
-// and sampled, and the simulated stage as a physical model), staged and committed.
-std::string write_experiment(OutputSet& out, const Stage6Options& o, const stage6::StageRun& r,
-                             const stage6::StageParameters& truth, const stage6::StageEffects& effects,
-                             const stage6::Vector6d& qr, const std::optional<ExcitationFile>& excitation,
-                             const std::string& provenance_line, const std::string& gap_text,
-                             nlohmann::json& summary) {
+// What is flown: the simulated stage, its controller, the run's settings and its
+// start and reference configurations.
+struct Stage6Flight {
+  stage6::StageEffects effects;
+  stage6::SlidingModeOptions smc;
+  stage6::SimulationOptions sim;
+  stage6::StageParameters truth;
+  stage6::Vector6d q0, qr;
+};
+
+Stage6Flight stage6_flight(const Stage6Options& o, double duration_s, const std::optional<ExcitationFile>& excitation) {
+  using namespace lpvid::stage6;
+  Stage6Flight f;
+  f.effects = stage6_simulated_effects(o);
+  SlidingModeOptions& smc = f.smc;
+  smc.gain_K = o.gain_K;
+  smc.boundary_layer = o.delta;
+  smc.lambda_per_s = o.lambda;
+  smc.inertia_scale = o.inertia_scale;
+  smc.control_rate_hz = o.rate_hz;
+  SimulationOptions& sim = f.sim;
+  sim.duration_s = duration_s;
+  sim.integration_step_s = o.step_s;
+  sim.seed = o.seed;
+  StageParameters& truth = f.truth;
+  if (!o.inertia_kgm2.empty()) {
+    if (o.inertia_kgm2.size() != 3)
+      throw InputError(fmt::format("--inertia-kgm2: {} values; give I_xx,I_yy,I_zz in kg·m² (e.g. 0.03,0.028,0.06)",
+                                   o.inertia_kgm2.size()));
+    truth.inertia_kgm2 = Eigen::Vector3d(o.inertia_kgm2[0], o.inertia_kgm2[1], o.inertia_kgm2[2]).asDiagonal();
+  }
+  f.q0 = paper_initial_configuration();
+  f.qr = paper_reference_configuration();
+  if (o.experiment) {
+    // docs/assumptions.md: interferometers 1 nm (x, y), capacitance probe 10 nm
+    // (z), tilts 0.1 urad; excitation 2 N and 0.1 N·m.
+    sim.sensor_noise_std << 1e-9, 1e-9, 1e-8, 1e-7, 1e-7, 1e-7;
+    sim.sensor_noise_std *= o.noise_scale;
+    sim.excitation_std << 2, 2, 2, 0.1, 0.1, 0.1;
+    sim.excitation_std *= o.excitation_scale;
+    if (excitation) sim.excitation_samples = excitation->log.data.rightCols(6);
+    f.q0 = Vector6d::Zero();
+    f.q0(2) = o.hover ? f.qr(2) : 250e-6;
+  }
+  return f;
+}
+
+// The experiment at the design level unless the user chose one; lowered until
+// the stage stays inside its gap (stage6_sim.h). Before any output.
+stage6::ExperimentRun fly_stage6(const Stage6Options& o, const Stage6Flight& f,
+                                 const std::optional<ExcitationFile>& excitation) {
+  using namespace lpvid::stage6;
+  const ExperimentRun flown = simulate_experiment_in_gap(
+      f.truth, f.effects, f.q0, f.qr, f.smc, f.sim, o.experiment && !o.excitation_scale_given && !excitation);
+  const GapExcursion& gaps = flown.gaps;
+  if (o.experiment && gaps.min_gap_m <= 0) {
+    std::string what = "lower the signal's level (lpvid excite --rms or --peak)";
+    if (!excitation) {
+      // The level that flies, found as the default one is: halving from the user's.
+      const ExperimentRun lower = simulate_experiment_in_gap(f.truth, f.effects, f.q0, f.qr, f.smc, f.sim, true);
+      what = lower.gaps.min_gap_m > 0
+                 ? fmt::format("give --excitation-scale {:g} (the gaps then stay within {:.0f} to {:.0f} um)",
+                               o.excitation_scale * lower.scale, 1e6 * lower.gaps.min_gap_m, 1e6 * lower.gaps.max_gap_m)
+                 : "give a much smaller --excitation-scale";
+    }
+    throw InputError(fmt::format(
+        "the stage touches down: array {}'s gap reaches {:.0f} um at t = {:.3f} s (reference {:.0f} um) and the "
+        "simulation has no contact forces, so the log would not be a physical experiment; {}",
+        gaps.min_motor + 1, 1e6 * gaps.min_gap_m, gaps.min_t_s, 1e6 * f.truth.reference_gap_m, what));
+  }
+  return flown;
+}
+
+// The experiment's files: the log and the truth beside it; returns the summary's text.
+std::string stage_stage6_experiment(OutputSet& out, nlohmann::json& summary, const Stage6Options& o,
+                                    const Stage6Flight& f, const stage6::StageRun& r,
+                                    const std::optional<ExcitationFile>& excitation, const std::string& comment,
+                                    const std::string& gap_text) {
   using namespace lpvid::stage6;
   const StageLog log = experiment_log(r);
-  const StateSpace plant_c = linearize_hover(truth, qr(2));
+  const StateSpace plant_c = linearize_hover(f.truth, f.qr(2));
   const StateSpace plant_d = discretize_zoh(plant_c, 1.0 / o.rate_hz);
-  const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", qr(2)},
+  const nlohmann::json prov = {{"command", "lpvid simulate stage6 --experiment"}, {"hover_z_m", f.qr(2)},
                                {"seed", o.seed}};
-  std::vector<std::string> comments = {provenance_line};
+  std::vector<std::string> comments = {comment};
   if (excitation) {
     comments.front() += " excitation=" + o.excitation;
     comments.push_back(excitation_design_comment(excitation->design));
@@ -175,19 +261,20 @@ std::string write_experiment(OutputSet& out, const Stage6Options& o, const stage
   write_log(out.stage(join_path(o.out_dir, "exp_stage6.csv")), log.names, log.data, comments);
   out.stage(join_path(o.out_dir, "truth_plant_continuous.json"), state_space_to_json(plant_c, {{"provenance", prov}}));
   out.stage(join_path(o.out_dir, "truth_plant.json"), state_space_to_json(plant_d, {{"provenance", prov}}));
-  out.stage(join_path(o.out_dir, "truth_model.json"), physical_model_to_json(truth_physical_model(truth, effects, r)));
+  out.stage(join_path(o.out_dir, "truth_model.json"),
+            physical_model_to_json(truth_physical_model(f.truth, f.effects, r)));
   out.commit();
-  const std::string text = fmt::format(
+  summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
+  return fmt::format(
       "wrote {}/exp_stage6.csv ({} rows), truth_plant.json, truth_plant_continuous.json (the rigid body at hover), "
       "truth_model.json (the simulated stage with its effects, base stage6)\n{}",
       o.out_dir, log.data.rows(), gap_text);
-  summary["files"] = {"exp_stage6.csv", "truth_plant.json", "truth_plant_continuous.json", "truth_model.json"};
-  return text;
 }
 
-// The paper's run (Fig. 6): the log and the four figures, staged and committed.
-std::string write_paper_run(OutputSet& out, const Stage6Options& o, const stage6::StageRun& r,
-                            const stage6::Vector6d& qr, const std::string& provenance, nlohmann::json& summary) {
+// The regulation run's files: the log and Fig. 6's four plots; returns the summary's text.
+std::string stage_stage6_regulation(OutputSet& out, nlohmann::json& summary, const Stage6Options& o,
+                                    const Stage6Flight& f, const stage6::StageRun& r, const std::string& provenance) {
+  using namespace lpvid::stage6;
   std::vector<std::string> cols = {"t", "x", "y", "z", "psi", "theta", "phi", "xd", "yd", "zd", "psid", "thetad",
                                    "phid"};
   for (const auto& n : names("sigma", 6)) cols.push_back(n);
@@ -211,7 +298,7 @@ std::string write_paper_run(OutputSet& out, const Stage6Options& o, const stage6
   stage_png("fig6d_torques.png", plot(r.t_s, r.wrench.rightCols(3), "Fig. 6(d): control torques, body axes (time in s)",
                                       {"tau_x [N m]", "tau_y [N m]", "tau_z [N m]"}));
   out.commit();
-  const stage6::Vector6d e_end = r.q.bottomRows(1).transpose() - qr;
+  const Vector6d e_end = r.q.bottomRows(1).transpose() - f.qr;
   summary["final_position_error_m"] = e_end.head<3>().cwiseAbs().maxCoeff();
   summary["final_angle_error_rad"] = e_end.tail<3>().cwiseAbs().maxCoeff();
   summary["files"] = {"stage6_run.csv", "fig6a_xyz.png", "fig6b_angles.png", "fig6c_forces.png", "fig6d_torques.png"};
@@ -221,15 +308,7 @@ std::string write_paper_run(OutputSet& out, const Stage6Options& o, const stage6
 
 void run(const Stage6Options& o) {
   using namespace lpvid::stage6;
-  if (!o.excitation.empty()) {
-    if (!o.experiment)
-      throw InputError("--excitation drives the identification experiment: add --experiment");
-    if (o.duration_given)
-      throw InputError("--duration-s does not apply with --excitation (the file sets the length); leave it out");
-    if (o.excitation_scale_given)
-      throw InputError("--excitation-scale does not apply with --excitation (the file sets the amplitude: lpvid "
-                       "excite --rms/--peak); leave it out");
-  }
+  check_stage6_excitation_flags(o);
   double duration_s = o.duration_s > 0 ? o.duration_s : (o.experiment ? 2.0 : 8.0);
   check_simulated_samples(duration_s, {o.rate_hz, 1.0 / o.step_s});
   // Every output, checked before anything is simulated; the folder is created
@@ -243,64 +322,16 @@ void run(const Stage6Options& o) {
                                                                   "fig6c_forces.png", "fig6d_torques.png"})
     out.file_in(o.out_dir, name);
   out.check();
-  // A designed excitation (lpvid excite): its v1..v6 replace the white excitation.
-  std::optional<ExcitationFile> excitation;
-  if (!o.excitation.empty()) excitation = read_stage_excitation(o, duration_s);
-  const StageEffects effects = stage_effects(o);
-  SlidingModeOptions smc;
-  smc.gain_K = o.gain_K;
-  smc.boundary_layer = o.delta;
-  smc.lambda_per_s = o.lambda;
-  smc.inertia_scale = o.inertia_scale;
-  smc.control_rate_hz = o.rate_hz;
-  SimulationOptions sim;
-  sim.duration_s = duration_s;
-  sim.integration_step_s = o.step_s;
-  sim.seed = o.seed;
-  StageParameters truth;
-  if (!o.inertia_kgm2.empty()) {
-    if (o.inertia_kgm2.size() != 3)
-      throw InputError(fmt::format("--inertia-kgm2: {} values; give I_xx,I_yy,I_zz in kg·m² (e.g. 0.03,0.028,0.06)",
-                                   o.inertia_kgm2.size()));
-    truth.inertia_kgm2 = Eigen::Vector3d(o.inertia_kgm2[0], o.inertia_kgm2[1], o.inertia_kgm2[2]).asDiagonal();
-  }
-  Vector6d q0 = paper_initial_configuration();
-  const Vector6d qr = paper_reference_configuration();
-  if (o.experiment) {
-    // docs/assumptions.md: interferometers 1 nm (x, y), capacitance probe 10 nm
-    // (z), tilts 0.1 urad; excitation 2 N and 0.1 N·m.
-    sim.sensor_noise_std << 1e-9, 1e-9, 1e-8, 1e-7, 1e-7, 1e-7;
-    sim.sensor_noise_std *= o.noise_scale;
-    sim.excitation_std << 2, 2, 2, 0.1, 0.1, 0.1;
-    sim.excitation_std *= o.excitation_scale;
-    if (excitation) sim.excitation_samples = excitation->log.data.rightCols(6);
-    q0 = Vector6d::Zero();
-    q0(2) = o.hover ? qr(2) : 250e-6;
-  }
-  // The experiment at the design level unless the user chose one; lowered until
-  // the stage stays inside its gap (stage6_sim.h). Before any output.
-  const ExperimentRun flown = simulate_experiment_in_gap(
-      truth, effects, q0, qr, smc, sim, o.experiment && !o.excitation_scale_given && !excitation);
+  const std::optional<ExcitationFile> excitation = read_stage6_excitation(o, duration_s);
+  const Stage6Flight f = stage6_flight(o, duration_s, excitation);
+  const StageEffects& effects = f.effects;
+  const StageParameters& truth = f.truth;
+  const ExperimentRun flown = fly_stage6(o, f, excitation);
   const StageRun& r = flown.run;
   const GapExcursion& gaps = flown.gaps;
-  if (o.experiment && gaps.min_gap_m <= 0) {
-    std::string what = "lower the signal's level (lpvid excite --rms or --peak)";
-    if (!excitation) {
-      // The level that flies, found as the default one is: halving from the user's.
-      const ExperimentRun lower = simulate_experiment_in_gap(truth, effects, q0, qr, smc, sim, true);
-      what = lower.gaps.min_gap_m > 0
-                 ? fmt::format("give --excitation-scale {:g} (the gaps then stay within {:.0f} to {:.0f} um)",
-                               o.excitation_scale * lower.scale, 1e6 * lower.gaps.min_gap_m, 1e6 * lower.gaps.max_gap_m)
-                 : "give a much smaller --excitation-scale";
-    }
-    throw InputError(fmt::format(
-        "the stage touches down: array {}'s gap reaches {:.0f} um at t = {:.3f} s (reference {:.0f} um) and the "
-        "simulation has no contact forces, so the log would not be a physical experiment; {}",
-        gaps.min_motor + 1, 1e6 * gaps.min_gap_m, gaps.min_t_s, 1e6 * truth.reference_gap_m, what));
-  }
   // The white level actually used (1 = the design level), so the comment line reproduces the log.
   const double level = o.excitation_scale_given ? o.excitation_scale : flown.scale;
-  nlohmann::json summary = {{"dir", o.out_dir}, {"duration_s", sim.duration_s}, {"rate_hz", o.rate_hz}};
+  nlohmann::json summary = {{"dir", o.out_dir}, {"duration_s", f.sim.duration_s}, {"rate_hz", o.rate_hz}};
   std::string text;
   const std::string provenance = fmt::format(
       "lpvid simulate stage6{}: K={} delta={} lambda={} inertia_scale={} rate_hz={} step_s={} seed={} effects={} "
@@ -331,9 +362,9 @@ void run(const Stage6Options& o) {
           kSafeGapFraction.second);
   }
   if (o.experiment)
-    text = write_experiment(out, o, r, truth, effects, qr, excitation, provenance + levels, gap_text, summary);
+    text = stage_stage6_experiment(out, summary, o, f, r, excitation, provenance + levels, gap_text);
   else
-    text = write_paper_run(out, o, r, qr, provenance, summary);
+    text = stage_stage6_regulation(out, summary, o, f, r, provenance);
   print_summary(o.json, summary, text);
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <tuple>
+#include <utility>
 
 #include "idlib/core/error.h"
 
@@ -133,141 +134,8 @@ CompareErrorAxis error_axis(const std::vector<CompareSeries>& series, Index i, I
   return {elo, ehi};
 }
 
-}  // namespace
-
-CompareErrorAxis compare_error_axis(const std::vector<CompareSeries>& series, Index i, Index j) {
-  ComparePlotOptions o;
-  validate(series, o);
-  const Index p = series.front().data.front().rows(), m = series.front().data.front().cols();
-  if (i < 0 || i >= p || j < 0 || j >= m)
-    throw InputError(fmt::format("compare plot: channel ({}, {}) outside the {}x{} response", i, j, p, m));
-  return error_axis(series, i, j);
-}
-
-namespace {
-
-// A panel's magnitude range: the data's, widened by the model's by at most
-// kModelReachDb; none (a ±10 dB placeholder) when neither is finite.
-struct MagnitudeRange {
-  plot::Range range;
-  double step = 0;
-  bool none = false;
-};
-
-MagnitudeRange magnitude_range(const std::vector<CompareSeries>& series, Index i, Index j) {
-  // Magnitude: the data's range, widened by the model's by at most kModelReachDb
-  // (a model that is numerically zero on a channel must not squash the data).
-  double dlo = kInf, dhi = -kInf, mlo = kInf, mhi = -kInf;
-  for (const auto& s : series)
-    for (std::size_t f = 0; f < s.data.size(); ++f) {
-      if (!shown(s, f)) continue;
-      const double vd = db(s.data[f](i, j)), vm = db(s.model[f](i, j));
-      if (std::isfinite(vd)) dlo = std::min(dlo, vd), dhi = std::max(dhi, vd);
-      if (std::isfinite(vm)) mlo = std::min(mlo, vm), mhi = std::max(mhi, vm);
-    }
-  if (std::isfinite(mlo)) {
-    if (!std::isfinite(dlo)) dlo = mlo, dhi = mhi;
-    dlo = std::min(dlo, std::max(mlo, dlo - kModelReachDb));
-    dhi = std::max(dhi, std::min(mhi, dhi + kModelReachDb));
-  }
-  const bool no_magnitude = !std::isfinite(dlo);
-  if (no_magnitude) dlo = -10, dhi = 10;
-  const double mid = 0.5 * (dlo + dhi);
-  const double span = std::max(dhi - dlo, kMinMagnitudeSpanDb);
-  const double step = plot::nice_step(span * 1.06, kMaxMagnitudeIntervals);
-  const plot::Range mr = plot::snap_outward(mid - 0.53 * span, mid + 0.53 * span, step);
-  return {mr, step, no_magnitude};
-}
-
-// Noise region of each series (grey) on the error axes.
-void draw_noise_regions(cv::Mat& image, const std::vector<CompareSeries>& series, Index i, Index j, const cv::Rect& err,
-                        const AxisMap& x, const AxisMap& ye) {
-  for (const auto& s : series) {
-    std::vector<cv::Point> poly;
-    const double base = err.br().y - 1;
-    for (std::size_t f = 0; f < s.data.size(); ++f) {
-      if (!shown(s, f)) continue;
-      const double r = s.scale[f](i, j) > 0 ? percent_of_scale(s, f, i, j, s.radius[f](i, j)) : kInf;
-      const double py = std::isfinite(r) ? std::clamp(ye.to_px(std::max(r, ye.lo)), double(err.y), base) : err.y;
-      const double px = x.to_px(s.omega_rad_s(f));
-      if (poly.empty()) poly.emplace_back(cvRound(px), cvRound(base));
-      poly.emplace_back(cvRound(px), cvRound(py));
-    }
-    if (!poly.empty()) {
-      poly.emplace_back(poly.back().x, cvRound(base));
-      cv::Mat roi = image(err);
-      std::vector<cv::Point> shifted;
-      for (const auto& q : poly) shifted.emplace_back(std::clamp(q.x - err.x, 0, err.width - 1), q.y - err.y);
-      cv::fillPoly(roi, std::vector<std::vector<cv::Point>>{shifted}, kNoiseFill, cv::LINE_AA);
-    }
-  }
-}
-
-// Failing bands: a translucent red over the grids and the noise band, then their edges.
-void draw_failing_bands(cv::Mat& image, const std::vector<CompareBandMark>& bands, Index i, Index j,
-                        const cv::Rect& mag, const cv::Rect& err, const AxisMap& x) {
-  for (const auto& b : bands) {
-    if (b.output != i || b.input != j) continue;
-    for (const cv::Rect& r : {mag, err}) {
-      double xa = std::max(x.to_px(b.lo_rad_s), static_cast<double>(r.x));
-      double xb = std::min(x.to_px(b.hi_rad_s), static_cast<double>(r.br().x - 1));
-      if (xb - xa < 3) xa -= 1.5, xb += 1.5;  // a band of one pixel stays visible
-      const cv::Rect sr = cv::Rect(cv::Point(cvRound(xa), r.y), cv::Point(cvRound(xb) + 1, r.br().y)) & r;
-      if (sr.area() == 0) continue;
-      cv::Mat roi = image(sr);
-      cv::Mat fill(roi.size(), roi.type(), kFailFill);
-      cv::addWeighted(roi, 1.0 - kFailAlpha, fill, kFailAlpha, 0.0, roi);
-    }
-  }
-  // The failing bands' edges.
-  for (const auto& b : bands) {
-    if (b.output != i || b.input != j) continue;
-    for (double w : {b.lo_rad_s, b.hi_rad_s}) {
-      const double px = x.to_px(w);
-      for (const cv::Rect& r : {mag, err})
-        plot::draw_polyline(image, {{px, double(r.y)}, {px, double(r.br().y - 1)}}, kFailEdge, 1,
-                            plot::LineStyle::kDashed, r);
-    }
-  }
-}
-
-// The measured curves, the model's, and the error of each series.
-void draw_curves(cv::Mat& image, const std::vector<CompareSeries>& series, const ComparePlotOptions& o, Index i,
-                 Index j, const cv::Rect& mag, const cv::Rect& err, const AxisMap& x, const AxisMap& ym,
-                 const AxisMap& ye) {
-  for (std::size_t si = 0; si < series.size(); ++si) {
-    const auto& s = series[si];
-    std::vector<cv::Point2d> pd, pm, pe;
-    for (std::size_t f = 0; f < s.data.size(); ++f) {
-      const double px = x.to_px(s.omega_rad_s(f));
-      if (!shown(s, f)) {
-        pd.emplace_back(kNaN, kNaN);
-        pe.emplace_back(kNaN, kNaN);
-      } else {
-        pd.emplace_back(px, ym.to_px(db(s.data[f](i, j))));
-        const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
-        pe.emplace_back(px, e > 0 ? ye.to_px(std::max(e, ye.lo)) : kNaN);
-      }
-      pm.emplace_back(px, ym.to_px(db(s.model[f](i, j))));
-    }
-    const cv::Scalar c = plot::series_color(si);
-    plot::draw_polyline(image, pd, c, 1, plot::LineStyle::kSolid, mag);
-    plot::draw_polyline(image, pe, c, 1, plot::LineStyle::kSolid, err);
-    if (!o.same_model)
-      plot::draw_polyline(image, pm, c, 2, plot::LineStyle::kDashed, mag);
-    else if (si == 0)
-      plot::draw_polyline(image, pm, plot::kBlack, 2, plot::LineStyle::kSolid, mag);
-  }
-}
-
-}  // namespace
-
-cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vector<CompareBandMark>& bands,
-                       const ComparePlotOptions& o) {
-  validate(series, o);
-  const Index p = series.front().data.front().rows(), m = series.front().data.front().cols();
-
-  // Shared frequency axis: whole decades around every series.
+// The shared frequency axis: whole decades around every series.
+std::pair<double, double> compare_frequency_decades(const std::vector<CompareSeries>& series) {
   double wlo = kInf, whi = 0;
   for (const auto& s : series) {
     wlo = std::min(wlo, s.omega_rad_s.minCoeff());
@@ -276,14 +144,11 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
   wlo = std::pow(10.0, std::floor(std::log10(wlo) + 1e-9));
   whi = std::pow(10.0, std::ceil(std::log10(whi) - 1e-9));
   if (whi <= wlo) whi = wlo * 10;
+  return {wlo, whi};
+}
 
-  const int panel_h = kPanelTitleHeight + o.magnitude_height_px + kAxesGap + o.error_height_px;
-  const int col_w = kYTickWidth + o.panel_width_px + kColumnGap;
-  const int top = kMargin + (o.title.empty() ? 0 : kTitleHeight);
-  const int grid_left = kMargin + kYLabelWidth;
-  const int grid_bottom = top + static_cast<int>(p) * (panel_h + kRowGap) - kRowGap;
-
-  // Legend entries.
+std::vector<plot::LegendEntry> compare_legend(const std::vector<CompareSeries>& series,
+                                              const std::vector<CompareBandMark>& bands, const ComparePlotOptions& o) {
   std::vector<plot::LegendEntry> legend;
   for (std::size_t s = 0; s < series.size(); ++s)
     legend.push_back({fmt::format("measured{}", series[s].label.empty() ? "" : " " + series[s].label),
@@ -297,6 +162,213 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
   legend.push_back({o.band_label + " (grey)", kNoiseFill, plot::LineStyle::kSolid, plot::Marker::kSquare});
   if (!bands.empty())
     legend.push_back({"failing band (red)", cv::Scalar(150, 150, 250), plot::LineStyle::kSolid, plot::Marker::kSquare});
+  return legend;
+}
+
+// One channel's magnitude axis in dB, snapped to its step; `none` when neither data
+// nor model has a finite magnitude there.
+struct CompareMagnitudeRange {
+  plot::Range range;
+  double step = 0;
+  bool none = false;
+};
+
+// Magnitude: the data's range, widened by the model's by at most kModelReachDb
+// (a model that is numerically zero on a channel must not squash the data).
+CompareMagnitudeRange compare_magnitude_range(const std::vector<CompareSeries>& series, Index i, Index j) {
+  double dlo = kInf, dhi = -kInf, mlo = kInf, mhi = -kInf;
+  for (const auto& s : series)
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      if (!shown(s, f)) continue;
+      const double vd = db(s.data[f](i, j)), vm = db(s.model[f](i, j));
+      if (std::isfinite(vd)) dlo = std::min(dlo, vd), dhi = std::max(dhi, vd);
+      if (std::isfinite(vm)) mlo = std::min(mlo, vm), mhi = std::max(mhi, vm);
+    }
+  if (std::isfinite(mlo)) {
+    if (!std::isfinite(dlo)) dlo = mlo, dhi = mhi;
+    dlo = std::min(dlo, std::max(mlo, dlo - kModelReachDb));
+    dhi = std::max(dhi, std::min(mhi, dhi + kModelReachDb));
+  }
+  CompareMagnitudeRange out;
+  out.none = !std::isfinite(dlo);
+  if (out.none) dlo = -10, dhi = 10;
+  const double mid = 0.5 * (dlo + dhi);
+  const double span = std::max(dhi - dlo, kMinMagnitudeSpanDb);
+  out.step = plot::nice_step(span * 1.06, kMaxMagnitudeIntervals);
+  out.range = plot::snap_outward(mid - 0.53 * span, mid + 0.53 * span, out.step);
+  return out;
+}
+
+// One channel's panel: the magnitude axes above the error axes, and their maps.
+struct ComparePanel {
+  Index i = 0, j = 0;  // output, input
+  cv::Rect mag, err;
+  AxisMap x, ym, ye;
+};
+
+// Noise region of each series (grey).
+void draw_compare_noise_regions(cv::Mat& image, const std::vector<CompareSeries>& series, const ComparePanel& pn) {
+  const Index i = pn.i, j = pn.j;
+  const cv::Rect& err = pn.err;
+  for (const auto& s : series) {
+    std::vector<cv::Point> poly;
+    const double base = err.br().y - 1;
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      if (!shown(s, f)) continue;
+      const double r = s.scale[f](i, j) > 0 ? percent_of_scale(s, f, i, j, s.radius[f](i, j)) : kInf;
+      const double py = std::isfinite(r) ? std::clamp(pn.ye.to_px(std::max(r, pn.ye.lo)), double(err.y), base) : err.y;
+      const double px = pn.x.to_px(s.omega_rad_s(f));
+      if (poly.empty()) poly.emplace_back(cvRound(px), cvRound(base));
+      poly.emplace_back(cvRound(px), cvRound(py));
+    }
+    if (!poly.empty()) {
+      poly.emplace_back(poly.back().x, cvRound(base));
+      cv::Mat roi = image(err);
+      std::vector<cv::Point> shifted;
+      for (const auto& q : poly) shifted.emplace_back(std::clamp(q.x - err.x, 0, err.width - 1), q.y - err.y);
+      cv::fillPoly(roi, std::vector<std::vector<cv::Point>>{shifted}, kNoiseFill, cv::LINE_AA);
+    }
+  }
+}
+
+void draw_compare_failing_bands(cv::Mat& image, const std::vector<CompareBandMark>& bands, const ComparePanel& pn) {
+  const AxisMap& x = pn.x;
+  // Failing bands: a translucent red over the grids and the noise band.
+  for (const auto& b : bands) {
+    if (b.output != pn.i || b.input != pn.j) continue;
+    for (const cv::Rect& r : {pn.mag, pn.err}) {
+      double xa = std::max(x.to_px(b.lo_rad_s), static_cast<double>(r.x));
+      double xb = std::min(x.to_px(b.hi_rad_s), static_cast<double>(r.br().x - 1));
+      if (xb - xa < 3) xa -= 1.5, xb += 1.5;  // a band of one pixel stays visible
+      const cv::Rect sr = cv::Rect(cv::Point(cvRound(xa), r.y), cv::Point(cvRound(xb) + 1, r.br().y)) & r;
+      if (sr.area() == 0) continue;
+      cv::Mat roi = image(sr);
+      cv::Mat fill(roi.size(), roi.type(), kFailFill);
+      cv::addWeighted(roi, 1.0 - kFailAlpha, fill, kFailAlpha, 0.0, roi);
+    }
+  }
+  // The failing bands' edges.
+  for (const auto& b : bands) {
+    if (b.output != pn.i || b.input != pn.j) continue;
+    for (double w : {b.lo_rad_s, b.hi_rad_s}) {
+      const double px = x.to_px(w);
+      for (const cv::Rect& r : {pn.mag, pn.err})
+        plot::draw_polyline(image, {{px, double(r.y)}, {px, double(r.br().y - 1)}}, kFailEdge, 1,
+                            plot::LineStyle::kDashed, r);
+    }
+  }
+}
+
+// Each series' measured magnitude and error, and the model's magnitude.
+void draw_compare_curves(cv::Mat& image, const std::vector<CompareSeries>& series, const ComparePlotOptions& o,
+                         const ComparePanel& pn) {
+  const Index i = pn.i, j = pn.j;
+  for (std::size_t si = 0; si < series.size(); ++si) {
+    const auto& s = series[si];
+    std::vector<cv::Point2d> pd, pm, pe;
+    for (std::size_t f = 0; f < s.data.size(); ++f) {
+      const double px = pn.x.to_px(s.omega_rad_s(f));
+      if (!shown(s, f)) {
+        pd.emplace_back(kNaN, kNaN);
+        pe.emplace_back(kNaN, kNaN);
+      } else {
+        pd.emplace_back(px, pn.ym.to_px(db(s.data[f](i, j))));
+        const double e = percent_of_scale(s, f, i, j, std::abs(s.data[f](i, j) - s.model[f](i, j)));
+        pe.emplace_back(px, e > 0 ? pn.ye.to_px(std::max(e, pn.ye.lo)) : kNaN);
+      }
+      pm.emplace_back(px, pn.ym.to_px(db(s.model[f](i, j))));
+    }
+    const cv::Scalar c = plot::series_color(si);
+    plot::draw_polyline(image, pd, c, 1, plot::LineStyle::kSolid, pn.mag);
+    plot::draw_polyline(image, pe, c, 1, plot::LineStyle::kSolid, pn.err);
+    if (!o.same_model)
+      plot::draw_polyline(image, pm, c, 2, plot::LineStyle::kDashed, pn.mag);
+    else if (si == 0)
+      plot::draw_polyline(image, pm, plot::kBlack, 2, plot::LineStyle::kSolid, pn.mag);
+  }
+}
+
+// The panel of output i and input j, its top-left corner at (x0, y0) (x0: the axes' left
+// edge); the frequency tick labels only under the last row.
+void draw_compare_panel(cv::Mat& image, const std::vector<CompareSeries>& series,
+                        const std::vector<CompareBandMark>& bands, const ComparePlotOptions& o, Index i, Index j,
+                        Index p, Index m, int x0, int y0, double wlo, double whi) {
+  ComparePanel pn;
+  pn.i = i;
+  pn.j = j;
+  pn.mag = cv::Rect(x0, y0 + kPanelTitleHeight, o.panel_width_px, o.magnitude_height_px);
+  pn.err = cv::Rect(x0, pn.mag.br().y + kAxesGap, o.panel_width_px, o.error_height_px);
+  const cv::Rect& mag = pn.mag;
+  const cv::Rect& err = pn.err;
+  pn.x = AxisMap{wlo, whi, static_cast<double>(mag.x), static_cast<double>(mag.br().x - 1), true};
+  const AxisMap& x = pn.x;
+
+  // Ranges.
+  const CompareMagnitudeRange magnitude = compare_magnitude_range(series, i, j);
+  const plot::Range& mr = magnitude.range;
+  pn.ym = AxisMap{mr.lo, mr.hi, static_cast<double>(mag.br().y - 1), static_cast<double>(mag.y), false};
+  const CompareErrorAxis ea = error_axis(series, i, j);
+  pn.ye = AxisMap{ea.lo_percent, ea.hi_percent, static_cast<double>(err.br().y - 1), static_cast<double>(err.y), true};
+  const AxisMap& ym = pn.ym;
+  const AxisMap& ye = pn.ye;
+
+  // Grids.
+  const std::vector<Tick> xt = frequency_ticks(x);
+  const std::vector<Tick> mt = plot::linear_ticks(mr.lo, mr.hi, magnitude.step);
+  const std::vector<Tick> et = percent_ticks(ye);
+  for (const auto& [area, yy, ticks] :
+       {std::tuple{mag, ym, mt}, std::tuple{err, ye, et}}) {
+    plot::draw_grid_x(image, area, x, plot::minor_log_ticks(x.lo, x.hi), plot::kGridMinor);
+    plot::draw_grid_x(image, area, x, values(plot::decade_ticks(x.lo, x.hi, plot::DecadeLabels::kPlain)),
+                      plot::kGridMajor);
+    plot::draw_grid_y(image, area, yy, values(ticks), plot::kGridMajor);
+  }
+  // Noise region of each series (grey), then the curves.
+  draw_compare_noise_regions(image, series, pn);
+  draw_compare_failing_bands(image, bands, pn);
+  draw_compare_curves(image, series, o, pn);
+  for (const auto& [area, yy, ticks] : {std::tuple{mag, ym, mt}, std::tuple{err, ye, et}}) {
+    plot::draw_frame(image, area);
+    plot::draw_y_tick_labels(image, area, yy, ticks);
+  }
+  if (i == p - 1) plot::draw_x_tick_labels(image, err, x, xt);
+  int failing = 0;
+  for (const auto& b : bands) failing += (b.output == i && b.input == j) ? 1 : 0;
+  const std::string title =
+      fmt::format("from {} to {}{}{}", label_or(o.input_labels, m, j, "u"), label_or(o.output_labels, p, i, "y"),
+                  failing ? fmt::format("  -  {} failing band{}", failing, failing > 1 ? "s" : "") : "",
+                  magnitude.none ? "  (zero)" : "");
+  plot::TextStyle ts = plot::panel_title_text();
+  if (failing) ts.color = kFailEdge;
+  plot::put_text(image, title, {mag.x + mag.width / 2.0, y0 + kPanelTitleHeight / 2.0}, ts, HAlign::kCenter,
+                 VAlign::kCenter);
+}
+
+}  // namespace
+
+CompareErrorAxis compare_error_axis(const std::vector<CompareSeries>& series, Index i, Index j) {
+  ComparePlotOptions o;
+  validate(series, o);
+  const Index p = series.front().data.front().rows(), m = series.front().data.front().cols();
+  if (i < 0 || i >= p || j < 0 || j >= m)
+    throw InputError(fmt::format("compare plot: channel ({}, {}) outside the {}x{} response", i, j, p, m));
+  return error_axis(series, i, j);
+}
+
+cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vector<CompareBandMark>& bands,
+                       const ComparePlotOptions& o) {
+  validate(series, o);
+  const Index p = series.front().data.front().rows(), m = series.front().data.front().cols();
+  const auto [wlo, whi] = compare_frequency_decades(series);
+
+  const int panel_h = kPanelTitleHeight + o.magnitude_height_px + kAxesGap + o.error_height_px;
+  const int col_w = kYTickWidth + o.panel_width_px + kColumnGap;
+  const int top = kMargin + (o.title.empty() ? 0 : kTitleHeight);
+  const int grid_left = kMargin + kYLabelWidth;
+  const int grid_bottom = top + static_cast<int>(p) * (panel_h + kRowGap) - kRowGap;
+
+  // Legend entries.
+  const std::vector<plot::LegendEntry> legend = compare_legend(series, bands, o);
   const int width = grid_left + static_cast<int>(m) * col_w + kMargin;
   const cv::Size leg = plot::legend_size(legend, width - 2 * kMargin);
   const int height = grid_bottom + kXTickHeight + kXLabelHeight + leg.height + 2 * kMargin;
@@ -308,47 +380,7 @@ cv::Mat render_compare(const std::vector<CompareSeries>& series, const std::vect
     for (Index j = 0; j < m; ++j) {
       const int x0 = grid_left + static_cast<int>(j) * col_w + kYTickWidth;
       const int y0 = top + static_cast<int>(i) * (panel_h + kRowGap);
-      const cv::Rect mag(x0, y0 + kPanelTitleHeight, o.panel_width_px, o.magnitude_height_px);
-      const cv::Rect err(x0, mag.br().y + kAxesGap, o.panel_width_px, o.error_height_px);
-      const AxisMap x{wlo, whi, static_cast<double>(mag.x), static_cast<double>(mag.br().x - 1), true};
-
-      const MagnitudeRange mrange = magnitude_range(series, i, j);
-      const plot::Range mr = mrange.range;
-      const double step = mrange.step;
-      const bool no_magnitude = mrange.none;
-      const AxisMap ym{mr.lo, mr.hi, static_cast<double>(mag.br().y - 1), static_cast<double>(mag.y), false};
-      const CompareErrorAxis ea = error_axis(series, i, j);
-      const AxisMap ye{ea.lo_percent, ea.hi_percent, static_cast<double>(err.br().y - 1), static_cast<double>(err.y), true};
-
-      // Grids.
-      const std::vector<Tick> xt = frequency_ticks(x);
-      const std::vector<Tick> mt = plot::linear_ticks(mr.lo, mr.hi, step);
-      const std::vector<Tick> et = percent_ticks(ye);
-      for (const auto& [area, yy, ticks] :
-           {std::tuple{mag, ym, mt}, std::tuple{err, ye, et}}) {
-        plot::draw_grid_x(image, area, x, plot::minor_log_ticks(x.lo, x.hi), plot::kGridMinor);
-        plot::draw_grid_x(image, area, x, values(plot::decade_ticks(x.lo, x.hi, plot::DecadeLabels::kPlain)),
-                          plot::kGridMajor);
-        plot::draw_grid_y(image, area, yy, values(ticks), plot::kGridMajor);
-      }
-      draw_noise_regions(image, series, i, j, err, x, ye);
-      draw_failing_bands(image, bands, i, j, mag, err, x);
-      draw_curves(image, series, o, i, j, mag, err, x, ym, ye);
-      for (const auto& [area, yy, ticks] : {std::tuple{mag, ym, mt}, std::tuple{err, ye, et}}) {
-        plot::draw_frame(image, area);
-        plot::draw_y_tick_labels(image, area, yy, ticks);
-      }
-      if (i == p - 1) plot::draw_x_tick_labels(image, err, x, xt);
-      int failing = 0;
-      for (const auto& b : bands) failing += (b.output == i && b.input == j) ? 1 : 0;
-      const std::string title =
-          fmt::format("from {} to {}{}{}", label_or(o.input_labels, m, j, "u"), label_or(o.output_labels, p, i, "y"),
-                      failing ? fmt::format("  -  {} failing band{}", failing, failing > 1 ? "s" : "") : "",
-                      no_magnitude ? "  (zero)" : "");
-      plot::TextStyle ts = plot::panel_title_text();
-      if (failing) ts.color = kFailEdge;
-      plot::put_text(image, title, {mag.x + mag.width / 2.0, y0 + kPanelTitleHeight / 2.0}, ts, HAlign::kCenter,
-                     VAlign::kCenter);
+      draw_compare_panel(image, series, bands, o, i, j, p, m, x0, y0, wlo, whi);
     }
   const double cy = top + (grid_bottom - top) / 2.0;
   plot::put_text_vertical(image, "magnitude [dB]  /  error [% of the channel scale s]", {kMargin + kYLabelWidth / 2.0, cy},
