@@ -2,7 +2,8 @@
 // a positioning axis logged at 1 kHz for 1000 s (1e6 samples; the simulated axis of
 // tests/support/friction_axis.h, closed loop, 1 µm encoder), preparing the log
 // (smoothing, derivatives, noise estimates, standstill), one fit of the full model,
-// and one diagnosis (the baseline, two candidates and their pair).
+// one fit with a ripple's period searched, and one diagnosis (the baseline, the
+// candidates the residual's signatures admit, their pairs).
 #include <benchmark/benchmark.h>
 
 #include "idlib/fit/force_error.h"
@@ -50,6 +51,24 @@ void BM_ForceError_Fit4_1e6(benchmark::State& state) {
   state.counters["error_percent"] = error;
 }
 BENCHMARK(BM_ForceError_Fit4_1e6)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+
+// The ripple's profile search on the same log: the periodogram over position of the
+// residual without it (up to 2000 lines on 5·10⁴ rows), then golden section in its three
+// highest peaks on every tenth row (the axis has no ripple: the search's cost, not its
+// finding, is measured).
+void BM_ForceError_FitRipple_1e6(benchmark::State& state) {
+  const auto& log = log_1e6();
+  PhysicalModel m = base_model();
+  m.add_effect("coulomb_friction");
+  m.add_effect("force_offset");
+  m.add_effect("position_ripple");
+  const ForceErrorData d = prepare_force_error(m, log.i, log.x, 1e-3);
+  for (auto _ : state) {
+    const ForceErrorFit f = fit_force_error(m, d);
+    benchmark::DoNotOptimize(f.bic);
+  }
+}
+BENCHMARK(BM_ForceError_FitRipple_1e6)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 
 void BM_ForceError_Diagnose_1e6(benchmark::State& state) {
   const auto& log = log_1e6();

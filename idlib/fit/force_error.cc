@@ -38,6 +38,9 @@ using Eigen::VectorXd;
 using force_error_detail::rms;
 using force_error_detail::time_effect_names;
 using force_error_detail::is_time_effect;
+using force_error_detail::ripple_regressors;
+using force_error_detail::saturated_input;
+using force_error_detail::stribeck_regressor;
 
 // y(k) = Σ_m h(m) x(k + m) for k in [from, to).
 VectorXd filter(const VectorXd& h, const VectorXd& x, Index from, Index to) {
@@ -50,7 +53,7 @@ VectorXd filter(const VectorXd& h, const VectorXd& x, Index from, Index to) {
 
 // Where each parameter enters the force balance of each DOF, per sample:
 // r_i = Σ terms (coefficient × θ_param or × 1) × signal.
-enum class Signal { kW, kQdd, kQd, kQ, kSign, kOne, kStribeck };
+enum class Signal { kW, kQdd, kQd, kQ, kSign, kOne, kStribeck, kRippleSin, kRippleCos };
 struct Term {
   Index param = -1;  // -1: a constant coefficient
   double coefficient = 0.0;
@@ -68,45 +71,26 @@ struct Balance {
   // column k ∗ hold(clip(w, ±w_max)) at the values given to set_shapes, in place of d.w's
   std::vector<Index> saturation;
   MatrixXd w_sat;
+  // position_ripple: per DOF the index of its period p (-1: none), and the regressors
+  // k ∗ sin(2π q/p), k ∗ cos(2π q/p) at the values given to set_shapes
+  std::vector<Index> ripple_period;
+  MatrixXd ripple_sin, ripple_cos;
 };
 
-// The Stribeck regressor of DOF i at velocity scale v_s, per kept row: the sign of the
-// unsmoothed velocity (clipped at v_eps, as Coulomb's) times exp(−(q'/v_s)²), smoothed
-// by the route's kernel like every term.
-VectorXd stribeck_regressor(const ForceErrorData& d, Index i, double v_s) {
-  const VectorXd v = d.v_raw.col(i);
-  VectorXd s(v.size());
-  for (Index k = 0; k < v.size(); ++k) {
-    const double x = v(k) / v_s;
-    s(k) = std::clamp(v(k) / d.v_eps(i), -1.0, 1.0) * std::exp(-x * x);
-  }
-  // k ∗ s at each kept row only (s(j) is sample H + j; row r is sample d.sample(r)): a
-  // profile search on a subsample of the rows pays for those rows alone
-  const Index H = d.kernel_reach, half = (d.kernel.size() - 1) / 2;
-  VectorXd out(d.n());
-  for (Index r = 0; r < d.n(); ++r) out(r) = d.kernel.dot(s.segment(d.sample(r) - H - half, d.kernel.size()));
-  return out;
-}
-
-// Input j as the actuator applies it under a limit: the logged command clipped at
-// ±limit, then held and smoothed as d.w is, per kept row.
-VectorXd saturated_input(const ForceErrorData& d, Index j, double limit) {
-  VectorXd c = d.w_log.col(j).cwiseMax(-limit).cwiseMin(limit);
-  if (d.held_input)
-    for (Index k = c.size() - 1; k > 0; --k) c(k) = 0.5 * (c(k) + c(k - 1));
-  const Index half = (d.kernel.size() - 1) / 2;
-  VectorXd out(d.n());
-  for (Index r = 0; r < d.n(); ++r) out(r) = d.kernel.dot(c.segment(d.sample(r) - half, d.kernel.size()));
-  return out;
-}
-
-// The terms whose shape depends on a parameter (Stribeck's v_s, a limit w_max), built at p.
+// The terms whose shape depends on a parameter (Stribeck's v_s, a limit w_max, a ripple's
+// period), built at p.
 void set_shapes(Balance& b, const ForceErrorData& d, const VectorXd& p) {
   const Index nd = static_cast<Index>(b.rows.size());
   b.stribeck = MatrixXd::Zero(d.n(), nd);
-  for (Index i = 0; i < nd; ++i)
-    if (b.stribeck_v[static_cast<std::size_t>(i)] >= 0)
-      b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[static_cast<std::size_t>(i)]));
+  b.ripple_sin = b.ripple_cos = MatrixXd::Zero(d.n(), nd);
+  for (Index i = 0; i < nd; ++i) {
+    const auto u = static_cast<std::size_t>(i);
+    if (b.stribeck_v[u] >= 0) b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[u]));
+    if (b.ripple_period[u] < 0) continue;
+    const auto [sine, cosine] = ripple_regressors(d, i, p(b.ripple_period[u]));
+    b.ripple_sin.col(i) = sine;
+    b.ripple_cos.col(i) = cosine;
+  }
   b.w_sat.resize(0, 0);
   for (std::size_t j = 0; j < b.saturation.size(); ++j)
     if (b.saturation[j] >= 0) {
@@ -124,6 +108,7 @@ Balance balance_of(const PhysicalModel& model) {
   b.rows.assign(static_cast<std::size_t>(L.n_dof), {});
   b.stribeck_v.assign(static_cast<std::size_t>(L.n_dof), -1);
   b.saturation.assign(static_cast<std::size_t>(L.n_in), -1);
+  b.ripple_period.assign(static_cast<std::size_t>(L.n_dof), -1);
   auto add = [&](const std::vector<MechanicalIndices::Entry>& entries, Signal s, double sign) {
     for (const auto& e : entries)
       b.rows[static_cast<std::size_t>(e.row)].push_back({e.parameter, sign * e.coefficient, s, e.col});
@@ -147,6 +132,16 @@ Balance balance_of(const PhysicalModel& model) {
         b.saturation[static_cast<std::size_t>(j)] = model.index_of(e->parameters[static_cast<std::size_t>(j)].name);
       continue;
     }
+    if (name == "position_ripple") {  // per DOF: a (sine), b (cosine); then the periods
+      for (Index i = 0; i < L.n_dof; ++i) {
+        auto& row = b.rows[static_cast<std::size_t>(i)];
+        auto at = [&](Index k) { return model.index_of(e->parameters[static_cast<std::size_t>(k)].name); };
+        row.push_back({at(i), -1.0, Signal::kRippleSin, i});
+        row.push_back({at(L.n_dof + i), -1.0, Signal::kRippleCos, i});
+        b.ripple_period[static_cast<std::size_t>(i)] = at(2 * L.n_dof + i);
+      }
+      continue;
+    }
     const Signal s = name == "coulomb_friction" ? Signal::kSign
                      : name == "force_offset"   ? Signal::kOne
                                                 : Signal::kStribeck;
@@ -164,6 +159,8 @@ Balance balance_of(const PhysicalModel& model) {
 double signal_at(const ForceErrorData& d, const Balance& b, Signal s, Index channel, Index k) {
   switch (s) {
     case Signal::kStribeck: return b.stribeck(k, channel);
+    case Signal::kRippleSin: return b.ripple_sin(k, channel);
+    case Signal::kRippleCos: return b.ripple_cos(k, channel);
     case Signal::kW: return inputs_of(b, d)(k, channel);
     case Signal::kQdd: return d.qdd(k, channel);
     case Signal::kQd: return d.qd(k, channel);
@@ -387,7 +384,7 @@ double rms(const Eigen::VectorXd& x) {
 
 const std::vector<std::string>& time_effect_names() {
   static const std::vector<std::string> names{"coulomb_friction", "force_offset", "stribeck_friction",
-                                              "input_saturation"};
+                                              "input_saturation", "position_ripple"};
   return names;
 }
 
@@ -606,6 +603,7 @@ ForceErrorData prepare_force_error(const PhysicalModel& model, const MatrixXd& i
   d.w_noise.resize(n_in);
   d.w_log = inputs;
   d.held_input = options.held_input;
+  d.q_raw = Q;
   const Index inner = N - 2 * h;  // [h, N − h): the cubic's residuals
   MatrixXd q_hf(inner, n_dof);
   const Smoothing sm{sg, k0, k1, k2, h, H, N, inner, noise_scale};
@@ -789,6 +787,9 @@ std::vector<ShapeParameter> shape_parameters(const PhysicalModel& model) {
     if (b.stribeck_v[i] >= 0) out.push_back({b.stribeck_v[i], ShapeParameter::Kind::kStribeckScale, static_cast<Index>(i)});
   for (std::size_t j = 0; j < b.saturation.size(); ++j)
     if (b.saturation[j] >= 0) out.push_back({b.saturation[j], ShapeParameter::Kind::kInputLimit, static_cast<Index>(j)});
+  for (std::size_t i = 0; i < b.ripple_period.size(); ++i)
+    if (b.ripple_period[i] >= 0)
+      out.push_back({b.ripple_period[i], ShapeParameter::Kind::kRipplePeriod, static_cast<Index>(i)});
   return out;
 }
 

@@ -22,7 +22,8 @@
 // stribeck_friction (F_s, v_s per DOF) adds F_s exp(−(q'/v_s)²) sign q': a friction that
 // rises towards standstill above the Coulomb level.  input_saturation (w_max per input)
 // replaces w by clip(w, ±w_max): a drive that applies at most its limit while the log
-// holds the controller's unlimited command.
+// holds the controller's unlimited command.  position_ripple (a, b, p per DOF) adds
+// a sin(2π q/p) + b cos(2π q/p): cogging, a screw's lead error.
 //
 // sign q' is q'/v_eps clipped to [−1, 1], q' the unsmoothed central difference (the
 // smoothed velocity crosses zero late at a reversal), v_eps = 3× its noise: standstill
@@ -107,6 +108,9 @@ struct ForceErrorData {
   // k), and whether the route holds them (ForceErrorOptions::held_input).
   Eigen::MatrixXd w_log;
   bool held_input = true;
+  // For position_ripple: the DOFs' positions C_q⁺ y as logged (N × n_dof, row k the log's
+  // sample k).
+  Eigen::MatrixXd q_raw;
   Index n() const { return q.rows(); }
 };
 
@@ -141,10 +145,12 @@ struct ForceErrorFit {
 
 // Fits the model's free parameters (base and time-only effects; priors honoured).
 // Linear in every parameter but the shape parameters, stribeck_friction's velocity
-// scales v_s and input_saturation's limits w_max: each free one is found by a profile
-// search (the linear fit at each trial value; a log-spaced grid, then golden section;
-// in turn, twice) over its range — v_s from 2 v_eps to the median moving speed, w_max
-// from the median |w| to the largest — its standard error from the profile's
+// scales v_s, input_saturation's limits w_max and position_ripple's periods p: each free
+// one is found by a profile search (the linear fit at each trial value; a log-spaced
+// grid — for p the periodogram of the residual without the ripple over position, its
+// three highest peaks — then golden section; in turn, twice) over its range — v_s from
+// 2 v_eps to the median moving speed, w_max from the median |w| to the largest, p from
+// one kernel length at the median speed to a third of the travel — its standard error from the profile's
 // curvature; a value on the range's edge is reported on its bound (a limit at the
 // largest command: the log shows no saturation) (docs/math.md §9b).
 // @throws InputError  the model has a block effect (delay, lag, gain, mode: those

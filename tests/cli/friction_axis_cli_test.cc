@@ -62,12 +62,12 @@ void write_lab_description(const std::string& path, double mass_kg, double visco
 }
 
 // A real axis is never the model, and its log is the lab's: an industrial drive's
-// cascade, point-to-point moves with rests, a Stribeck rise (in the library) and a
-// position ripple (not; the idlib test's axis, tests/idlib/fit/force_error_test.cc), the
-// drive's command in volts with the amplifier's gain fixed in the description, one .mat variable
-// per signal.  The loop names Coulomb friction, then the offset and the Stribeck rise,
-// then says what is left (the ripple) is not in the library; --png and --plot draw where
-// the model fails.
+// cascade, point-to-point moves with rests, a Stribeck rise and a position ripple (the
+// idlib test's axis, tests/idlib/fit/force_error_test.cc), the drive's command in volts
+// with the amplifier's gain fixed in the description, one .mat variable per signal.  The
+// loop names Coulomb friction, then the offset, the Stribeck rise and the ripple, then
+// says nothing is missing; fit --log reports the ripple's period; --png and --plot draw
+// where the model fails.
 TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   const TempDir dir("friction_real");
   friction_axis::Truth truth = friction_axis::realistic_truth();
@@ -82,7 +82,7 @@ TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   // the loop as a user runs it: diagnose --out on the last model until nothing is named
   std::vector<std::string> named;
   std::string model = dir / "m0.json", last_out;
-  for (int round = 1; round <= 4; ++round) {
+  for (int round = 1; round <= 6; ++round) {
     const std::string next = dir / fmt::format("m{}.json", round);
     const auto r = run_lpvid(fmt::format("diagnose --model {} --log {} --out {}{} --json", model, dir / "run.mat",
                                          next, round == 1 ? fmt::format(" --png {}", dir / "d1.png") : ""));
@@ -97,17 +97,27 @@ TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
   }
   ASSERT_FALSE(named.empty());
   EXPECT_EQ(named[0], "coulomb_friction");
-  EXPECT_THAT(named, ::testing::UnorderedElementsAre("coulomb_friction", "force_offset", "stribeck_friction"));
-  EXPECT_THAT(last_out, HasSubstr("what is left is not in the library"));
+  EXPECT_THAT(named, ::testing::UnorderedElementsAre("coulomb_friction", "force_offset", "stribeck_friction",
+                                                     "position_ripple"));
+  EXPECT_THAT(last_out, HasSubstr("nothing is missing"));
   const auto f = run_lpvid(fmt::format("fit --model {} --log {} --plot {} --out {} --json", model, dir / "run.mat",
                                        dir / "f.png", dir / "fitted.json"));
   ASSERT_EQ(f.exit_code, 0) << f.err;
   const nlohmann::json j = nlohmann::json::parse(f.out);
-  // the idlib test's bounds (tolerances explained there): the offset to 0.15 N
-  for (const auto& p : j["parameters"])
+  // the idlib test's bounds (tolerances explained there): the offset to 0.05 N, the
+  // ripple's period to 0.2 %
+  int seen = 0;
+  for (const auto& p : j["parameters"]) {
     if (p["name"] == "offset_x_N") {
-      EXPECT_NEAR(p["value"].get<double>(), truth.offset_N, 0.15);
+      EXPECT_NEAR(p["value"].get<double>(), truth.offset_N, 0.05);
+      ++seen;
     }
+    if (p["name"] == "ripple_period_x_m") {
+      EXPECT_NEAR(p["value"].get<double>(), truth.ripple_period_m, 0.002 * truth.ripple_period_m);
+      ++seen;
+    }
+  }
+  EXPECT_EQ(seen, 2) << j["parameters"].dump();
   for (const std::string png : {"d1.png", "f.png"}) {
     const std::string bytes = slurp(dir / png);
     ASSERT_GT(bytes.size(), 8u) << png;
