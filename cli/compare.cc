@@ -61,7 +61,9 @@ trajectory; NRMSE fit % per output, residual whiteness and residual-input tests 
 and the time windows where the model fails (channel, t_start, t_end, size).
   lpvid compare --log validation.csv --model axis_fitted.json --out-png where.png
 a mechanical model (base mechanical): the force error of the model as given on the log
-(nothing refitted), against its noise floor, and the windows where it fails.)";
+(nothing refitted), against its noise floor, and the windows where it fails; smoothed as
+the fit that wrote the model (its fit.smoothing: window and input convention), or with the
+route's defaults (0.02 s, the input held) for a model no force-error fit wrote.)";
 
 struct CompareCliOptions {
   std::string estimate, reference, weights, out;

@@ -52,8 +52,9 @@ model define').  --out writes the winning candidate's fitted model; --png draws 
 model fails (data and model, the error over the noise band, failing bands red).
 Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
   lpvid diagnose --model stage.json --log exp/exp_stage6.csv
-Time domain (a mechanical base): coulomb_friction, force_offset and the pair, judged against
-the force error's noise floor (docs/math.md 9b):
+Time domain (a mechanical base): the time-only effects it lacks (coulomb_friction,
+force_offset, stribeck_friction, input_saturation, position_ripple) and their pairs, judged
+against the force error's noise floor (docs/math.md 9b):
   lpvid diagnose --model axis.json --log run.csv --out next.json --report report.json)";
 
 struct DiagnoseCliOptions {
@@ -63,6 +64,7 @@ struct DiagnoseCliOptions {
   double window_s = 0.0;  // a mechanical base's force-error route (cli/mechanical_time.h)
   double delta_bic = 10.0;
   bool json = false;
+  std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
 
 
@@ -116,6 +118,7 @@ nlohmann::json phenomena_json(const std::vector<Phenomenon>& phenomena, const st
 void run_diagnose_on_log(const DiagnoseCliOptions& o) {
   if (!o.in.data.empty() || !o.in.datasets.empty())
     throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+  refuse_frequency_options(o.frequency_given, "diagnose");
   PhysicalModel model = read_physical_model(o.in.model);
   if (model.user_base != nullptr) {
     if (!o.out_effect.empty())
@@ -416,7 +419,10 @@ Command make_diagnose_command() {
             app->add_option("--report", o->report,
                             "also write the report as JSON here (for model add --from-diagnosis)");
             app->add_flag("--json", o->json, "print the report as JSON");
-            app->callback([o] { run(*o); });
+            app->callback([o, app] {
+              o->frequency_given = frequency_options_given(*app);
+              run(*o);
+            });
           }};
 }
 

@@ -61,6 +61,7 @@ struct FitCliOptions {
   std::string log, method;  // the stage's time-domain route (cli/stage6_time.h)
   double window_s = 0.0;     // a mechanical base's force-error route (cli/mechanical_time.h)
   bool json = false;
+  std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
 
 std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
@@ -72,6 +73,7 @@ void run_fit_on_log(const FitCliOptions& o) {
     throw InputError("fit --method: the method is for the time-domain fit; give --log RUN.csv (a stage6 model)");
   if (!o.in.data.empty() || !o.in.datasets.empty())
     throw InputError("fit: give either --log (time domain) or --data/--datasets (frequency domain), not both");
+  refuse_frequency_options(o.frequency_given, "fit");
   PhysicalModel model = read_physical_model(o.in.model);
   if (model.user_base != nullptr) {
     if (!o.method.empty())
@@ -349,7 +351,10 @@ Command make_fit_command() {
                             "force and the model's over time and the residual, failing windows shaded");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
             app->add_flag("--json", o->json, "print the summary as JSON");
-            app->callback([o] { run(*o); });
+            app->callback([o, app] {
+              o->frequency_given = frequency_options_given(*app);
+              run(*o);
+            });
           }};
 }
 

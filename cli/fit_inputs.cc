@@ -66,6 +66,27 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
       ->check(integer_in(2, kMaxFrequencyPoints, "the number of frequencies"));
 }
 
+std::vector<std::string> frequency_options_given(const CLI::App& app) {
+  static const char* const kNames[] = {"--target",    "--controller", "--rate-hz",  "--averages",
+                                       "--noise-level", "--band-min",  "--band-max", "--starts",
+                                       "--no-global", "--seed",       "--max-iterations", "--grid-lo",
+                                       "--grid-hi",   "--grid-count"};
+  std::vector<std::string> out;
+  for (const char* name : kNames)
+    if (app.count(name) > 0) out.emplace_back(name);
+  return out;
+}
+
+void refuse_frequency_options(const std::vector<std::string>& given, const std::string& command) {
+  if (given.empty()) return;
+  std::string list = given.front();
+  for (std::size_t k = 1; k < given.size(); ++k) list += (k + 1 == given.size() ? " and " : ", ") + given[k];
+  throw InputError(fmt::format("{} --log: {} {} of the frequency route (a measured response: {} --data); a log is "
+                               "fitted without {}: drop {}",
+                               command, list, given.size() > 1 ? "are options" : "is an option", command,
+                               given.size() > 1 ? "them" : "it", given.size() > 1 ? "them" : "it"));
+}
+
 FitDataSpec parse_data_spec(const std::string& spec) {
   const size_t at = spec.rfind('@');
   if (at == std::string::npos && !spec.empty()) {

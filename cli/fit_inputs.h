@@ -47,6 +47,14 @@ struct FitInputOptions {
 // --max-iterations, --grid-lo/-hi/-count on app.
 void add_fit_input_options(CLI::App& app, FitInputOptions& o);
 
+// The frequency route's options of add_fit_input_options given on app's command line (as
+// written: "--starts"), after parsing; --model, --data, --datasets and --measured-input
+// are not among them (the time routes read or refuse those themselves).
+std::vector<std::string> frequency_options_given(const CLI::App& app);
+// @throws InputError  `given` is not empty: "COMMAND --log: --starts and --band-min are
+//   options of the frequency route ...; drop them" (a time route would ignore them).
+void refuse_frequency_options(const std::vector<std::string>& given, const std::string& command);
+
 struct FitDataSpec {
   std::vector<std::string> files;  // one file, or one per excited input (merged)
   double beam_position_m = 0.0;

@@ -397,6 +397,34 @@ TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
                                        dir / "no/d.png", dir / "f.json"));
   one_line(k);
   EXPECT_THAT(k.err, HasSubstr("--png"));
+  // the frequency route's options are refused, not ignored, by name (before, fit --log
+  // and diagnose --log took --starts, --band-min, --seed, ... and fitted as without them)
+  const auto m = run_lpvid(fmt::format("fit --model {} --log {} --starts 4 --band-min 2 --out {}", m0,
+                                       dir / "run.csv", dir / "f.json"));
+  one_line(m);
+  EXPECT_THAT(m.err, HasSubstr("fit --log: --band-min and --starts are options of the frequency route"));
+  EXPECT_THAT(m.err, HasSubstr("drop them"));
+  const auto n = run_lpvid(fmt::format("diagnose --model {} --log {} --seed 3 --out {}", m0, dir / "run.csv",
+                                       dir / "f.json"));
+  one_line(n);
+  EXPECT_THAT(n.err, HasSubstr("diagnose --log: --seed is an option of the frequency route"));
+  // a ripple on a log whose travel holds fewer than three of the shortest period the
+  // smoothing passes at its speed (a 2-Hz shake of ±1 cm under a 0.1-s window: 2 cm of
+  // travel, 9 mm the shortest period at the median 9 cm/s)
+  {
+    std::ofstream f(dir / "shake.csv");
+    f << "t,i,enc\n";
+    for (int k = 0; k < 20000; ++k) {
+      const double t = 1e-3 * k, w = 2.0 * M_PI * 2.0;
+      f << fmt::format("{},{},{}\n", t, (-3.0 * w * w * 0.01 * std::sin(w * t) + 10.0 * w * 0.01 * std::cos(w * t)) / 10.0,
+                       0.01 * std::sin(w * t));
+    }
+  }
+  ASSERT_EQ(run_lpvid(fmt::format("model add position_ripple --model {}", dir / "axis2.json")).exit_code, 0);
+  const auto r = run_lpvid(fmt::format("fit --model {} --log {} --window-s 0.1 --out {}", dir / "axis2.json",
+                                       dir / "shake.csv", dir / "f.json"));
+  one_line(r);
+  EXPECT_THAT(r.err, HasSubstr("ripple_period_x_m: the log leaves no range to search"));
   EXPECT_FALSE(std::filesystem::exists(dir / "f.json"));
   EXPECT_FALSE(std::filesystem::exists(dir / "f.json.history.jsonl"));
   EXPECT_EQ(slurp(m0), before);
