@@ -53,7 +53,8 @@ model fails (data and model, the error over the noise band, failing bands red).
 Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
   lpvid diagnose --model stage.json --log exp/exp_stage6.csv
 Time domain (a mechanical base): the time-only effects it lacks (coulomb_friction,
-force_offset, stribeck_friction, input_saturation, position_ripple) and their pairs, judged
+force_offset, stribeck_friction, input_saturation, position_ripple and, once it is in,
+position_ripple_2) and their pairs, judged
 against the force error's noise floor (docs/math.md 9b):
   lpvid diagnose --model axis.json --log run.csv --out next.json --report report.json)";
 

@@ -71,9 +71,13 @@ struct Balance {
   // column k ∗ hold(clip(w, ±w_max)) at the values given to set_shapes, in place of d.w's
   std::vector<Index> saturation;
   MatrixXd w_sat;
-  // position_ripple: per DOF the index of its period p (-1: none), and the regressors
-  // k ∗ sin(2π q/p), k ∗ cos(2π q/p) at the values given to set_shapes
-  std::vector<Index> ripple_period;
+  // position_ripple(_2): per ripple term (an effect's DOF) its DOF and the index of its
+  // period p, and the regressors k ∗ sin(2π q/p), k ∗ cos(2π q/p) at the values given to
+  // set_shapes, a column per term
+  struct Ripple {
+    Index dof = 0, period = -1;
+  };
+  std::vector<Ripple> ripples;
   MatrixXd ripple_sin, ripple_cos;
 };
 
@@ -82,14 +86,15 @@ struct Balance {
 void set_shapes(Balance& b, const ForceErrorData& d, const VectorXd& p) {
   const Index nd = static_cast<Index>(b.rows.size());
   b.stribeck = MatrixXd::Zero(d.n(), nd);
-  b.ripple_sin = b.ripple_cos = MatrixXd::Zero(d.n(), nd);
-  for (Index i = 0; i < nd; ++i) {
-    const auto u = static_cast<std::size_t>(i);
-    if (b.stribeck_v[u] >= 0) b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[u]));
-    if (b.ripple_period[u] < 0) continue;
-    const auto [sine, cosine] = ripple_regressors(d, i, p(b.ripple_period[u]));
-    b.ripple_sin.col(i) = sine;
-    b.ripple_cos.col(i) = cosine;
+  for (Index i = 0; i < nd; ++i)
+    if (b.stribeck_v[static_cast<std::size_t>(i)] >= 0)
+      b.stribeck.col(i) = stribeck_regressor(d, i, p(b.stribeck_v[static_cast<std::size_t>(i)]));
+  b.ripple_sin.resize(d.n(), static_cast<Index>(b.ripples.size()));
+  b.ripple_cos.resize(d.n(), static_cast<Index>(b.ripples.size()));
+  for (std::size_t t = 0; t < b.ripples.size(); ++t) {
+    const auto [sine, cosine] = ripple_regressors(d, b.ripples[t].dof, p(b.ripples[t].period));
+    b.ripple_sin.col(static_cast<Index>(t)) = sine;
+    b.ripple_cos.col(static_cast<Index>(t)) = cosine;
   }
   b.w_sat.resize(0, 0);
   for (std::size_t j = 0; j < b.saturation.size(); ++j)
@@ -108,7 +113,6 @@ Balance balance_of(const PhysicalModel& model) {
   b.rows.assign(static_cast<std::size_t>(L.n_dof), {});
   b.stribeck_v.assign(static_cast<std::size_t>(L.n_dof), -1);
   b.saturation.assign(static_cast<std::size_t>(L.n_in), -1);
-  b.ripple_period.assign(static_cast<std::size_t>(L.n_dof), -1);
   auto add = [&](const std::vector<MechanicalIndices::Entry>& entries, Signal s, double sign) {
     for (const auto& e : entries)
       b.rows[static_cast<std::size_t>(e.row)].push_back({e.parameter, sign * e.coefficient, s, e.col});
@@ -132,13 +136,14 @@ Balance balance_of(const PhysicalModel& model) {
         b.saturation[static_cast<std::size_t>(j)] = model.index_of(e->parameters[static_cast<std::size_t>(j)].name);
       continue;
     }
-    if (name == "position_ripple") {  // per DOF: a (sine), b (cosine); then the periods
+    if (name == "position_ripple" || name == "position_ripple_2") {  // per DOF: a, b; then the periods
       for (Index i = 0; i < L.n_dof; ++i) {
         auto& row = b.rows[static_cast<std::size_t>(i)];
         auto at = [&](Index k) { return model.index_of(e->parameters[static_cast<std::size_t>(k)].name); };
-        row.push_back({at(i), -1.0, Signal::kRippleSin, i});
-        row.push_back({at(L.n_dof + i), -1.0, Signal::kRippleCos, i});
-        b.ripple_period[static_cast<std::size_t>(i)] = at(2 * L.n_dof + i);
+        const auto term = static_cast<Index>(b.ripples.size());
+        row.push_back({at(i), -1.0, Signal::kRippleSin, term});
+        row.push_back({at(L.n_dof + i), -1.0, Signal::kRippleCos, term});
+        b.ripples.push_back({i, at(2 * L.n_dof + i)});
       }
       continue;
     }
@@ -384,7 +389,7 @@ double rms(const Eigen::VectorXd& x) {
 
 const std::vector<std::string>& time_effect_names() {
   static const std::vector<std::string> names{"coulomb_friction", "force_offset", "stribeck_friction",
-                                              "input_saturation", "position_ripple"};
+                                              "input_saturation", "position_ripple", "position_ripple_2"};
   return names;
 }
 
@@ -787,9 +792,7 @@ std::vector<ShapeParameter> shape_parameters(const PhysicalModel& model) {
     if (b.stribeck_v[i] >= 0) out.push_back({b.stribeck_v[i], ShapeParameter::Kind::kStribeckScale, static_cast<Index>(i)});
   for (std::size_t j = 0; j < b.saturation.size(); ++j)
     if (b.saturation[j] >= 0) out.push_back({b.saturation[j], ShapeParameter::Kind::kInputLimit, static_cast<Index>(j)});
-  for (std::size_t i = 0; i < b.ripple_period.size(); ++i)
-    if (b.ripple_period[i] >= 0)
-      out.push_back({b.ripple_period[i], ShapeParameter::Kind::kRipplePeriod, static_cast<Index>(i)});
+  for (const auto& r : b.ripples) out.push_back({r.period, ShapeParameter::Kind::kRipplePeriod, r.dof});
   return out;
 }
 

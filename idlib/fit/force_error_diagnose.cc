@@ -124,14 +124,14 @@ struct RippleSignature {
   std::string text;
 };
 RippleSignature ripple_signature(const VectorXd& residual, const ForceErrorData& d, Index i, const std::string& dof,
-                                 const std::string& unit, bool has_ripple);
+                                 const std::string& unit, int ripples);
 
 }  // namespace
 
 namespace {
 
 RippleSignature ripple_signature(const VectorXd& residual, const ForceErrorData& d, Index i, const std::string& dof,
-                                 const std::string& unit, bool has_ripple) {
+                                 const std::string& unit, int ripples) {
   const force_error_detail::RippleGrid g = force_error_detail::ripple_grid(d, i);
   if (g.lines < 8) return {};
   // The residual's part that no term of the balance's kind explains (a constant, sign(v),
@@ -154,11 +154,14 @@ RippleSignature ripple_signature(const VectorXd& residual, const ForceErrorData&
   const double ratio = power(peak[0]) / median;
   const double threshold =
       1.5 * (std::log(static_cast<double>(g.lines)) + 0.5772156649) / std::log(2.0);
+  // (the model's ripples: none, one, or the library's two)
   const char* reading = ratio <= threshold ? ""
-                        : has_ripple
-                            ? ": a force that repeats with position beyond the model's ripple (a second period or a "
-                              "harmonic, which the library lacks)"
-                            : ": a force that repeats with position (position_ripple: cogging, a screw's lead error)";
+                        : ripples == 0
+                            ? ": a force that repeats with position (position_ripple: cogging, a screw's lead error)"
+                        : ripples == 1 ? ": a force that repeats with position beyond the model's ripple "
+                                         "(position_ripple_2: a second period, or a harmonic of the first)"
+                                       : ": a force that repeats with position beyond the model's two ripples (a "
+                                         "third period or harmonic, which the library lacks)";
   return {ratio, threshold,
           fmt::format("{}: over position (periods {:.3g} to {:.3g} {}), the residual's part that no rigid-body or "
                       "friction term explains peaks at a period of {:.4g} {}: {:.1f} % of it, {:.1f}x the median period ({:.1f}x is "
@@ -302,22 +305,21 @@ ForceErrorDiagnosis diagnose_force_error(const PhysicalModel& model, const Force
     by_dof.push_back(ripple_signature(
         base.residual.col(i), d, i, info.dof_names[static_cast<std::size_t>(i)],
         static_cast<std::size_t>(i) < info.dof_units.size() ? info.dof_units[static_cast<std::size_t>(i)] : "",
-        model.has_effect("position_ripple")));
+        static_cast<int>(model.has_effect("position_ripple")) + static_cast<int>(model.has_effect("position_ripple_2"))));
     const RippleSignature& r = by_dof.back();
     if (r.threshold > 0.0 && (ripple_threshold == 0.0 || r.ratio / r.threshold > largest_ripple / ripple_threshold))
       largest_ripple = r.ratio, ripple_threshold = r.threshold;
   }
-  if (options.candidates.empty() && largest_ripple <= ripple_threshold) {
-    const auto it = std::find(names.begin(), names.end(), "position_ripple");
-    if (it != names.end()) {
+  if (options.candidates.empty() && largest_ripple <= ripple_threshold)
+    for (const std::string ripple : {"position_ripple", "position_ripple_2"}) {
+      const auto it = std::find(names.begin(), names.end(), ripple);
+      if (it == names.end()) continue;
       names.erase(it);
       out.not_tried.push_back(fmt::format(
-          "position_ripple (and its pairs): the residual does not repeat with position (its periodogram over position "
-          "peaks at {:.1f}x the median period's; a ripple makes it more than {:.1f}x); try it with --candidates "
-          "position_ripple",
-          largest_ripple, ripple_threshold));
+          "{} (and its pairs): the residual does not repeat with position (its periodogram over position peaks at "
+          "{:.1f}x the median period's; a ripple makes it more than {:.1f}x); try it with --candidates {}",
+          ripple, largest_ripple, ripple_threshold, ripple));
     }
-  }
   out.baseline_explained = base.error <= kForceErrorExplainedRatio * base.floor;
   const double excess = base.error * base.error - base.floor * base.floor;
   auto judge = [&](std::vector<std::string> effects) {

@@ -58,7 +58,7 @@ std::pair<double, double> search_range(const ForceErrorData& d, const force_erro
     hi = median_and_largest(d.v_raw.col(s.channel), d.v_eps(s.channel)).first;
   } else if (s.kind == force_error_detail::ShapeParameter::Kind::kRipplePeriod) {
     const force_error_detail::RippleGrid g = force_error_detail::ripple_grid(d, s.channel);
-    if (g.lines > 0) lo = g.period_min, hi = g.period_max;
+    lo = g.period_min, hi = g.period_max;  // lo >= hi when the travel holds no three periods
   } else {
     std::tie(lo, hi) = median_and_largest(d.w_log.col(s.channel), 0.0);
   }
@@ -210,7 +210,14 @@ void ProfileSearch::search_ripple(std::size_t j, int cycle) {
   std::vector<double> centres;
   if (cycle == 0) {
     PhysicalModel without = inner_;
-    const std::vector<PhysicalParameter>& own = start_.effect_info("position_ripple")->parameters;
+    // the ripple effect this period belongs to (position_ripple or position_ripple_2)
+    const std::string& period_name = start_.parameters[static_cast<std::size_t>(scales_[j])].name;
+    const EffectInfo* effect = nullptr;
+    for (const std::string& name : start_.effects)
+      for (const PhysicalParameter& q : start_.effect_info(name)->parameters)
+        if (q.name == period_name) effect = start_.effect_info(name);
+    LPVID_ASSERT(effect != nullptr);
+    const std::vector<PhysicalParameter>& own = effect->parameters;
     const Index nd = static_cast<Index>(own.size() / 3);  // a, b per DOF, then the periods
     for (const Index k : {ch, nd + ch}) {
       PhysicalParameter& amplitude =

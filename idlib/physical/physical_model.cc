@@ -360,7 +360,10 @@ const EffectInfo* PhysicalModel::effect_info(const std::string& name) const {
 std::vector<std::string> PhysicalModel::absent_time_effects() const {
   std::vector<std::string> out;
   for (const EffectInfo& e : library())
-    if (e.time_only && !has_effect(e.name)) out.push_back(e.name);
+    // position_ripple_2 once the first ripple is in the model (ripples are added one at a
+    // time, as modes are)
+    if (e.time_only && !has_effect(e.name) && !(e.name == "position_ripple_2" && !has_effect("position_ripple")))
+      out.push_back(e.name);
   return out;
 }
 

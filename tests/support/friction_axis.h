@@ -28,15 +28,15 @@ namespace lpvid::friction_axis {
 struct Truth {
   double m_kg = 4.2, c_Ns_per_m = 35.0, coulomb_N = 6.5, offset_N = 2.8, k_f_N_per_A = 10.0;
   // Effects beyond viscous friction, Coulomb friction and the offset (0: absent), as a real
-  // axis shows them (the library has Stribeck friction and one ripple; not the second):
+  // axis shows them (the library has Stribeck friction and two ripples; not a third):
   //  - Stribeck: the friction rises by stribeck_N towards standstill,
   //    (F_c + F_s exp(−(v/v_s)²)) sign v, and at rest holds up to F_c + F_s;
   //  - a force ripple periodic in position (cogging, the screw's lead error):
   //    ripple_N sin(2π x / ripple_period_m).
   double stribeck_N = 0.0, stribeck_v = 0.005, ripple_N = 0.0, ripple_period_m = 0.01;
-  //  - a second ripple of another period (a motor's cogging beside a screw's lead error):
-  //    ripple2_N sin(2π x / ripple2_period_m).
-  double ripple2_N = 0.0, ripple2_period_m = 0.007;
+  //  - a second and a third ripple of other periods (a motor's cogging beside a screw's
+  //    lead error): ripple2_N sin(2π x / ripple2_period_m), ripple3_N likewise.
+  double ripple2_N = 0.0, ripple2_period_m = 0.007, ripple3_N = 0.0, ripple3_period_m = 0.0043;
 };
 
 struct Experiment {
@@ -191,7 +191,8 @@ inline Log simulate(const Truth& p, const Experiment& e) {
     double unmodelled = 0.0, rippled = 0.0;
     for (int s = 0; s < sub; ++s) {
       const double ripple = p.ripple_N * std::sin(2.0 * M_PI * x / p.ripple_period_m) +
-                            p.ripple2_N * std::sin(2.0 * M_PI * x / p.ripple2_period_m);
+                            p.ripple2_N * std::sin(2.0 * M_PI * x / p.ripple2_period_m) +
+                            p.ripple3_N * std::sin(2.0 * M_PI * x / p.ripple3_period_m);
       const double applied = p.k_f_N_per_A * current - p.c_Ns_per_m * v - p.offset_N - ripple;
       double v_new;
       double friction_extra = 0.0;

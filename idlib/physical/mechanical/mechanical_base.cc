@@ -36,6 +36,38 @@ std::pair<std::string, std::string> force_unit(const std::string& dof_unit) {
   return {"force on " + dof_unit, ""};
 }
 
+// A force ripple periodic in position on each DOF, the k-th (k = 1: position_ripple,
+// parameters ripple_sin_<dof>_N, ...; k = 2: position_ripple_2, ripple2_...): the sine's
+// and the cosine's amplitudes per DOF, then the periods (read so by
+// idlib/fit/force_error.cc).
+EffectInfo ripple_effect(const BaseInfo& b, int k) {
+  const std::string tag = k == 1 ? "ripple" : fmt::format("ripple{}", k);
+  EffectInfo ripple{k == 1 ? "position_ripple" : fmt::format("position_ripple_{}", k),
+                    k == 1 ? "a force ripple periodic in position on each DOF (cogging, a screw's lead error, a "
+                             "commutation error)"
+                           : "a second force ripple periodic in position on each DOF, of another period (a motor's "
+                             "cogging beside a screw's lead error, or a harmonic of the first)",
+                    "adds a sin(2 pi q/p) + b cos(2 pi q/p) to the DOF's force balance (time domain only); the "
+                    "period p is found by a periodogram of the residual over position, then a profile search",
+                    "a force residual that repeats with position (a peak in its periodogram over q)",
+                    {},
+                    {},
+                    false,
+                    {},
+                    true};
+  for (const char* part : {"sin", "cos"})
+    for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
+      const auto [unit, suffix] = force_unit(b.dof_units[i]);
+      ripple.parameters.push_back({tag + "_" + part + "_" + b.dof_names[i] + suffix, unit, 0.0, -1e9, 1e9, true});
+    }
+  for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
+    const std::string& u = b.dof_units[i];
+    const std::string suffix = u == "m" ? "_m" : u == "rad" ? "_rad" : "";
+    ripple.parameters.push_back({tag + "_period_" + b.dof_names[i] + suffix, u, k == 1 ? 0.01 : 0.005, 1e-12, 1e9, true});
+  }
+  return ripple;
+}
+
 // The nonlinear time-domain effects of a mechanical base (EffectInfo::time_only):
 // one parameter per DOF, entering M q'' + D q' + K q + f = B_w w as a generalised
 // force (idlib/fit/force_error.h).
@@ -81,17 +113,6 @@ std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
                         false,
                         {},
                         true};
-  EffectInfo ripple{"position_ripple",
-                    "a force ripple periodic in position on each DOF (cogging, a screw's lead error, a "
-                    "commutation error)",
-                    "adds a sin(2 pi q/p) + b cos(2 pi q/p) to the DOF's force balance (time domain only); the "
-                    "period p is found by a periodogram of the residual over position, then a profile search",
-                    "a force residual that repeats with position (a peak in its periodogram over q)",
-                    {},
-                    {},
-                    false,
-                    {},
-                    true};
   for (std::size_t j = 0; j < b.input_names.size(); ++j) {
     // the input's unit in the name when it is a plain symbol (V, A, N)
     const std::string& u = j < b.input_units.size() ? b.input_units[j] : std::string();
@@ -117,20 +138,7 @@ std::vector<EffectInfo> mechanical_time_effects(const BaseInfo& b) {
     const std::string suffix = u == "m" ? "_m_per_s" : u == "rad" ? "_rad_per_s" : "";
     stribeck.parameters.push_back({"stribeck_v_" + b.dof_names[i] + suffix, u + "/s", 0.01, 1e-9, 1e6, true});
   }
-  // the ripple: the sine's and the cosine's amplitudes per DOF, then the periods (read so
-  // by idlib/fit/force_error.cc)
-  for (const char* part : {"sin", "cos"})
-    for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
-      const auto [unit, suffix] = force_unit(b.dof_units[i]);
-      ripple.parameters.push_back(
-          {std::string("ripple_") + part + "_" + b.dof_names[i] + suffix, unit, 0.0, -1e9, 1e9, true});
-    }
-  for (std::size_t i = 0; i < b.dof_names.size(); ++i) {
-    const std::string& u = b.dof_units[i];
-    const std::string suffix = u == "m" ? "_m" : u == "rad" ? "_rad" : "";
-    ripple.parameters.push_back({"ripple_period_" + b.dof_names[i] + suffix, u, 0.01, 1e-12, 1e9, true});
-  }
-  return {coulomb, offset, stribeck, saturation, ripple};
+  return {coulomb, offset, stribeck, saturation, ripple_effect(b, 1), ripple_effect(b, 2)};
 }
 
 }  // namespace
