@@ -99,7 +99,8 @@ std::string data_text(const MechanicalTimeRequest& r, const Loaded& l) {
 // Where the model fails in time (fit --plot, diagnose --png): per DOF the actuators'
 // force B_w w and the model's force (both smoothed by the route's kernel), then the
 // force residual with the windows failing beyond 1.5x the larger of the floor and the
-// record's rms shaded; samples left out near standstill are gaps.
+// record's rms shaded; samples left out near standstill are gaps; then per DOF the
+// residual against the DOF's position.
 std::vector<unsigned char> force_overlay_png(const ForceErrorFit& f, const ForceErrorData& d, const BaseInfo& b,
                                              const std::string& title) {
   const Index nd = f.residual.cols();
@@ -125,7 +126,16 @@ std::vector<unsigned char> force_overlay_png(const ForceErrorFit& f, const Force
   for (const auto& w : force_error_failing_windows(f, d))
     ov.failures.push_back({static_cast<std::size_t>(w.dof), w.t_start_s, w.t_end_s});
   ov.title = title;
-  return fit_overlay_png(ov);
+  // and per DOF the residual against the position: a ripple (position_ripple) is a wave
+  // there, which the time axis hides
+  std::vector<ResidualAgainst> below;
+  for (Index i = 0; i < nd; ++i) {
+    const std::string& dof = b.dof_names[static_cast<std::size_t>(i)];
+    const std::string unit = static_cast<std::size_t>(i) < b.dof_units.size() ? b.dof_units[static_cast<std::size_t>(i)] : "";
+    below.push_back({fmt::format("position {} [{}]", dof, unit), fmt::format("{}: residual", dof), d.q.col(i),
+                     f.residual.col(i)});
+  }
+  return fit_overlay_png(ov, below);
 }
 
 // With r.png given: the force overlay of f staged there, titled "<what>, <effects>: force

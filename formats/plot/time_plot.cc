@@ -269,7 +269,7 @@ cv::Mat render_time_plot(const std::vector<TimeSeries>& series, const TimePlotOp
                             style);
   }
   const cv::Rect& last = layout.panels_px.back();
-  plot::put_text(image, "Time [s]", {last.x + last.width / 2.0, last.br().y + kXTickHeight + 2.0},
+  plot::put_text(image, options.x_label, {last.x + last.width / 2.0, last.br().y + kXTickHeight + 2.0},
                  plot::label_text(), HAlign::kCenter, VAlign::kTop);
   plot::draw_legend(image, legend_entries(series), layout.legend_px.tl(),
                     options.width_px - 2 * kMargin);
@@ -296,7 +296,9 @@ void shade_time_windows(cv::Mat& image, const TimePlotLayout& layout, const std:
   cv::addWeighted(shade, kShadeAlpha, image, 1.0 - kShadeAlpha, 0.0, image);
 }
 
-std::vector<unsigned char> fit_overlay_png(const FitOverlay& o) {
+namespace {
+
+cv::Mat render_fit_overlay(const FitOverlay& o) {
   const Index N = o.t_s.size(), k = o.measured.cols();
   if (o.predicted.cols() != k || o.residual.cols() != k || o.measured.rows() != N || o.predicted.rows() != N ||
       o.residual.rows() != N || o.value_labels.size() != static_cast<std::size_t>(k) ||
@@ -319,6 +321,39 @@ std::vector<unsigned char> fit_overlay_png(const FitOverlay& o) {
   std::vector<TimeWindowMark> marks = o.failures;
   for (auto& m : marks) m.panel += static_cast<std::size_t>(k);
   shade_time_windows(image, layout_time_plot(series, po), marks);
+  return image;
+}
+
+}  // namespace
+
+std::vector<unsigned char> fit_overlay_png(const FitOverlay& o) { return plot::encode_png(render_fit_overlay(o)); }
+
+std::vector<unsigned char> fit_overlay_png(const FitOverlay& o, const std::vector<ResidualAgainst>& below) {
+  std::vector<cv::Mat> parts{render_fit_overlay(o)};
+  for (const ResidualAgainst& b : below) {
+    if (b.x.size() != b.residual.size())
+      throw InputError(fmt::format("fit overlay: {} values of {} against {} residuals", b.x.size(), b.x_label,
+                                   b.residual.size()));
+    std::vector<Index> order;
+    for (Index k = 0; k < b.x.size(); ++k)
+      if (std::isfinite(b.x(k)) && std::isfinite(b.residual(k))) order.push_back(k);
+    if (order.empty()) throw InputError(fmt::format("fit overlay: no finite residual against {}", b.x_label));
+    std::stable_sort(order.begin(), order.end(), [&](Index a, Index c) { return b.x(a) < b.x(c); });
+    TimeSeries ts{"residual against " + b.x_label, Eigen::VectorXd(static_cast<Index>(order.size())),
+                  Eigen::MatrixXd(static_cast<Index>(order.size()), 1)};
+    for (std::size_t r = 0; r < order.size(); ++r) {
+      ts.t_s(static_cast<Index>(r)) = b.x(order[r]);
+      ts.values(static_cast<Index>(r), 0) = b.residual(order[r]);
+    }
+    TimePlotOptions po;
+    po.channel_labels = {b.y_label};
+    po.x_label = b.x_label;
+    po.width_px = parts.front().cols;
+    po.panel_height_px = o.panel_height_px;
+    parts.push_back(render_time_plot({ts}, po));
+  }
+  cv::Mat image;
+  cv::vconcat(parts, image);
   return plot::encode_png(image);
 }
 

@@ -36,6 +36,7 @@ struct TimePlotOptions {
   std::string title;        // figure title; empty = none
   int width_px = 1000;      // whole figure width, >= 300
   int panel_height_px = 220;  // height of each panel's axes, >= 60
+  std::string x_label = "Time [s]";  // the shared axis (a residual against position: "x [m]")
 };
 
 struct TimePlotLayout {
@@ -83,6 +84,18 @@ struct FitOverlay {
 };
 // @throws InputError  shapes or label counts that differ (as render_time_plot).
 std::vector<unsigned char> fit_overlay_png(const FitOverlay& overlay);
+
+// Below a fit overlay, per channel its residual against another variable — a position,
+// where a force that repeats with position (cogging, a screw's lead error) shows as a
+// wave that the time axis hides — the samples sorted by that variable, non-finite ones
+// skipped; one panel each, as wide as the overlay.
+struct ResidualAgainst {
+  std::string x_label, y_label;  // "x [m]", "x: residual"
+  Eigen::VectorXd x, residual;   // the same length
+};
+// @throws InputError  as fit_overlay_png; x and residual of different lengths, or no
+//   finite pair.
+std::vector<unsigned char> fit_overlay_png(const FitOverlay& overlay, const std::vector<ResidualAgainst>& below);
 
 // The polyline drawn for samples (t, v): with x = time.to_px(t), one point per
 // sample when there are at most 2 per pixel column, otherwise per column the

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
@@ -120,6 +121,58 @@ TEST(TimePlotErrors, MessagesNameTheProblem) {
   EXPECT_EQ(msg({ramp_and_constant(10, 1.0)}, small),
             "time plot: size 100 x 220 px is too small; width_px must be >= 300 and "
             "panel_height_px >= 60");
+}
+
+// The residual against a position, below a fit overlay: samples given out of order (a
+// motion back and forth) are drawn sorted by the position, so a force periodic in
+// position (here sin(2π x / 0.25 m)) is a wave: at x = 0.0625 m (a crest) the curve is
+// at +1 and not at -1, at x = 0.1875 m (a trough) the other way round.  Mismatched
+// lengths are refused in one line.
+TEST(FitOverlayPng, AResidualAgainstPositionIsDrawnSortedBelowTheOverlay) {
+  const Index n = 4000;
+  FitOverlay ov;
+  ov.t_s = Eigen::VectorXd::LinSpaced(n, 0.0, 4.0);
+  ov.measured = Eigen::MatrixXd::Zero(n, 1);
+  ov.predicted = ov.measured;
+  ov.value_labels = {"x: force"};
+  ov.residual_labels = {"x: residual"};
+  Eigen::VectorXd x(n), r(n);
+  for (Index k = 0; k < n; ++k) {
+    x(k) = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(k) / 1000.0);  // back and forth over [0, 1]
+    r(k) = std::sin(2.0 * M_PI * x(k) / 0.25);
+  }
+  ov.residual = r;
+  const cv::Mat top = cv::imdecode(fit_overlay_png(ov), cv::IMREAD_COLOR);
+  const cv::Mat both = cv::imdecode(fit_overlay_png(ov, {{"position x [m]", "x: residual", x, r}}), cv::IMREAD_COLOR);
+  ASSERT_FALSE(top.empty());
+  ASSERT_EQ(both.cols, top.cols);
+  ASSERT_GT(both.rows, top.rows + ov.panel_height_px);
+  // the lower part is the sorted series' plot (its layout from the same options)
+  std::vector<Index> order(static_cast<std::size_t>(n));
+  for (Index k = 0; k < n; ++k) order[static_cast<std::size_t>(k)] = k;
+  std::stable_sort(order.begin(), order.end(), [&](Index a, Index b) { return x(a) < x(b); });
+  TimeSeries sorted{"residual against position x [m]", Eigen::VectorXd(n), Eigen::MatrixXd(n, 1)};
+  for (Index k = 0; k < n; ++k) {
+    sorted.t_s(k) = x(order[static_cast<std::size_t>(k)]);
+    sorted.values(k, 0) = r(order[static_cast<std::size_t>(k)]);
+  }
+  TimePlotOptions po;
+  po.channel_labels = {"x: residual"};
+  po.x_label = "position x [m]";
+  po.width_px = top.cols;
+  po.panel_height_px = ov.panel_height_px;
+  const TimePlotLayout lay = layout_time_plot({sorted}, po);
+  auto at = [&](double xv, double v) {
+    const int col = static_cast<int>(std::lround(lay.time.to_px(xv)));
+    const int row = top.rows + static_cast<int>(std::lround(lay.values[0].to_px(v)));
+    return count_color(both, cv::Rect(col - 2, row - 3, 5, 7), plot::series_color(0));
+  };
+  EXPECT_GT(at(0.0625, 1.0), 0);
+  EXPECT_EQ(at(0.0625, -1.0), 0);
+  EXPECT_GT(at(0.1875, -1.0), 0);
+  EXPECT_EQ(at(0.1875, 1.0), 0);
+  EXPECT_EQ(input_error([&] { fit_overlay_png(ov, {{"position x [m]", "x: residual", x.head(10), r}}); }),
+            "fit overlay: 10 values of position x [m] against 4000 residuals");
 }
 
 }  // namespace time_plot_test
