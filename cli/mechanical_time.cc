@@ -146,7 +146,10 @@ std::string stage_overlay(OutputSet& outputs, const MechanicalTimeRequest& r, co
   const std::string head = what.empty() ? effects_text(f.model) : what + ", " + effects_text(f.model);
   outputs.stage(r.png, force_overlay_png(f, d, r.model.base_info(),
                                          fmt::format("{}: force error {:.3g} % (floor {:.3g} %)", head, f.error, f.floor)));
-  return fmt::format("wrote {} (the force and the model's, the residual; failing windows shaded)\n", r.png);
+  return fmt::format(
+      "wrote {} (the force and the model's, the residual over time with failing windows shaded, and against the "
+      "position)\n",
+      r.png);
 }
 
 // The fitted model and its history line, staged (not committed).

@@ -11,8 +11,9 @@ namespace {
 
 // The next level below the rail is within this fraction of the channel's range.
 constexpr double kNearRail = 0.05;
-// The rail holds at least this many times the samples of the next level.
+// The rail holds at least this many times the samples of the three levels below it.
 constexpr double kPileUp = 3.0;
+constexpr double kBandLevels = 3.0;
 
 // The saturation rule of log_checks.h on one side: sign +1 the maximum, −1 the minimum.
 bool saturated(const Eigen::Ref<const Eigen::VectorXd>& x, double sign, double range, ChannelFinding& f) {
@@ -36,9 +37,18 @@ bool saturated(const Eigen::Ref<const Eigen::VectorXd>& x, double sign, double r
   }
   if (at_rail < kMinSaturatedSamples || longest < 2) return false;
   if (!std::isfinite(next) || rail - next > kNearRail * range) return false;
-  Index at_next = 0;
-  for (Index t = 0; t < N; ++t) at_next += sign * x(t) == next;
-  if (static_cast<double>(at_rail) < kPileUp * static_cast<double>(at_next)) return false;
+  // A smooth extremum of a quantised signal (a parabola through the top levels) spends as
+  // long at its top level as in the three below it (√4 − 1 = 1 top level's time), and 2.4x
+  // as long as at the next one alone: a finely quantised encoder at the turning points of
+  // a slow sine was called clipped by a next-level rule (8 samples against 2 on the
+  // sample's two-sine log).  A clip piles up at the rail and crosses the levels below fast.
+  const double band = kBandLevels * (rail - next);
+  Index in_band = 0;
+  for (Index t = 0; t < N; ++t) {
+    const double v = sign * x(t);
+    in_band += v < rail && rail - v <= band * (1.0 + 1e-9);
+  }
+  if (static_cast<double>(at_rail) < kPileUp * static_cast<double>(in_band)) return false;
   f.first_row = first;
   f.last_row = last;
   f.samples = at_rail;

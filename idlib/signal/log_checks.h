@@ -8,8 +8,11 @@
 // a clipped sensor, amplifier or actuator.  Flagged when the value at the extreme
 //   - occurs at least kMinSaturatedSamples times, in a run of at least 2 consecutive samples
 //     (a periodic signal reaches its peak once per period: runs of 1),
-//   - holds at least 3 times the samples of the next level below it (a quantised signal's
-//     top level is the thin tail of its distribution, a clipped one piles up at the rail),
+//   - holds at least 3 times the samples of the three levels below it (the levels spaced
+//     as the rail and the next level below it are): a quantised signal's top level is the
+//     thin tail of its distribution, and a smooth extremum (a slow sine's turning point on
+//     a fine encoder) spends as long at its top level as in the three below it, while a
+//     clipped signal piles up at the rail and crosses the levels below fast,
 //   - and that next level lies within 5 % of the channel's range of it (a binary signal
 //     such as a PRBS jumps across the whole range: its levels are its design).
 // A designed dwell (a setpoint held at its end position) passes these rules too.  When

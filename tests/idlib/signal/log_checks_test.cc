@@ -3,6 +3,8 @@
 // quantised noise, stationary coloured noise).  The truths are the signals as built here.
 #include <gtest/gtest.h>
 
+#include <vector>
+
 #include <fmt/format.h>
 
 #include <Eigen/Core>
@@ -112,6 +114,23 @@ TEST(LogChecks, DesignedExcitationsAreNotCalledSaturated) {
   //     small signal): its extreme levels are thin tails.
   const Eigen::VectorXd w = white(x.rows(), 7);
   for (Index t = 0; t < x.rows(); ++t) x(t, 2) = 0.05 * std::round(w(t) / 0.05);
+  // (4) a slow motion on a fine encoder that sticks as it reverses: 0.13 m at 0.4 Hz,
+  //     1 kHz, 1 µm counts, the axis held 5 samples at each turning point (friction) —
+  //     the encoder holds its top count 3.5 times as long as the next (28 samples against
+  //     8: the old next-level rule called it clipped, as it did 8 against 2 on the
+  //     sample's two-sine log), but less than twice as long as the three counts below it
+  //     together (16), where a clip's rail outlasts them 3 times over.
+  x.conservativeResize(Eigen::NoChange, 4);
+  {
+    std::vector<double> enc;
+    for (Index t = 0; static_cast<Index>(enc.size()) < x.rows(); ++t) {
+      const double v = 1e-6 * std::round(0.13 * std::sin(2 * std::numbers::pi * 0.4 * static_cast<double>(t) * 1e-3 + 0.3) / 1e-6);
+      enc.push_back(v);
+      const bool turning = std::abs(v) >= 0.13 - 0.5e-6 && (enc.size() < 2 || enc[enc.size() - 2] != v);
+      for (int k = 0; turning && k < 5; ++k) enc.push_back(v);
+    }
+    for (Index t = 0; t < x.rows(); ++t) x(t, 3) = enc[static_cast<std::size_t>(t)];
+  }
   const auto found = inspect_channels(x);
   for (const auto& f : found) ADD_FAILURE() << describe_finding(f, std::to_string(f.channel));
 }
