@@ -233,20 +233,22 @@ DiagnoseCandidates diagnose_candidates(const Diagnosis& d) {
   return out;
 }
 
-// An output the result cannot fill is not written; the report is still printed,
-// then the run ends with exit 1 and one line saying why (no other file is written
-// either: all or nothing).  Empty when every output asked for can be filled.
-std::string diagnose_unmet(const DiagnoseCliOptions& o, const Diagnosis& d) {
-  std::string unmet;
-  if (!o.out.empty() && d.missing.empty())
-    unmet = fmt::format("diagnose: no candidate is significant, so there is no model to write to --out {}; "
-                        "nothing was written",
-                        o.out);
-  else if (!o.out_effect.empty() && d.descriptions.empty())
-    unmet = fmt::format("diagnose: {}, so there is no effect to write to --out-effect {}; nothing was written",
-                        d.explained ? fmt::format("{} explains the error within the noise", d.missing)
-                                    : std::string("the residual was not described"),
-                        o.out_effect);
+// An output the result cannot fill (--out with nothing significant, --out-effect with
+// nothing described) is not written, and the summary says so and why; the run still
+// succeeds (the diagnosis is the result: nothing is missing, or nothing in the library
+// explains the rest) and writes the outputs it can fill — as the time routes do.
+struct DiagnoseUnmet {
+  std::string out, out_effect;  // why each is not written; empty: it is written (or not asked for)
+};
+
+DiagnoseUnmet diagnose_unmet(const DiagnoseCliOptions& o, const Diagnosis& d) {
+  DiagnoseUnmet unmet;
+  if (!o.out.empty() && d.missing.empty()) unmet.out = "no candidate is significant, so there is no model to write";
+  if (!o.out_effect.empty() && d.descriptions.empty())
+    unmet.out_effect = d.explained ? fmt::format("{} explains the error within the noise, so there is no effect to "
+                                                 "describe",
+                                                 d.missing)
+                                   : std::string("the residual was not described, so there is no effect to write");
   return unmet;
 }
 
@@ -327,16 +329,20 @@ nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d,
 
 // The summary printed after the files are published.
 std::string diagnose_text(const DiagnoseCliOptions& o, const Diagnosis& d, const std::string& table,
-                          const std::string& unmet) {
+                          const DiagnoseUnmet& unmet) {
   std::string text;
   for (const std::string& line : d.summary) text += line + "\n";
   text += "\ncandidates (each refitted with all free parameters; significant first by ΔBIC, then by error):\n" + table;
-  if (unmet.empty() && !o.out.empty()) text += fmt::format("wrote {} (the model with {})\n", o.out, d.missing);
-  if (unmet.empty() && !o.out_effect.empty())
-    text += fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
-                        o.out_effect, d.descriptions.front().effect.name, o.out_effect);
-  if (unmet.empty() && !o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
-  if (unmet.empty() && !o.report.empty())
+  if (!o.out.empty())
+    text += unmet.out.empty() ? fmt::format("wrote {} (the model with {})\n", o.out, d.missing)
+                              : fmt::format("nothing named: {} not written ({})\n", o.out, unmet.out);
+  if (!o.out_effect.empty())
+    text += unmet.out_effect.empty()
+                ? fmt::format("wrote {} (user-defined effect '{}': lpvid model define --model ... --from {} --add)\n",
+                              o.out_effect, d.descriptions.front().effect.name, o.out_effect)
+                : fmt::format("nothing described: {} not written ({})\n", o.out_effect, unmet.out_effect);
+  if (!o.png.empty()) text += fmt::format("wrote {} (where the model fails)\n", o.png);
+  if (!o.report.empty())
     text += fmt::format("wrote {} (the report as JSON: lpvid model add {} --model ... --from-diagnosis {})\n", o.report,
                         d.missing_effects.empty() ? std::string("EFFECT")
                                                   : fmt::format("{}", fmt::join(d.missing_effects, ",")),
@@ -374,8 +380,14 @@ void run(const DiagnoseCliOptions& o) {
   progress.finish();
 
   const DiagnoseCandidates candidates = diagnose_candidates(d);
-  const std::string unmet = diagnose_unmet(o, d);
-  if (unmet.empty() && !o.out.empty()) {
+  const DiagnoseUnmet unmet = diagnose_unmet(o, d);
+  // standard output asked for a model or an effect there is none of: nothing to print
+  // in its place, so the run fails and writes nothing
+  if (o.out == "-" && !unmet.out.empty())
+    throw NumericalError(fmt::format("diagnose: {} to --out -; nothing was written", unmet.out));
+  if (o.out_effect == "-" && !unmet.out_effect.empty())
+    throw NumericalError(fmt::format("diagnose: {} to --out-effect -; nothing was written", unmet.out_effect));
+  if (unmet.out.empty() && !o.out.empty()) {
     const FitResult& won = d.winner()->fit;
     outputs.stage(o.out, physical_model_to_json(won.model, nlohmann::json()));
     if (history)
@@ -383,16 +395,16 @@ void run(const DiagnoseCliOptions& o) {
                     fit_history_text(o.in.model, o.out, won, won.output_names, won.input_names,
                                      fmt::format("diagnose of {}: the refit with {}", o.in.model, d.missing)));
   }
-  if (unmet.empty() && !o.out_effect.empty())
+  if (unmet.out_effect.empty() && !o.out_effect.empty())
     outputs.stage(o.out_effect, effect_definition_file(d.descriptions.front().effect));
-  if (unmet.empty() && !o.png.empty()) outputs.stage(o.png, diagnose_png(d, in, options));
-  const nlohmann::json summary = diagnose_summary(o, d, in.data, candidates);
-  if (unmet.empty() && !o.report.empty()) outputs.stage(o.report, json_text(summary));
+  if (!o.png.empty()) outputs.stage(o.png, diagnose_png(d, in, options));
+  nlohmann::json summary = diagnose_summary(o, d, in.data, candidates);
+  summary["out_written"] = !o.out.empty() && unmet.out.empty();
+  if (!o.report.empty()) outputs.stage(o.report, json_text(summary));
   outputs.commit();
 
   const std::string text = diagnose_text(o, d, candidates.table, unmet);
   if (!outputs.to_stdout()) print_summary(o.json, summary, text);
-  if (!unmet.empty()) throw NumericalError(unmet);
 }
 
 }  // namespace
@@ -405,8 +417,9 @@ Command make_diagnose_command() {
                 "diagnose", "Which physical effect is the model missing?" + std::string(kDiagnoseExample));
             add_fit_input_options(*app, o->in);
             app->add_option("--log", o->log,
-                            "time domain (base stage6): diagnose on a closed-loop log (t, v1..v6, u1..u6, q1..q6) "
-                            "by the equation error's BIC");
+                            "time domain: diagnose on a log (base stage6: t, v1..v6, u1..u6, q1..q6, by the "
+                            "equation error's BIC; a mechanical base: t and its input and output columns, the "
+                            "force-error route)");
             add_window_option(app, &o->window_s);
             app->add_option("--candidates", o->candidates, "effects to try, comma separated (default: all it lacks)");
             app->add_option("--delta-bic", o->delta_bic, "BIC decrease a candidate needs besides (default 10)")

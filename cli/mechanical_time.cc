@@ -376,8 +376,13 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
     summary["named"] = nlohmann::json::array();
   }
   if (!r.out.empty()) {
+    if (d.named < 0 && r.out == "-")
+      throw NumericalError("diagnose --log: nothing is named, so there is no model to write to --out -; nothing was "
+                           "written");
     if (d.named < 0)
-      text += fmt::format("nothing named: {} not written\n", r.out);
+      text += fmt::format("nothing named: {} not written (no candidate is significant, so there is no model to "
+                          "write)\n",
+                          r.out);
     else {
       const ForceErrorCandidate& c = d.candidates[static_cast<std::size_t>(d.named)];
       stage_fitted(outputs, r, c.fit, b,

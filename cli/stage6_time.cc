@@ -350,12 +350,15 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
                                  : fmt::format("nothing significant: no candidate lowers BIC by more than {:g}\n",
                                                req.delta_bic);
   if (!d.candidates.empty()) text += "candidates:\n" + table;
-  std::string unmet;
   if (!req.out.empty()) {
     if (!explained) {
-      unmet = fmt::format("{}: no candidate is significant, so there is no model to write to --out {}; nothing was "
-                          "written",
-                          req.command, req.out);
+      if (req.out == "-")
+        throw NumericalError(fmt::format("{}: no candidate is significant, so there is no model to write to --out -; "
+                                         "nothing was written",
+                                         req.command));
+      text += fmt::format("nothing named: {} not written (no candidate is significant, so there is no model to "
+                          "write)\n",
+                          req.out);
     } else {
       PhysicalModel with = req.current;
       with.add_effect(missing);
@@ -378,7 +381,6 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
                                   {"delta_bic_threshold", req.delta_bic},
                                   {"out", req.out}};
   print_summary(req.json, summary, text);
-  if (!unmet.empty()) throw NumericalError(unmet);
 }
 
 

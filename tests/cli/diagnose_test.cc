@@ -85,11 +85,31 @@ TEST_F(DiagnoseLoop, NamesTheHiddenDelayThenTheErrorFallsAndNothingIsLeft) {
   ASSERT_EQ(h["fits"].size(), 2u);  // the start's fit carried over, then this one
   EXPECT_LT(h["fits"][1]["error_mean"].get<double>(), h["fits"][0]["error_mean"].get<double>() / 10.0);
 
-  const auto again = run_lpvid("diagnose --model " + (d / "m2.json") + data_args() + " --averages 16 --json");
+  // Nothing is left: --out has no model to hold, so it is not written and the run says
+  // so; the report asked for is still written and the run succeeds (as the time route).
+  const auto again = run_lpvid("diagnose --model " + (d / "m2.json") + data_args() + " --averages 16 --json --out " +
+                               (d / "m3.json") + " --report " + (d / "again.json"));
   ASSERT_EQ(again.exit_code, 0) << again.err;
   const auto k = nlohmann::json::parse(again.out);
   EXPECT_FALSE(k["explained"].get<bool>());
   EXPECT_EQ(k["baseline_failures"].size(), 0u);
+  EXPECT_FALSE(k["out_written"].get<bool>());
+  EXPECT_FALSE(std::filesystem::exists(d / "m3.json"));
+  EXPECT_FALSE(std::filesystem::exists(d / "m3.json.history.jsonl"));
+  EXPECT_EQ(nlohmann::json::parse(slurp(d / "again.json"))["summary"], k["summary"]);
+  const auto text = run_lpvid("diagnose --model " + (d / "m2.json") + data_args() + " --averages 16 --out " +
+                              (d / "m3.json"));
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_THAT(text.out, HasSubstr("nothing named: " + (d / "m3.json") + " not written (no candidate is significant"));
+  // standard output asked for the model: nothing to print in its place, so the run fails
+  // with one line and writes nothing
+  const auto piped = run_lpvid("diagnose --model " + (d / "m2.json") + data_args() + " --averages 16 --out - --report " +
+                               (d / "never.json"));
+  EXPECT_EQ(piped.exit_code, 1);
+  EXPECT_THAT(piped.err, HasSubstr("no candidate is significant, so there is no model to write to --out -"));
+  EXPECT_EQ(std::count(piped.err.begin(), piped.err.end(), '\n'), 1) << piped.err;
+  EXPECT_TRUE(piped.out.empty()) << piped.out;
+  EXPECT_FALSE(std::filesystem::exists(d / "never.json"));
 }
 
 // The next step keeps the promise (issue 25): `model add EFFECT --from-diagnosis
