@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 
 #include "idlib/physical/mechanical/mechanical_base.h"
+#include "tests/support/described_base.h"
 
 namespace lpvid::friction_axis {
 
@@ -220,17 +221,8 @@ inline Log simulate(const Truth& p, const Experiment& e) {
 // in code: the library tests link no JSON reader): one DOF, mass and viscous friction
 // free, the datasheet force constant fixed.
 inline MechanicalDescription description() {
-  auto par = [](const char* name, const char* unit, double v, double lo, double hi, bool free) {
-    PhysicalParameter p;
-    p.name = name;
-    p.unit = unit;
-    p.value = v;
-    p.lower = lo;
-    p.upper = hi;
-    p.free = free;
-    return p;
-  };
-  auto ex = [](const char* text) { return parse_linear_expression(text); };
+  const auto par = described_base::parameter;
+  const auto ex = described_base::entry;
   MechanicalDescription d;
   d.name = "ball_screw_axis";
   d.description = "a carriage on a ball screw, motor current in, encoder out";

@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "idlib/physical/mechanical/mechanical_base.h"
+#include "tests/support/described_base.h"
 
 namespace lpvid::two_mass_friction {
 
@@ -84,17 +85,8 @@ inline Log simulate(const Truth& p, double seconds = 30.0, unsigned seed = 11) {
 // both masses, the coupling and the guide's viscous friction free at design values, the
 // datasheet force constant fixed.
 inline MechanicalDescription description() {
-  auto par = [](const char* name, const char* unit, double v, double lo, double hi, bool free) {
-    PhysicalParameter p;
-    p.name = name;
-    p.unit = unit;
-    p.value = v;
-    p.lower = lo;
-    p.upper = hi;
-    p.free = free;
-    return p;
-  };
-  auto ex = [](const char* text) { return parse_linear_expression(text); };
+  const auto par = described_base::parameter;
+  const auto ex = described_base::entry;
   MechanicalDescription d;
   d.name = "two_mass_axis";
   d.description = "a carriage and a flexibly coupled load, an encoder on each";
