@@ -138,14 +138,16 @@ std::vector<unsigned char> force_overlay_png(const ForceErrorFit& f, const Force
   return fit_overlay_png(ov, below);
 }
 
-// With r.png given: the force overlay of f staged there, titled "<what>, <effects>: force
-// error ..." (what empty: the effects alone); the line that says so, else "".
+// With r.png given: the force overlay of f staged there, titled "<what>: force error ...
+// (floor ...); <effects>" (what empty: "diagnose, the baseline"), the figures first so
+// that a long list of effects is what a narrow title cuts; the line that says so, else "".
 std::string stage_overlay(OutputSet& outputs, const MechanicalTimeRequest& r, const ForceErrorFit& f,
                           const ForceErrorData& d, const std::string& what) {
   if (r.png.empty()) return {};
-  const std::string head = what.empty() ? effects_text(f.model) : what + ", " + effects_text(f.model);
   outputs.stage(r.png, force_overlay_png(f, d, r.model.base_info(),
-                                         fmt::format("{}: force error {:.3g} % (floor {:.3g} %)", head, f.error, f.floor)));
+                                         fmt::format("{}: force error {:.3g} % (floor {:.3g} %); {}",
+                                                     what.empty() ? "diagnose, the baseline" : what, f.error, f.floor,
+                                                     effects_text(f.model))));
   return fmt::format(
       "wrote {} (the force and the model's, the residual over time with failing windows shaded, and against the "
       "position)\n",
