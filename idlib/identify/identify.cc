@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -321,6 +323,26 @@ BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const st
     }
   }
   return b;
+}
+
+InstabilityEvidence instability_evidence(const StateSpace& plant, const BandSupport* support) {
+  InstabilityEvidence e;
+  if (plant.order() == 0) return e;
+  const Eigen::VectorXcd poles = Eigen::EigenSolver<Eigen::MatrixXd>(plant.A, false).eigenvalues();
+  const bool discrete = plant.is_discrete();
+  e.largest_magnitude = discrete ? 0.0 : -std::numeric_limits<double>::infinity();
+  for (Index i = 0; i < poles.size(); ++i) {
+    const double size = discrete ? std::abs(poles(i)) : poles(i).real();
+    e.largest_magnitude = std::max(e.largest_magnitude, size);
+    const bool outside = discrete ? size > 1.0 : size > 0.0;
+    if (!outside) continue;
+    ++e.unstable_poles;
+    e.growth_rate_rad_s = std::max(e.growth_rate_rad_s, discrete ? std::log(size) / plant.sample_period_s : size);
+  }
+  if (e.unstable_poles == 0) return e;
+  e.proven = support == nullptr || !(support->lowest_supported_rad_s > 0) ||
+             e.growth_rate_rad_s > support->threshold * support->lowest_supported_rad_s;
+  return e;
 }
 
 }  // namespace lpvid

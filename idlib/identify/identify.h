@@ -204,6 +204,21 @@ struct BandSupport {
 BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const std::vector<Eigen::MatrixXd>& variance,
                          const Eigen::VectorXd& omega_rad_s, double threshold);
 
+// Whether the logs prove a plant's instability.  A pole outside the stability boundary
+// that grows at a rate a (ln|z|/Ts discrete, Re s continuous) changes the response at ω
+// by about a/ω relative to the same pole on the boundary (an integrator); where the logs
+// support the plant (BandSupport: its band within ±threshold) that change is below the
+// band when a ≤ threshold · lowest_supported_rad_s, so those logs cannot tell the pole
+// from an integrator and do not prove instability (`proven` false).  A stable plant, or no
+// support: proven as the poles say.
+struct InstabilityEvidence {
+  Index unstable_poles = 0;         // poles with |z| > 1 (Re s > 0)
+  double growth_rate_rad_s = 0.0;   // the fastest of them
+  double largest_magnitude = 0.0;   // max |z| (discrete) or max Re s (continuous)
+  bool proven = false;              // the logs show the instability (false for a stable plant)
+};
+InstabilityEvidence instability_evidence(const StateSpace& plant, const BandSupport* support);
+
 // The number of lags for records of `shortest_record` samples when the horizon is
 // given (num_lags or markov_horizon_s > 0; kEra also with both 0: 2 s).
 Index choose_num_lags(const IdentifyOptions& options, double sample_period_s, Index shortest_record);

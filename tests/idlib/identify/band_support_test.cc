@@ -3,6 +3,7 @@
 // falls with frequency, so that r(ω) = 2 σ(ω) / 2 = σ(ω) is known at each point.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <vector>
 
 #include "idlib/core/error.h"
@@ -43,6 +44,41 @@ TEST(BandSupport, CountsThatDoNotMatchAreRefused) {
   const Eigen::VectorXd omega = Eigen::VectorXd::Ones(2);
   EXPECT_THROW(band_support({Eigen::MatrixXcd::Ones(1, 1)}, {Eigen::MatrixXd::Ones(1, 1)}, omega, 0.1), InputError);
   EXPECT_THROW(band_support({}, {}, Eigen::VectorXd(), 0.0), InputError);
+}
+
+// instability_evidence: a pole outside the unit circle growing at a = ln|z|/Ts moves the
+// response at ω by about a/ω against an integrator, so logs that support the plant only
+// down to ω_L (band within ±10 %) prove the instability when a > 0.1 ω_L.  Plants built
+// by hand at Ts = 1 ms: x+ = z x + u, y = x.
+StateSpace first_order(double z) {
+  StateSpace s;
+  s.A = Eigen::MatrixXd::Constant(1, 1, z);
+  s.B = Eigen::MatrixXd::Ones(1, 1);
+  s.C = Eigen::MatrixXd::Ones(1, 1);
+  s.D = Eigen::MatrixXd::Zero(1, 1);
+  s.sample_period_s = 1e-3;
+  return s;
+}
+
+TEST(InstabilityEvidence, APoleTheSupportedBandCannotTellFromAnIntegratorIsNotProof) {
+  BandSupport support;
+  support.threshold = 0.1;
+  support.lowest_supported_rad_s = 12.0;  // a = 0.1 x 12 = 1.2 rad/s is the line
+  // |z| = 1.00012: a = 0.12 rad/s, a tenth of the line (an integrator estimated on noisy logs)
+  InstabilityEvidence e = instability_evidence(first_order(1.00012), &support);
+  EXPECT_EQ(e.unstable_poles, 1);
+  EXPECT_NEAR(e.growth_rate_rad_s, std::log(1.00012) / 1e-3, 1e-9);
+  EXPECT_FALSE(e.proven);
+  // |z| = 1.0024 (a levitated tilt, +2.4 rad/s): twice the line, proven
+  e = instability_evidence(first_order(1.0024), &support);
+  EXPECT_TRUE(e.proven);
+  EXPECT_NEAR(e.largest_magnitude, 1.0024, 1e-15);
+  // no support known (the ERA route): as the poles say
+  EXPECT_TRUE(instability_evidence(first_order(1.00012), nullptr).proven);
+  // a stable plant: nothing to prove
+  e = instability_evidence(first_order(0.99), &support);
+  EXPECT_EQ(e.unstable_poles, 0);
+  EXPECT_FALSE(e.proven);
 }
 
 }  // namespace band_support_test
