@@ -57,6 +57,7 @@ struct IdentifyCliOptions {
   std::string excitation_at = "input";
   bool band_given = false;  // --band-min or --band-max on the command line
   bool no_refine = false;
+  bool no_order_check = false;
 };
 
 nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
@@ -182,6 +183,7 @@ IdentifyRoute identify_route(const IdentifyCliOptions& o) {
   options.plant_order = o.plant_order;
   options.fit_band_max_rad_s = o.fit_band_max;
   options.refine_output_error = !o.no_refine;
+  options.check_order_held_out = !o.no_order_check;
   if (!route.era && o.order > 0)
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
   options.validate();
@@ -329,6 +331,17 @@ void add_identify_method_report(nlohmann::json& report, const IdentifyCliOptions
                                   {"poles_on_bound", rf.poles_on_bound},
                                   {"reason", r.choices.refinement_reason}}
                  : nlohmann::json(nullptr);
+      const IdentifyChoices::HeldOutOrder& h = r.choices.held_out;
+      nlohmann::json rows = nlohmann::json::array();
+      for (const auto& row : h.rows)
+        rows.push_back(row.ok ? nlohmann::json{{"order", row.order}, {"fit_percent", row.fit_percent}, {"cost", row.cost}}
+                              : nlohmann::json{{"order", row.order}, {"failure", row.failure}});
+      report["held_out_order"] = h.reason.empty() ? nlohmann::json(nullptr)
+                                                  : nlohmann::json{{"ran", h.ran},
+                                                                   {"ladder_order", h.ladder_order},
+                                                                   {"chosen_order", h.chosen_order},
+                                                                   {"orders", rows},
+                                                                   {"reason", h.reason}};
     }
     // where the plant (and its bands) come from: one place
     const bool refined = o.open_loop && r.choices.refinement.kept;
@@ -565,6 +578,7 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
                         o.open_loop ? "open loop" : "closed loop stable");
     if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
     if (o.open_loop) text += "  refinement: " + ch.refinement_reason + "\n";
+    if (o.open_loop && !ch.held_out.reason.empty()) text += "  order on held-out data: " + ch.held_out.reason + "\n";
     if (support)
       text += "  " + support_sentence(*support, report["plant"]["support"]["band_rad_s"][0].get<double>(),
                                       report["plant"]["support"]["band_rad_s"][1].get<double>(), o.open_loop) +
@@ -658,6 +672,9 @@ Command make_identify_command() {
             app->add_flag("--json", o->json, "print the report as JSON");
             app->add_flag("--no-refine", o->no_refine,
                           "open loop, structured: keep the structured fit (no output-error refinement on the logs)");
+            app->add_flag("--no-order-check", o->no_order_check,
+                          "open loop, structured, refined: keep the ladder's order (do not check orders n-2..n+2 on "
+                          "held-out halves of the logs)");
             app->callback([o, app] {
               o->band_given = app->count("--band-min") + app->count("--band-max") > 0;
               run(*o);

@@ -147,8 +147,38 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
   return identify_detail::identify_structured(experiments, sample_period_s, controller, options, shortest);
 }
 
+namespace {
+
+IdentifyResult identify_open_loop_at(const std::vector<ExperimentView>& experiments, double sample_period_s,
+                                     const IdentifyOptions& options);
+
+}  // namespace
+
 IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments, double sample_period_s,
                                   const IdentifyOptions& options) {
+  IdentifyResult r = identify_open_loop_at(experiments, sample_period_s, options);
+  if (options.method != IdentifyMethod::kStructured || !options.refine_output_error || options.plant_order > 0 ||
+      !options.check_order_held_out)
+    return r;
+  report_progress(options.progress, {"identify", "order check on held-out data", 0, 0, ""});
+  IdentifyChoices::HeldOutOrder h = identify_detail::check_order_held_out(experiments, sample_period_s, options, r);
+  if (h.chosen_order != h.ladder_order) {
+    IdentifyOptions o = options;
+    o.plant_order = h.chosen_order;
+    IdentifyResult chosen = identify_open_loop_at(experiments, sample_period_s, o);
+    chosen.choices.order_reason = fmt::format("order {} chosen on held-out data (below); the ladder had chosen {}: {}",
+                                              h.chosen_order, h.ladder_order, r.choices.order_reason);
+    chosen.choices.order_candidates = r.choices.order_candidates;
+    r = std::move(chosen);
+  }
+  r.choices.held_out = std::move(h);
+  return r;
+}
+
+namespace {
+
+IdentifyResult identify_open_loop_at(const std::vector<ExperimentView>& experiments, double sample_period_s,
+                                     const IdentifyOptions& options) {
   if (experiments.empty()) throw InputError("no experiments given; pass at least one log");
   const Index m = experiments.front().excitation.cols();
   const Index p = experiments.front().output.cols();
@@ -260,6 +290,8 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
   r.closed_loop = r.plant;
   return r;
 }
+
+}  // namespace
 
 }  // namespace lpvid
 

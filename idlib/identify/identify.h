@@ -65,12 +65,17 @@ struct IdentifyOptions {
   // identify_open_loop, kStructured: refine the fitted plant by output error on the logs
   // (output_error.h); the refinement is kept only when stable and better.
   bool refine_output_error = true;
+  // identify_open_loop, kStructured, refined, plant_order 0: check the order the ladder
+  // chose on data kept out of the fit (order_held_out.cc) and take another where the
+  // held-out data prove it predicts better.
+  bool check_order_held_out = true;
   // Relative tolerance on |Ts_log - Ts_controller| / Ts_controller.
   double sample_period_tolerance = 1e-6;
   // Reports (idlib/core/progress.h), nullptr: none.  Task "identify", one step per
   // stage: kStructured "Markov horizon" (lags), "noise spectrum", "starting models",
   // "plant order" n (of at most n_max), "staged fit" i of n, "tail round" r, "order
-  // check" n, "bands"; kEra "Markov parameters", "realization", "unloop".
+  // check" n, "bands" (identify_open_loop also "output-error refinement", "order check on
+  // held-out data"); kEra "Markov parameters", "realization", "unloop".
   Progress* progress = nullptr;
 
   // Throws InputError naming the option and the rule.
@@ -124,6 +129,24 @@ struct IdentifyChoices {
     std::string form = "full";  // OutputErrorResult::form
     Index poles_on_bound = 0;   // OutputErrorResult::poles_on_bound
   } refinement;
+  // identify_open_loop: the order checked on data kept out of the fit.  Two folds: the
+  // whole procedure (ladder at the given order, refinement) fitted on the first half of
+  // every record and the second half predicted (its initial state fitted, compare's
+  // 'e'), then the halves swapped.  `ran` false with the reason when it was not run.
+  struct HeldOutOrder {
+    bool ran = false;
+    std::string reason;
+    Index ladder_order = 0;  // the order the ladder (against the noise floor) chose
+    Index chosen_order = 0;  // the order kept
+    struct Row {
+      Index order = 0;
+      bool ok = false;          // fitted on both halves and stable on the held-out ones
+      std::string failure;      // why not, when !ok
+      double cost = 0;          // Σ over held-out samples of Σ_i (e_i / rms y_i)²
+      double fit_percent = 0;   // held-out simulation fit, mean over outputs
+    };
+    std::vector<Row> rows;
+  } held_out;
 };
 
 struct IdentifyResult {

@@ -5,7 +5,8 @@
 //   identify_order.cc      3-4: the starting models and the plant order (and the order
 //                               check on the final data);
 //   identify_structured.cc 5-7: the staged fit, the tail rounds and the bands, and the
-//                               chain that runs the stages in order.
+//                               chain that runs the stages in order;
+//   order_held_out.cc      identify_open_loop's order checked on data kept out of the fit.
 // Not part of the library's API.  A named namespace, not anonymous ones: the library is
 // compiled a few files to a unit (CMake unity build), so file-local names must not clash.
 #pragma once
@@ -102,5 +103,10 @@ bool reduce_order(const StructuredRun& run, const std::vector<Realised>& pool0, 
 // ---- stages 5-7 and the chain (identify_structured.cc) ----
 IdentifyResult identify_structured(const std::vector<ExperimentView>& experiments, double Ts,
                                    const StateSpace& controller, const IdentifyOptions& options, Index shortest);
+
+// identify_open_loop: the ladder's order (of `ladder`, the refined result) checked on
+// held-out halves of the records; see order_held_out.cc.
+IdentifyChoices::HeldOutOrder check_order_held_out(const std::vector<ExperimentView>& experiments, double Ts,
+                                                   const IdentifyOptions& options, const IdentifyResult& ladder);
 
 }  // namespace lpvid::identify_detail

@@ -238,8 +238,12 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
   // 7. Bands (estimate_bands).
   estimate_bands(run, corrected, g_final, fit, ch);
   if (!fit.closed_loop_stable)
-    throw NumericalError("the fitted plant closes an unstable loop with the controller; the logs do not fit this "
-                         "controller (check --controller)");
+    throw NumericalError(controller.order() == 0 && controller.D.isZero(0.0)
+                             ? fmt::format("the fitted plant of order {} is unstable, and an open-loop record ran a "
+                                           "stable plant; try another --plant-order",
+                                           fit.plant.order())
+                             : std::string("the fitted plant closes an unstable loop with the controller; the logs do "
+                                           "not fit this controller (check --controller)"));
   for (const auto& w : fit.report.warnings) result.warnings.push_back("fit: " + w);
   result.fit = std::move(fit);
   result.plant = result.fit.plant;
