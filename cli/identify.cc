@@ -134,29 +134,33 @@ std::string support_sentence(const BandSupport& b, double band_min, double band_
                      b.points, band_min, band_max, b.lowest_supported_rad_s, b.highest_supported_rad_s, why);
 }
 
+// What the logs say of an unstable plant (instability_evidence); nothing for a stable one.
+std::optional<InstabilityEvidence> instability_of(const StateSpace& plant, const std::optional<BandSupport>& support) {
+  if (is_stable(plant)) return std::nullopt;
+  return instability_evidence(plant, support ? &*support : nullptr);
+}
+
 // The plant's stability in words: stable; unstable as the logs show it; or unstable only
-// by a pole the logs cannot tell from an integrator (instability_evidence).
-std::string stability_words(const StateSpace& plant, const std::optional<BandSupport>& support) {
-  if (is_stable(plant)) return "stable";
-  const InstabilityEvidence e = instability_evidence(plant, support ? &*support : nullptr);
-  if (e.proven)
-    return fmt::format("unstable (as the logs say: {} pole(s) outside, growing at up to {:.3g} rad/s)", e.unstable_poles,
-                       e.growth_rate_rad_s);
+// by a pole the logs cannot tell from an integrator.
+std::string stability_words(const std::optional<InstabilityEvidence>& e, const std::optional<BandSupport>& support) {
+  if (!e) return "stable";
+  if (e->proven)
+    return fmt::format("unstable (as the logs say: {} pole(s) outside, growing at up to {:.3g} rad/s)", e->unstable_poles,
+                       e->growth_rate_rad_s);
   return fmt::format("unstable only by {} pole(s) growing at up to {:.3g} rad/s (|z| {:.6g}), under {:.0f} % of the "
                      "lowest frequency the logs support ({:.3g} rad/s), where such a pole moves the response less "
                      "than the band: these logs cannot tell it from an integrator (z = 1) and do not prove instability",
-                     e.unstable_poles, e.growth_rate_rad_s, e.largest_magnitude, 100 * support->threshold,
+                     e->unstable_poles, e->growth_rate_rad_s, e->largest_magnitude, 100 * support->threshold,
                      support->lowest_supported_rad_s);
 }
 
-// report.plant.instability (an unstable plant only): what instability_evidence says.
-void add_instability(nlohmann::json& report, const StateSpace& plant, const std::optional<BandSupport>& support) {
-  if (is_stable(plant)) return;
-  const InstabilityEvidence e = instability_evidence(plant, support ? &*support : nullptr);
-  report["plant"]["instability"] = {{"unstable_poles", e.unstable_poles},
-                                    {"growth_rate_rad_s", e.growth_rate_rad_s},
-                                    {"largest_pole_magnitude", e.largest_magnitude},
-                                    {"proven_by_the_logs", e.proven}};
+// report.plant.instability (an unstable plant only).
+void add_instability(nlohmann::json& report, const std::optional<InstabilityEvidence>& e) {
+  if (!e) return;
+  report["plant"]["instability"] = {{"unstable_poles", e->unstable_poles},
+                                    {"growth_rate_rad_s", e->growth_rate_rad_s},
+                                    {"largest_pole_magnitude", e->largest_magnitude},
+                                    {"proven_by_the_logs", e->proven}};
 }
 
 // The command line checked and turned into the library's options and the column names.
@@ -554,7 +558,8 @@ std::string stage_identify_outputs(OutputSet& files, const IdentifyCliOptions& o
 // The summary printed after the files are published.
 std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& route, const IdentifyInputs& in,
                           const IdentifyResult& r, const std::optional<BandSupport>& support,
-                          const nlohmann::json& report, const std::string& written) {
+                          const std::optional<InstabilityEvidence>& instability, const nlohmann::json& report,
+                          const std::string& written) {
   const bool era = route.era;
   const auto& output = route.output;
   const double Ts = in.set.sample_period_s;
@@ -574,7 +579,7 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
     text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "
                         "{}\n",
                         ch.horizon_reason, ch.band_reason, ch.start_reason, ch.plant_order, ch.order_reason,
-                        ch.tail_reason, ch.bands_reason, stability_words(r.plant, support),
+                        ch.tail_reason, ch.bands_reason, stability_words(instability, support),
                         o.open_loop ? "open loop" : "closed loop stable");
     if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
     if (o.open_loop) text += "  refinement: " + ch.refinement_reason + "\n";
@@ -616,14 +621,15 @@ void run(const IdentifyCliOptions& o) {
   const IdentifyResult r = identify_from_logs(o, route, in);
   nlohmann::json report = identify_report(o, route, in, r);
   const IdentifyBode bode = identify_bode(report, o, route, in, r);
-  add_instability(report, r.plant, bode.support);
+  const std::optional<InstabilityEvidence> instability = instability_of(r.plant, bode.support);
+  add_instability(report, instability);
 
   // Every computation succeeded: now write, each file atomically.  All files are staged
   // and renamed into place together at the end: a failure while writing leaves none of them.
   const std::string written = stage_identify_outputs(outputs, o, route, in, r, bode, report);
   outputs.commit();
   print_log_findings(in.set);
-  print_summary(o.json, report, identify_text(o, route, in, r, bode.support, report, written));
+  print_summary(o.json, report, identify_text(o, route, in, r, bode.support, instability, report, written));
 }
 
 }  // namespace

@@ -526,6 +526,14 @@ std::vector<std::string> modes_renumbered(const std::vector<std::string>& member
   return out;
 }
 
+// The members of a combination but the k-th.
+std::vector<std::string> without_member(const std::vector<std::string>& members, std::size_t k) {
+  std::vector<std::string> rest;
+  for (std::size_t j = 0; j < members.size(); ++j)
+    if (j != k) rest.push_back(members[j]);
+  return rest;
+}
+
 bool same_members(std::vector<std::string> a, std::vector<std::string> b) {
   a = modes_renumbered(a);
   b = modes_renumbered(b);
@@ -548,9 +556,7 @@ void judge_members(CandidateOutcome& c, const std::vector<const CandidateOutcome
   if (!c.fitted) return;
   std::vector<std::string> idle;
   for (std::size_t k = 0; k < c.members.size(); ++k) {
-    std::vector<std::string> rest;
-    for (std::size_t j = 0; j < c.members.size(); ++j)
-      if (j != k) rest.push_back(c.members[j]);
+    const std::vector<std::string> rest = without_member(c.members, k);
     const CandidateOutcome* without = nullptr;
     for (const CandidateOutcome* o : smaller)
       if (o->fitted && same_members(o->members, rest)) without = o;
@@ -582,10 +588,6 @@ void rank(std::vector<CandidateOutcome>& v) {
   });
 }
 
-}  // namespace
-
-namespace {
-
 // The pairs a triple's members are judged against (judge_members) that were never
 // fitted: only the anchor's and the pool's pairs are, so a triple grown from the best
 // pair may reach the floor without that pair's first member while the pair of its other
@@ -607,9 +609,7 @@ void fit_missing_pairs(const std::vector<CandidateOutcome>& triples, const Candi
   for (const CandidateOutcome& t : triples) {
     if (!t.fitted || !(t.error < best_pair.error)) continue;
     for (std::size_t k = 0; k < t.members.size(); ++k) {
-      std::vector<std::string> rest;
-      for (std::size_t j = 0; j < t.members.size(); ++j)
-        if (j != k) rest.push_back(t.members[j]);
+      const std::vector<std::string> rest = without_member(t.members, k);
       bool have = false;
       for (const CandidateOutcome& c : out) have = have || same_members(c.members, rest);
       for (const CandidateOutcome& c : missing) have = have || same_members(c.members, rest);
