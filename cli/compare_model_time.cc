@@ -224,6 +224,20 @@ void simulate_model_on_log(ModelTimeCompare& c, const TimeCompareCliOptions& o) 
       c.stable ? "stable"
              : c.growing ? fmt::format("UNSTABLE: largest pole |z| = {:.6g}", c.radius)
                          : "marginally stable: a pole on the unit circle (an integrator)";
+  if (closed) {
+    // The log is of a loop that ran stable: a model whose loop with the controller grows
+    // (by more than 2x over the log) is wrong for it, and its simulation would print
+    // figures of 1e+60 % (the levitated platform's unlooped ERA plant did).
+    const Eigen::VectorXcd loop = poles(c.simulated);
+    const double loop_radius = loop.size() > 0 ? loop.cwiseAbs().maxCoeff() : 0.0;
+    if (loop_radius > 1.0 && static_cast<double>(c.N) * std::log(loop_radius) > std::log(2.0))
+      throw InputError(fmt::format(
+          "{}: the model's loop with {} is unstable (largest closed-loop pole |z| = {:.9g}: it grows {:.3g}x over the "
+          "log's {} samples) while the log '{}' is of a loop that ran stable, so there is nothing to compare: the model "
+          "is wrong for this loop (or check that the controller is the one that ran and its sign, u = C(-q) + v)",
+          o.params, o.controller, loop_radius, std::exp(std::min(700.0, static_cast<double>(c.N) * std::log(loop_radius))),
+          c.N, o.log));
+  }
   c.with_x0 = simulate_with_fitted_start(c.simulated, c.sim_input, c.y, true);
   c.from_rest = simulate_with_fitted_start(c.simulated, c.sim_input, c.y, false);
   if (c.with_x0.predicted.size() == 0 || c.from_rest.predicted.size() == 0)

@@ -314,6 +314,10 @@ void add_identify_method_report(nlohmann::json& report, const IdentifyCliOptions
     report["plant"].update({{"interconnection_order", r.unloop.interconnection_order},
                             {"removed_modes", r.unloop.removed_poles.size()},
                             {"termination", r.unloop.report.termination}});
+    const auto list = [](const Eigen::VectorXd& v) {
+      return v.size() == 0 ? nlohmann::json(nullptr) : nlohmann::json(std::vector<double>(v.data(), v.data() + v.size()));
+    };
+    report["plant"]["reclosed_simulation_fit_percent"] = list(r.reclosed_fit_percent);
   } else {
     report["fit"] = structured_report(r);
     if (o.open_loop) {
@@ -569,6 +573,7 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
     text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
                         r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
                         r.plant.order(), r.unloop.removed_poles.size(), is_stable(r.plant) ? "stable" : "UNSTABLE");
+    if (!r.reclosed_reason.empty()) text += "  plant in its loop: " + r.reclosed_reason + "\n";
   } else {
     const IdentifyChoices& ch = r.choices;
     if (route.at_reference)

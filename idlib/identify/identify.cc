@@ -2,6 +2,7 @@
 #include "idlib/identify/output_error.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -12,6 +13,7 @@
 #include "idlib/core/error.h"
 #include "idlib/identify/identify_detail.h"
 #include "idlib/lti/analysis.h"
+#include "idlib/lti/interconnect.h"
 
 namespace lpvid {
 
@@ -21,6 +23,52 @@ namespace {
 // The paper recipe's (kEra) default horizon: 2 s covers a slowest closed-loop pole at
 // −3 rad/s to 2.5e-3 of its peak (the foundation's choice; kept for that method).
 constexpr double kEraDefaultHorizon_s = 2.0;
+
+// The kEra plant judged by the loop it makes with the controller that ran.  unloop removes
+// the modes it takes for the controller's; where the plant has poles at or near the
+// controller's (a levitated stage's rigid-body integrators beside a PID's), it can remove
+// the wrong ones and return a plant that looks plausible alone.  The logs ran a stable
+// loop, so a plant that closes an unstable one (growing by more than 2x over the longest
+// record) is refused; one whose loop fits the logs
+// more than twice as badly (in 100 − fit) as the ERA closed loop it came from is warned of.
+void judge_reclosed_loop(const std::vector<ExperimentView>& experiments, const StateSpace& controller,
+                         IdentifyResult& result) {
+  constexpr double kWorseFactor = 2.0;
+  const StateSpace reclosed = closed_loop_output(result.plant, controller);
+  double radius = 0;
+  for (const auto& z : poles(reclosed)) radius = std::max(radius, std::abs(z));
+  // Unstable as the logs would show it: growing by more than a factor 2 over the longest
+  // record (a pole at z = 1 to rounding, an integrator the loop does not reach, is not).
+  Index longest = 0;
+  for (const ExperimentView& v : experiments) longest = std::max(longest, v.output.rows());
+  if (radius > 1.0 && static_cast<double>(longest) * std::log(radius) > std::log(2.0))
+    throw NumericalError(fmt::format(
+        "the plant from unloop (order {}, {} modes removed) closes an UNSTABLE loop with the controller (largest "
+        "pole |z| = {:.9g}) although the logs ran a stable one: unloop could not tell the controller's modes from the "
+        "plant's (poles at or near z = 1 on both sides, as a levitated stage's beside a PID's); use the default "
+        "--method structured, which fits the plant with the controller directly (or check --controller and its sign)",
+        result.plant.order(), result.unloop.removed_poles.size(), radius));
+  result.era_fit_percent = simulation_fit_percent(result.era.model, experiments, false);
+  result.reclosed_fit_percent = simulation_fit_percent(reclosed, experiments, false);
+  if (result.era_fit_percent.size() == 0 || result.reclosed_fit_percent.size() == 0) return;
+  std::vector<std::string> figures;
+  double worst = 0;
+  for (Index i = 0; i < result.era_fit_percent.size(); ++i) {
+    figures.push_back(fmt::format("{:.1f} % ({:.1f} %)", result.reclosed_fit_percent(i), result.era_fit_percent(i)));
+    const double e_era = std::max(1e-12, 100.0 - result.era_fit_percent(i)), e_back = 100.0 - result.reclosed_fit_percent(i);
+    worst = std::max(worst, e_back / e_era);
+  }
+  result.reclosed_reason = fmt::format("the plant closed with the controller simulates the logs to {} per output (in "
+                                       "brackets the ERA closed loop it came from)",
+                                       fmt::join(figures, ", "));
+  if (worst > kWorseFactor)
+    result.warnings.push_back(fmt::format(
+        "unloop: the plant closed with the controller misses the logs {:.3g}x as much as the ERA closed loop it came "
+        "from ({}): unloop did not recover the plant (the controller's and the plant's modes near z = 1 confused, "
+        "or the closed-loop order too low); the default --method structured fits the plant with the controller "
+        "directly",
+        worst, fmt::join(figures, ", ")));
+}
 
 // The kEra chain (the paper's recipe): Markov → ERA → unloop.
 IdentifyResult identify_era(const std::vector<ExperimentView>& experiments, double sample_period_s,
@@ -66,6 +114,7 @@ IdentifyResult identify_era(const std::vector<ExperimentView>& experiments, doub
   for (const auto& w : result.unloop.report.warnings) result.warnings.push_back("unloop: " + w);
   result.closed_loop = result.era.model;
   result.plant = result.unloop.plant;
+  if (controller.order() > 0 || !controller.D.isZero(0.0)) judge_reclosed_loop(experiments, controller, result);
   return result;
 }
 

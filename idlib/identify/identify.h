@@ -158,6 +158,12 @@ struct IdentifyResult {
   // kEra only:
   EraResult era;
   UnloopResult unloop;
+  // kEra with a controller: the plant judged by the loop it makes with the controller that
+  // ran — MATLAB compare's simulation fit on the logs (from zero state) of that loop and
+  // of the ERA closed loop it came from, per output (equal when unloop is exact), and the
+  // sentence the summary prints.  Empty in open loop.
+  Eigen::VectorXd reclosed_fit_percent, era_fit_percent;
+  std::string reclosed_reason;
   // kStructured only:
   PlantFitResult fit;        // the final fit (covariance for bands: plant_response_variance)
   IdentifyChoices choices;

@@ -186,6 +186,15 @@ TEST(CompareModelLog, WhatCannotBeComparedIsRefusedInOneLineAndWritesNothing) {
                         {"D", {{0.0}}}, {"inputs", {"u"}}, {"outputs", {"q"}}}
              .dump();
   refused(" --model " + (dir / "exploding.json"), "diverges on the log");
+  // A plant that closes an unstable loop with the controller that ran (the axis with its
+  // input's sign flipped: positive feedback) would print figures of 1e+60 %: refused.
+  nlohmann::json flipped = nlohmann::json::parse(lpvid::testing::slurp(dir / "truth.json"));
+  for (auto& row : flipped["B"])
+    for (auto& b : row) b = -b.get<double>();
+  std::ofstream(dir / "flipped.json") << flipped.dump();
+  refused(" --model " + (dir / "flipped.json") + " --controller " + (dir / "controller.json") +
+              " --excitation r --excitation-at reference",
+          "the model's loop with");
   // The platform's route has fixed channels.
   refused(" --controller " + (dir / "controller.json") + " --input u", "are for a state-space model");
   EXPECT_FALSE(std::filesystem::exists(dir / "o.png"));

@@ -48,6 +48,12 @@ TEST_F(CliPipeline, IdentifyWritesEveryOutputAndFindsOrders9And6) {
     EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
   const auto report = nlohmann::json::parse(slurp(out / "report.json"));
   EXPECT_EQ(report["closed_loop"]["order"], 9);
+  // unloop is exact enough here for the plant closed with the controller to simulate the
+  // logs as the ERA closed loop does (to 1 point of MATLAB compare's fit per output).
+  ASSERT_TRUE(report["plant"]["reclosed_simulation_fit_percent"].is_array());
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(report["plant"]["reclosed_simulation_fit_percent"][i].get<double>(),
+                report["closed_loop"]["simulation_fit_percent"][i].get<double>(), 1.0);
   EXPECT_EQ(report["plant"]["order"], 6);
   EXPECT_TRUE(report["plant"]["stable"].get<bool>());
   // 30 s per experiment (half the 60 s): noise std of the estimate grows by
