@@ -320,8 +320,8 @@ void add_identify_method_report(nlohmann::json& report, const IdentifyCliOptions
     report["plant"]["reclosed_simulation_fit_percent"] = list(r.reclosed_fit_percent);
   } else {
     report["fit"] = structured_report(r);
-    if (o.open_loop) {
-      report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
+    if (o.open_loop) report["fit"]["feedthrough_reason"] = r.choices.feedthrough_reason;
+    {
       report["fit"]["refinement_reason"] = r.choices.refinement_reason;
       // `fit` above is the structured fit; when the refinement is kept, the plant and
       // its bands are the refinement's, described here.
@@ -352,7 +352,7 @@ void add_identify_method_report(nlohmann::json& report, const IdentifyCliOptions
                                                                    {"reason", h.reason}};
     }
     // where the plant (and its bands) come from: one place
-    const bool refined = o.open_loop && r.choices.refinement.kept;
+    const bool refined = r.choices.refinement.kept;
     report["plant"]["source"] = refined ? "output-error refinement (report.refinement)" : "structured fit (report.fit)";
     report["plant"]["termination"] = r.fit.report.termination;
   }
@@ -545,6 +545,10 @@ std::string stage_identify_outputs(OutputSet& files, const IdentifyCliOptions& o
   write_frd_csv(files.stage(join_path(o.out, "plant_frd.csv")), b.plant_frd, "P",
                 {"lpvid identify: identified plant u -> q",
                  era ? std::string("no variance: --method era has no covariance")
+                     : r.choices.refinement.kept
+                           ? fmt::format("var_<i>_<j>: E|P^ - P|^2 from the output-error refinement's covariance, a "
+                                         "sandwich over {} record segments (delta method)",
+                                         r.fit.replicates)
                      : r.fit.replicates > 0
                            ? fmt::format("var_<i>_<j>: E|P^ - P|^2 from the fit's covariance, a sandwich over {} "
                                          "replicates of the Markov estimate's error (delta method)",
@@ -587,7 +591,7 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
                         ch.tail_reason, ch.bands_reason, stability_words(instability, support),
                         o.open_loop ? "open loop" : "closed loop stable");
     if (o.open_loop) text += "  feedthrough: " + ch.feedthrough_reason + "\n";
-    if (o.open_loop) text += "  refinement: " + ch.refinement_reason + "\n";
+    text += "  refinement: " + ch.refinement_reason + "\n";
     if (o.open_loop && !ch.held_out.reason.empty()) text += "  order on held-out data: " + ch.held_out.reason + "\n";
     if (support)
       text += "  " + support_sentence(*support, report["plant"]["support"]["band_rad_s"][0].get<double>(),
@@ -682,7 +686,7 @@ Command make_identify_command() {
                 ->check(positive_up_to(kMaxFrequency, "the upper end of the band in rad/s"));
             app->add_flag("--json", o->json, "print the report as JSON");
             app->add_flag("--no-refine", o->no_refine,
-                          "open loop, structured: keep the structured fit (no output-error refinement on the logs)");
+                          "structured: keep the structured fit (no output-error refinement on the logs)");
             app->add_flag("--no-order-check", o->no_order_check,
                           "open loop, structured, refined: keep the ladder's order (do not check orders n-2..n+2 on "
                           "held-out halves of the logs)");

@@ -24,6 +24,84 @@ namespace {
 // −3 rad/s to 2.5e-3 of its peak (the foundation's choice; kept for that method).
 constexpr double kEraDefaultHorizon_s = 2.0;
 
+}  // namespace
+
+namespace identify_detail {
+
+// The output-error refinement of a structured result on its own logs — open loop
+// (controller nullptr: the plant from u) or in the loop with the known controller (from
+// v) — from rest first, then with each log's initial state (the plant's, or the loop's)
+// fitted, kept only when Akaike's criterion says the extra values earn their place
+// (N p ln(V_rest / V_free) > 2 n_x E): a record that starts from rest is fitted without
+// them.  Fills r.choices.refinement(_reason); when kept, the plant, the fit's covariance
+// (the bands) and, in closed loop, the closed loop.
+void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r) {
+  const bool closed = controller != nullptr;
+  const auto refine = [&](const StateSpace& start, const OutputErrorOptions& o) {
+    return closed ? refine_output_error_closed_loop(experiments, start, *controller, o)
+                  : refine_output_error(experiments, start, o);
+  };
+  OutputErrorOptions rest, with_states;
+  rest.estimate_initial_states = false;
+  if (closed) rest.max_jacobian_entries = with_states.max_jacobian_entries = kClosedLoopRefinementEntries;
+  const OutputErrorResult at_rest = refine(r.plant, rest);
+  const OutputErrorResult free = refine(at_rest.accepted ? at_rest.model : r.plant, with_states);
+  const Index loop_states = r.plant.order() + (closed ? controller->order() : 0);
+  const double extra = 2.0 * static_cast<double>(loop_states * static_cast<Index>(experiments.size()));
+  const bool use_free = free.accepted && (!at_rest.accepted || static_cast<double>(free.residuals) *
+                                                                      std::log(at_rest.cost / free.cost) >
+                                                                  extra);
+  OutputErrorResult oe = use_free ? free : at_rest;
+  if (oe.accepted)
+    oe.reason = fmt::format(
+        "output error on the logs{} (Levenberg-Marquardt, Ceres): the outputs' normalised squared simulation error "
+        "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; {}{}{}",
+        closed ? " of the loop with the controller" : "", at_rest.start_cost,
+        at_rest.accepted ? at_rest.cost : at_rest.start_cost,
+        use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
+                               "factor {:.4g} for {:g} more values)",
+                               free.cost, at_rest.accepted ? at_rest.cost / free.cost : 0.0, extra / 2)
+                 : fmt::format(" (fitting the initial states too{} does not pay by Akaike's criterion)",
+                               free.accepted ? fmt::format(" lowers it by a factor {:.4g} only", at_rest.cost / free.cost)
+                                             : std::string("")),
+        closed ? "the loop stable" : "stable", oe.iterations >= 200 ? "; stopped at the iteration limit" : "",
+        oe.form == "modal"
+            ? fmt::format("; in modal form with C and D eliminated ({}){}", oe.form_reason,
+                          oe.poles_on_bound > 0
+                              ? fmt::format(", {} pole(s) on its stability bound: the logs cannot tell them from "
+                                            "undamped or integrating ones (a drift, or a line in the outputs)",
+                                            oe.poles_on_bound)
+                              : std::string())
+            : std::string());
+  r.choices.refinement_reason = oe.reason;
+  IdentifyChoices::Refinement& rf = r.choices.refinement;
+  rf.ran = true;
+  rf.kept = oe.accepted;
+  rf.initial_states_fitted = use_free;
+  rf.start_cost = at_rest.start_cost;
+  rf.cost = oe.accepted ? oe.cost : at_rest.start_cost;
+  rf.iterations = use_free ? at_rest.iterations + free.iterations : at_rest.iterations;
+  rf.parameters = oe.parameters;
+  rf.residuals = oe.residuals;
+  rf.replicates = oe.accepted ? oe.replicates : 0;
+  rf.form = oe.form;
+  rf.poles_on_bound = oe.accepted ? oe.poles_on_bound : 0;
+  if (!oe.accepted) return;
+  r.plant = oe.model;
+  r.fit.plant = oe.model;
+  r.fit.plant.D.setZero();
+  r.fit.covariance = oe.covariance;
+  r.fit.replicates = oe.replicates;
+  if (!closed && !r.plant.D.isZero(0.0)) r.feedthrough_variance = oe.feedthrough_variance;
+  if (closed) r.closed_loop = closed_loop_output(r.plant, *controller);
+  r.choices.bands_reason =
+      fmt::format("covariance of the output-error refinement: a sandwich over {} record segments", oe.replicates);
+}
+
+}  // namespace identify_detail
+
+namespace {
+
 // The kEra plant judged by the loop it makes with the controller that ran.  unloop removes
 // the modes it takes for the controller's; where the plant has poles at or near the
 // controller's (a levitated stage's rigid-body integrators beside a PID's), it can remove
@@ -193,7 +271,32 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
     throw InputError(fmt::format("a record of {} samples is too short for the automatic horizon (at least {} lags, 4 x "
                                  "that in samples); record longer or give --lags",
                                  shortest, identify_detail::kMinHorizonLags));
-  return identify_detail::identify_structured(experiments, sample_period_s, controller, options, shortest);
+  IdentifyResult r = identify_detail::identify_structured(experiments, sample_period_s, controller, options, shortest);
+  // identify_open_loop runs this with no controller (order 0, D = 0) and refines itself.
+  const bool open = controller.order() == 0 && controller.D.isZero(0.0);
+  if (!open && options.refine_output_error) {
+    report_progress(options.progress, {"identify", "output-error refinement", 0, 0, ""});
+    IdentifyResult refined = r;
+    identify_detail::refine_on_logs(experiments, &controller, refined);
+    if (!refined.choices.refinement.kept) {
+      r.choices.refinement = refined.choices.refinement;
+      r.choices.refinement_reason = refined.choices.refinement_reason;
+      return r;
+    }
+    // Kept only when it predicts data it did not fit better (order_held_out.cc).
+    report_progress(options.progress, {"identify", "refinement check on held-out data", 0, 0, ""});
+    std::string why;
+    if (identify_detail::refinement_predicts_better(experiments, sample_period_s, controller, options, r, why)) {
+      r = std::move(refined);
+      r.choices.refinement_reason += "; " + why;
+    } else {
+      r.choices.refinement = refined.choices.refinement;
+      r.choices.refinement.kept = false;
+      r.choices.refinement.replicates = 0;
+      r.choices.refinement_reason = "not kept: " + refined.choices.refinement_reason + "; " + why;
+    }
+  }
+  return r;
 }
 
 namespace {
@@ -274,64 +377,7 @@ IdentifyResult identify_open_loop_at(const std::vector<ExperimentView>& experime
                                kFeedthroughSigmas, largest);
     if (options.refine_output_error) {
       report_progress(options.progress, {"identify", "output-error refinement", 0, 0, ""});
-      // From rest (x(0) = 0) first; then with each record's initial state fitted, kept
-      // only when Akaike's criterion says the n E extra values earn their place
-      // (N p ln(V_rest / V_free) > 2 n E): a record that starts from rest is fitted
-      // without them.
-      OutputErrorOptions rest;
-      rest.estimate_initial_states = false;
-      const OutputErrorResult at_rest = refine_output_error(experiments, r.plant, rest);
-      const OutputErrorResult free = refine_output_error(experiments, at_rest.accepted ? at_rest.model : r.plant);
-      const double extra = 2.0 * static_cast<double>(r.plant.order() * static_cast<Index>(experiments.size()));
-      const bool use_free = free.accepted && (!at_rest.accepted || static_cast<double>(free.residuals) *
-                                                                          std::log(at_rest.cost / free.cost) >
-                                                                      extra);
-      OutputErrorResult oe = use_free ? free : at_rest;
-      if (oe.accepted)
-        oe.reason = fmt::format(
-            "output error on the logs (Levenberg-Marquardt, Ceres): the outputs' normalised squared simulation error "
-            "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; stable{}{}",
-            at_rest.start_cost, at_rest.accepted ? at_rest.cost : at_rest.start_cost,
-            use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
-                                   "factor {:.4g} for {:g} more values)",
-                                   free.cost, at_rest.accepted ? at_rest.cost / free.cost : 0.0, extra / 2)
-                     : fmt::format(" (fitting the initial states too{} does not pay by Akaike's criterion)",
-                                   free.accepted ? fmt::format(" lowers it by a factor {:.4g} only",
-                                                               at_rest.cost / free.cost)
-                                                 : std::string("")),
-            oe.iterations >= 200 ? "; stopped at the iteration limit" : "",
-            oe.form == "modal"
-                ? fmt::format("; in modal form with C and D eliminated ({}){}", oe.form_reason,
-                              oe.poles_on_bound > 0
-                                  ? fmt::format(", {} pole(s) on its stability bound: the logs cannot tell them from "
-                                                "undamped or integrating ones (a drift, or a line in the outputs)",
-                                                oe.poles_on_bound)
-                                  : std::string())
-                : std::string());
-      r.choices.refinement_reason = oe.reason;
-      IdentifyChoices::Refinement& rf = r.choices.refinement;
-      rf.ran = true;
-      rf.kept = oe.accepted;
-      rf.initial_states_fitted = use_free;
-      rf.start_cost = at_rest.start_cost;
-      rf.cost = oe.accepted ? oe.cost : at_rest.start_cost;
-      rf.iterations = use_free ? at_rest.iterations + free.iterations : at_rest.iterations;
-      rf.parameters = oe.parameters;
-      rf.residuals = oe.residuals;
-      rf.replicates = oe.accepted ? oe.replicates : 0;
-      rf.form = oe.form;
-      rf.poles_on_bound = oe.accepted ? oe.poles_on_bound : 0;
-      if (oe.accepted) {
-        r.plant = oe.model;
-        r.fit.plant = oe.model;
-        r.fit.plant.D.setZero();
-        r.fit.covariance = oe.covariance;
-        r.fit.replicates = oe.replicates;
-        if (!r.plant.D.isZero(0.0)) r.feedthrough_variance = oe.feedthrough_variance;
-        r.choices.bands_reason = fmt::format("covariance of the output-error refinement: a sandwich over {} record "
-                                             "segments",
-                                             oe.replicates);
-      }
+      identify_detail::refine_on_logs(experiments, nullptr, r);
     } else {
       r.choices.refinement_reason = "not refined (switched off)";
     }

@@ -62,8 +62,10 @@ struct IdentifyOptions {
   double fit_band_max_rad_s = 0.0;
   // kStructured: most tail rounds after the first fit.
   int max_tail_rounds = 6;
-  // identify_open_loop, kStructured: refine the fitted plant by output error on the logs
-  // (output_error.h); the refinement is kept only when stable and better.
+  // kStructured: refine the fitted plant by output error on the logs (output_error.h);
+  // open loop kept only when stable and better, closed loop (inside the loop with the
+  // controller, when its Jacobian holds at most kClosedLoopRefinementEntries) only when the
+  // loop is stable and it predicts held-out halves of the logs better (order_held_out.cc).
   bool refine_output_error = true;
   // identify_open_loop, kStructured, refined, plant_order 0: check the order the ladder
   // chose on data kept out of the fit (order_held_out.cc) and take another where the

@@ -109,4 +109,15 @@ IdentifyResult identify_structured(const std::vector<ExperimentView>& experiment
 IdentifyChoices::HeldOutOrder check_order_held_out(const std::vector<ExperimentView>& experiments, double Ts,
                                                    const IdentifyOptions& options, const IdentifyResult& ladder);
 
+// The output-error refinement of a structured result `r` on its logs (identify.cc): open
+// loop (controller nullptr) or in the loop with the known controller.
+void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r);
+
+// identify_closed_loop: whether the refined plant (r, refinement kept) predicts held-out
+// halves of the logs better than the structured fit does, each fitted on the other half
+// (order_held_out.cc); `reason` says what was found.
+bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, double Ts,
+                                const StateSpace& controller, const IdentifyOptions& options, const IdentifyResult& r,
+                                std::string& reason);
+
 }  // namespace lpvid::identify_detail

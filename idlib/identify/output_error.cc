@@ -11,11 +11,14 @@
 #include "idlib/core/error.h"
 #include "idlib/identify/output_error_detail.h"
 #include "idlib/lti/analysis.h"
+#include "idlib/lti/interconnect.h"
 
 namespace lpvid {
 
 void OutputErrorOptions::validate() const {
   if (max_iterations < 1) throw InputError(fmt::format("output error: max_iterations {} must be >= 1", max_iterations));
+  if (!(max_jacobian_entries > 0))
+    throw InputError(fmt::format("output error: max_jacobian_entries {} must be > 0", max_jacobian_entries));
   if (min_segment_samples < 1)
     throw InputError(fmt::format("output error: min_segment_samples {} must be >= 1", min_segment_samples));
 }
@@ -25,19 +28,28 @@ namespace {
 using RowJac = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // θ's layout (column-major blocks), in the scaled channels ũ = u / s_u, ỹ = y / s_y.
+// nk: the controller's order in closed loop (0 open loop); each experiment's initial state,
+// when free, is the loop's, [x(0); x_K(0)], nx = n + nk numbers.
 struct Layout {
-  Index n = 0, m = 0, p = 0, E = 0;
+  Index n = 0, m = 0, p = 0, E = 0, nk = 0, nx = 0;
   bool free_d = false;
   Index oA = 0, oB = 0, oC = 0, oD = 0, oX = 0, oO = 0, P = 0;
   bool free_x0 = true;
-  Layout(Index n_, Index m_, Index p_, Index E_, bool d, bool x0) : n(n_), m(m_), p(p_), E(E_), free_d(d), free_x0(x0) {
+  Layout(Index n_, Index m_, Index p_, Index E_, bool d, bool x0, Index nk_ = 0)
+      : n(n_), m(m_), p(p_), E(E_), nk(nk_), nx(n_ + nk_), free_d(d), free_x0(x0) {
     oB = n * n;
     oC = oB + n * m;
     oD = oC + p * n;
     oX = oD + (free_d ? p * m : 0);
-    oO = oX + (free_x0 ? n * E : 0);
+    oO = oX + (free_x0 ? nx * E : 0);
     P = oO + p * E;  // an output offset per experiment
   }
+};
+
+// The known controller in the scaled channels (ũ = u / s_u, q̃ = q / s_y): e = −q,
+// x_K(t+1) = A_K x_K + B_K e, u = C_K x_K + D_K e + v.
+struct OeLoop {
+  Eigen::MatrixXd Ak, Bk, Ck, Dk;
 };
 
 struct Data {
@@ -47,11 +59,13 @@ struct Data {
 
 class OeProblem {
  public:
-  OeProblem(const Layout& l, const Data& d, const Eigen::MatrixXd& D_fixed) : l_(l), d_(d), D_fixed_(D_fixed) {}
+  OeProblem(const Layout& l, const Data& d, const Eigen::MatrixXd& D_fixed, const OeLoop* loop = nullptr)
+      : l_(l), d_(d), D_fixed_(D_fixed), loop_(loop) {}
   Index residuals() const { return d_.rows * l_.p; }
 
   // residuals (N p) and, when jac != nullptr, the row-major N p × P Jacobian.
   bool evaluate(const double* theta, double* out, double* jac) const {
+    if (loop_ != nullptr) return evaluate_loop(theta, out, jac);
     const Index n = l_.n, m = l_.m, p = l_.p, P = l_.P;
     const Eigen::Map<const Eigen::MatrixXd> A(theta + l_.oA, n, n), B(theta + l_.oB, n, m), C(theta + l_.oC, p, n);
     const Eigen::MatrixXd D = l_.free_d ? Eigen::Map<const Eigen::MatrixXd>(theta + l_.oD, p, m).eval() : D_fixed_;
@@ -101,9 +115,79 @@ class OeProblem {
   }
 
  private:
+  // Closed loop: the plant (A, B, C; D = 0) in its loop with the controller, driven by the
+  // excitation v (d_.u).  Forward sensitivities of the loop's state: with J_q = C dX +
+  // ∂C·x the output's, de = −J_q, du = C_K dX_K + D_K de, dX⁺ = A dX + ∂A·x + B du + ∂B·u,
+  // dX_K⁺ = A_K dX_K + B_K de.
+  bool evaluate_loop(const double* theta, double* out, double* jac) const {
+    const Index n = l_.n, m = l_.m, p = l_.p, P = l_.P, nk = l_.nk;
+    const Eigen::Map<const Eigen::MatrixXd> A(theta + l_.oA, n, n), B(theta + l_.oB, n, m), C(theta + l_.oC, p, n);
+    const OeLoop& K = *loop_;
+    Eigen::Map<Eigen::VectorXd> r(out, residuals());
+    std::optional<Eigen::Map<RowJac>> J;
+    if (jac != nullptr) J.emplace(jac, residuals(), P);
+    Eigen::VectorXd x(n), xn(n), xk(nk), xkn(nk), q(p), u(m), e(p);
+    Eigen::MatrixXd dX, dXn, dK, dKn, Jq, dU;
+    Index row = 0;
+    for (Index ex = 0; ex < l_.E; ++ex) {
+      const Eigen::MatrixXd& v = d_.u[static_cast<std::size_t>(ex)];
+      const Eigen::MatrixXd& y = d_.y[static_cast<std::size_t>(ex)];
+      if (l_.free_x0) {
+        x = Eigen::Map<const Eigen::VectorXd>(theta + l_.oX + l_.nx * ex, n);
+        xk = Eigen::Map<const Eigen::VectorXd>(theta + l_.oX + l_.nx * ex + n, nk);
+      } else {
+        x.setZero();
+        xk.setZero();
+      }
+      if (J) {
+        dX = Eigen::MatrixXd::Zero(n, P);
+        dK = Eigen::MatrixXd::Zero(nk, P);
+        if (l_.free_x0) {
+          dX.block(0, l_.oX + l_.nx * ex, n, n).setIdentity();
+          dK.block(0, l_.oX + l_.nx * ex + n, nk, nk).setIdentity();
+        }
+      }
+      const Eigen::Map<const Eigen::VectorXd> offset(theta + l_.oO + p * ex, p);
+      for (Index t = 0; t < v.rows(); ++t, row += p) {
+        q.noalias() = C * x;
+        r.segment(row, p) = q + offset - y.row(t).transpose();
+        e = -q;
+        u.noalias() = K.Ck * xk + K.Dk * e;
+        u += v.row(t).transpose();
+        if (J) {
+          Jq.noalias() = C * dX;
+          for (Index j = 0; j < n; ++j)
+            for (Index i = 0; i < p; ++i) Jq(i, l_.oC + i + p * j) += x(j);
+          auto Jt = J->middleRows(row, p);
+          Jt = Jq;
+          for (Index i = 0; i < p; ++i) Jt(i, l_.oO + p * ex + i) += 1.0;
+          dU.noalias() = K.Ck * dK;
+          dU.noalias() -= K.Dk * Jq;
+          dXn.noalias() = A * dX;
+          dXn.noalias() += B * dU;
+          for (Index j = 0; j < n; ++j)
+            for (Index i = 0; i < n; ++i) dXn(i, l_.oA + i + n * j) += x(j);
+          for (Index j = 0; j < m; ++j)
+            for (Index i = 0; i < n; ++i) dXn(i, l_.oB + i + n * j) += u(j);
+          dKn.noalias() = K.Ak * dK;
+          dKn.noalias() -= K.Bk * Jq;
+          dX.swap(dXn);
+          dK.swap(dKn);
+        }
+        xn.noalias() = A * x + B * u;
+        xkn.noalias() = K.Ak * xk + K.Bk * e;
+        x.swap(xn);
+        xk.swap(xkn);
+      }
+      if (!x.allFinite() || !xk.allFinite()) return false;
+    }
+    return r.allFinite();
+  }
+
   const Layout& l_;
   const Data& d_;
   const Eigen::MatrixXd& D_fixed_;
+  const OeLoop* loop_;
 };
 
 class CeresOe final : public ceres::CostFunction {
@@ -137,7 +221,7 @@ Eigen::MatrixXd gauge_complement(const Layout& l, const Eigen::VectorXd& theta) 
       g.segment(l.oB, n * m) = Eigen::Map<const Eigen::VectorXd>(dB.data(), n * m);
       g.segment(l.oC, p * n) = Eigen::Map<const Eigen::VectorXd>(dC.data(), p * n);
       if (l.free_x0)
-        for (Index e = 0; e < l.E; ++e) g.segment(l.oX + n * e, n) = T * theta.segment(l.oX + n * e, n);
+        for (Index e = 0; e < l.E; ++e) g.segment(l.oX + l.nx * e, n) = T * theta.segment(l.oX + l.nx * e, n);
     }
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(G);
   const Index rank = qr.rank();
@@ -197,21 +281,94 @@ ceres::Solver::Options solver_options(int max_iterations) {
 
 }  // namespace output_error_detail
 
-OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
-                                      const OutputErrorOptions& options) {
+namespace {
+
+// The covariance of an accepted refinement at θ (scaled channels), on the gauge complement:
+// the sandwich over record segments (res.covariance of [vec A; vec B; vec C] unscaled,
+// res.feedthrough_variance, res.replicates).
+void sandwich_covariance(const OeProblem& problem, const Layout& l, const Eigen::VectorXd& theta,
+                         const Eigen::VectorXd& su, const Eigen::VectorXd& sy, Index rows,
+                         const OutputErrorOptions& options, OutputErrorResult& res) {
+  const Index n = l.n, m = l.m, p = l.p;
+  const bool free_d = l.free_d;
+  Eigen::VectorXd r(res.residuals);
+  RowJac J(res.residuals, l.P);
+  problem.evaluate(theta.data(), r.data(), J.data());
+  const Eigen::MatrixXd Q = gauge_complement(l, theta);
+  const Eigen::MatrixXd JQ = J * Q;
+  const Eigen::MatrixXd H = JQ.transpose() * JQ;
+  const Eigen::MatrixXd Hinv = H.completeOrthogonalDecomposition().pseudoInverse();
+  const Index seg = std::max(options.min_segment_samples, rows / 8);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Q.cols(), Q.cols());
+  Index segments = 0;
+  for (Index start_row = 0; start_row < rows; start_row += seg) {
+    const Index len = std::min(seg, rows - start_row);
+    const Eigen::VectorXd g = JQ.middleRows(start_row * p, len * p).transpose() * r.segment(start_row * p, len * p);
+    S += g * g.transpose();
+    ++segments;
+  }
+  Eigen::MatrixXd cov_z;
+  if (segments >= 2) {
+    cov_z = Hinv * S * Hinv * (static_cast<double>(segments) / static_cast<double>(segments - 1));
+    res.replicates = segments;
+  } else {
+    const double dof = static_cast<double>(std::max<Index>(1, res.residuals - Q.cols()));
+    cov_z = Hinv * (res.cost / dof);
+  }
+  const Eigen::MatrixXd cov_theta = Q * cov_z * Q.transpose();  // scaled coordinates
+  // Unscale: A as is, B(i,j) / s_u(j), C(i,j) s_y(i), D(i,j) s_y(i) / s_u(j).
+  const Index nabc = n * n + n * m + p * n;
+  Eigen::VectorXd t = Eigen::VectorXd::Ones(nabc);
+  for (Index j = 0; j < m; ++j)
+    for (Index i = 0; i < n; ++i) t(l.oB + i + n * j) = 1.0 / su(j);
+  for (Index j = 0; j < n; ++j)
+    for (Index i = 0; i < p; ++i) t(l.oC + i + p * j) = sy(i);
+  res.covariance = t.asDiagonal() * cov_theta.topLeftCorner(nabc, nabc) * t.asDiagonal();
+  res.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
+  if (free_d)
+    for (Index j = 0; j < m; ++j)
+      for (Index i = 0; i < p; ++i)
+        res.feedthrough_variance(i, j) =
+            cov_theta(l.oD + i + p * j, l.oD + i + p * j) * sy(i) * sy(i) / (su(j) * su(j));
+}
+
+// The full form, open loop (controller nullptr) or in the loop with the known controller.
+OutputErrorResult refine_full(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                              const StateSpace* controller, const OutputErrorOptions& options) {
   output_error_detail::check_arguments(experiments, start, options);
   const Index n = start.order(), m = start.num_inputs(), p = start.num_outputs();
   const auto E = static_cast<Index>(experiments.size());
+  if (controller != nullptr) {
+    controller->validate();
+    if (controller->num_inputs() != p || controller->num_outputs() != m || !controller->is_discrete() ||
+        std::abs(controller->sample_period_s - start.sample_period_s) > 1e-9 * start.sample_period_s)
+      throw InputError(fmt::format("output error: the controller is {} -> {} at {:g} s but the plant is {} -> {} at "
+                                   "{:g} s; give the controller that maps the plant's outputs to its inputs at its rate",
+                                   controller->num_inputs(), controller->num_outputs(), controller->sample_period_s, m,
+                                   p, start.sample_period_s));
+    if (!start.D.isZero(0.0))
+      throw InputError("output error in closed loop: the start has a direct feedthrough (a sampled plant inside a loop "
+                       "has none)");
+  }
   OutputErrorResult res;
   res.model = start;
-  const bool free_d = !start.D.isZero(0.0);
-  const Layout l(n, m, p, E, free_d, options.estimate_initial_states);
+  const bool free_d = controller == nullptr && !start.D.isZero(0.0);
+  const Index nk = controller != nullptr ? controller->order() : 0;
+  const Layout l(n, m, p, E, free_d, options.estimate_initial_states, nk);
   Data d;
   for (const auto& e : experiments) d.rows += e.excitation.rows();
   res.parameters = l.P;
   res.residuals = d.rows * p;
   if (n == 0) {
     res.reason = "not refined: the model has no states";
+    return res;
+  }
+  if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > options.max_jacobian_entries &&
+      controller != nullptr) {
+    res.reason = fmt::format("not refined: its Jacobian would hold {:.3g} entries ({} residuals x {} parameters), "
+                             "above {:.3g} (records this long leave the structured fit little to gain)",
+                             static_cast<double>(res.residuals) * static_cast<double>(l.P), res.residuals, l.P,
+                             options.max_jacobian_entries);
     return res;
   }
   if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
@@ -237,7 +394,14 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
   theta.segment(l.oC, p * n) = Eigen::Map<const Eigen::VectorXd>(Cs.data(), p * n);
   if (free_d) theta.segment(l.oD, p * m) = Eigen::Map<const Eigen::VectorXd>(Ds.data(), p * m);
   for (Index e = 0; e < E; ++e) theta.segment(l.oO + p * e, p) = d.y[static_cast<std::size_t>(e)].colwise().mean().transpose();
-  const OeProblem problem(l, d, Ds);
+  OeLoop loop;
+  if (controller != nullptr) {
+    loop.Ak = controller->A;
+    loop.Bk = controller->B * sy.asDiagonal();
+    loop.Ck = su.cwiseInverse().asDiagonal() * controller->C;
+    loop.Dk = su.cwiseInverse().asDiagonal() * controller->D * sy.asDiagonal();
+  }
+  const OeProblem problem(l, d, Ds, controller != nullptr ? &loop : nullptr);
   Eigen::VectorXd r(res.residuals);
   if (!problem.evaluate(theta.data(), r.data(), nullptr)) {
     res.reason = "not refined: the start model diverges on the logs";
@@ -276,7 +440,16 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
   if (free_d)
     refined.D = sy.asDiagonal() * Eigen::Map<const Eigen::MatrixXd>(theta.data() + l.oD, p, m) * su.cwiseInverse().asDiagonal();
   const bool converged = summary.termination_type == ceres::CONVERGENCE;
-  if (!is_stable(refined)) {
+  if (controller != nullptr) {
+    // The plant may be unstable (a levitated stage); its loop with the controller ran stable.
+    const StateSpace loop_model = closed_loop_output(refined, *controller);
+    if (!is_stable(loop_model)) {
+      res.reason = fmt::format("not refined: the output-error optimum closes an unstable loop with the controller "
+                               "(spectral radius {:.6g}) and the logs ran a stable one; the start is kept",
+                               poles(loop_model).cwiseAbs().maxCoeff());
+      return res;
+    }
+  } else if (!is_stable(refined)) {
     // The modal form keeps every pole inside the unit circle by construction: its optimum
     // is the best stable model (or, with poles on its bound, says the logs cannot tell).
     OutputErrorResult modal = refine_output_error_modal(experiments, start, options);
@@ -295,51 +468,28 @@ OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experim
     res.reason = "not refined: output error did not lower the simulation error";
     return res;
   }
-  // Sandwich covariance on the gauge complement, over record segments.
-  RowJac J(res.residuals, l.P);
-  problem.evaluate(theta.data(), r.data(), J.data());
-  const Eigen::MatrixXd Q = gauge_complement(l, theta);
-  const Eigen::MatrixXd JQ = J * Q;
-  const Eigen::MatrixXd H = JQ.transpose() * JQ;
-  const Eigen::MatrixXd Hinv = H.completeOrthogonalDecomposition().pseudoInverse();
-  const Index seg = std::max(options.min_segment_samples, d.rows / 8);
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Q.cols(), Q.cols());
-  Index segments = 0;
-  for (Index start_row = 0; start_row < d.rows; start_row += seg) {
-    const Index len = std::min(seg, d.rows - start_row);
-    const Eigen::VectorXd g = JQ.middleRows(start_row * p, len * p).transpose() * r.segment(start_row * p, len * p);
-    S += g * g.transpose();
-    ++segments;
-  }
-  Eigen::MatrixXd cov_z;
-  if (segments >= 2) {
-    cov_z = Hinv * S * Hinv * (static_cast<double>(segments) / static_cast<double>(segments - 1));
-    res.replicates = segments;
-  } else {
-    const double dof = static_cast<double>(std::max<Index>(1, res.residuals - Q.cols()));
-    cov_z = Hinv * (res.cost / dof);
-  }
-  const Eigen::MatrixXd cov_theta = Q * cov_z * Q.transpose();  // scaled coordinates
-  // Unscale: A as is, B(i,j) / s_u(j), C(i,j) s_y(i), D(i,j) s_y(i) / s_u(j).
-  const Index nabc = n * n + n * m + p * n;
-  Eigen::VectorXd t = Eigen::VectorXd::Ones(nabc);
-  for (Index j = 0; j < m; ++j)
-    for (Index i = 0; i < n; ++i) t(l.oB + i + n * j) = 1.0 / su(j);
-  for (Index j = 0; j < n; ++j)
-    for (Index i = 0; i < p; ++i) t(l.oC + i + p * j) = sy(i);
-  res.covariance = t.asDiagonal() * cov_theta.topLeftCorner(nabc, nabc) * t.asDiagonal();
-  res.feedthrough_variance = Eigen::MatrixXd::Zero(p, m);
-  if (free_d)
-    for (Index j = 0; j < m; ++j)
-      for (Index i = 0; i < p; ++i)
-        res.feedthrough_variance(i, j) =
-            cov_theta(l.oD + i + p * j, l.oD + i + p * j) * sy(i) * sy(i) / (su(j) * su(j));
+  sandwich_covariance(problem, l, theta, su, sy, d.rows, options, res);
   res.model = refined;
   res.accepted = true;
-  res.reason = fmt::format("output error (simulation error on the logs, Levenberg-Marquardt, {} iterations{}): the "
-                           "normalised squared error fell from {:.6g} to {:.6g}; stable",
-                           res.iterations, converged ? "" : ", stopped before convergence", res.start_cost, res.cost);
+  res.reason = fmt::format("output error (simulation error on the logs{}, Levenberg-Marquardt, {} iterations{}): the "
+                           "normalised squared error fell from {:.6g} to {:.6g}; {}",
+                           controller != nullptr ? " of the loop with the controller" : "", res.iterations,
+                           converged ? "" : ", stopped before convergence", res.start_cost, res.cost,
+                           controller != nullptr ? "the loop stable" : "stable");
   return res;
+}
+
+}  // namespace
+
+OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
+                                      const OutputErrorOptions& options) {
+  return refine_full(experiments, start, nullptr, options);
+}
+
+OutputErrorResult refine_output_error_closed_loop(const std::vector<ExperimentView>& experiments,
+                                                  const StateSpace& start, const StateSpace& controller,
+                                                  const OutputErrorOptions& options) {
+  return refine_full(experiments, start, &controller, options);
 }
 
 SimulatedOutput simulate_with_fitted_start(const StateSpace& model, const Eigen::Ref<const Eigen::MatrixXd>& u,

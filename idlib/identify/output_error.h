@@ -39,8 +39,18 @@ namespace lpvid {
 
 inline constexpr double kMaxOutputErrorJacobianEntries = 2.0e7;  // 160 MB of doubles
 
+// identify's closed-loop refinement runs only below this many Jacobian entries (16 MB):
+// beyond, the records are long enough for the structured fit's Markov estimate (whose
+// noise falls as 1/N) and the refinement would cost more than the fit (lpvid's platform
+// logs, 3 x 60 s at 1 kHz, hold 6e7).
+inline constexpr double kClosedLoopRefinementEntries = 2.0e6;
+
 struct OutputErrorOptions {
   int max_iterations = 200;
+  // refine_output_error_closed_loop: not refined (reason says so) above this many
+  // Jacobian entries.  (refine_output_error switches to its modal form above
+  // kMaxOutputErrorJacobianEntries instead.)
+  double max_jacobian_entries = kMaxOutputErrorJacobianEntries;
   // x_e(0) fitted per experiment (true) or 0 (the record starts from rest).
   bool estimate_initial_states = true;
   // Segments for the sandwich covariance: records cut into pieces of at least this
@@ -73,6 +83,20 @@ struct OutputErrorResult {
 // @throws InputError  shapes that differ; a start that is not discrete.
 OutputErrorResult refine_output_error(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                                       const OutputErrorOptions& options = {});
+
+// The same criterion for closed-loop logs: the plant (D = 0) inside its loop with the
+// known controller K (e = −q, u = K e + v, the convention of identify_closed_loop), the
+// loop simulated from the logged excitation v, q̂ = C x + c_e; the free initial state is
+// the loop's [x(0); x_K(0)].  The plant may be unstable; the result is used only when its
+// loop with K is stable and V falls.  Full form only: when the Jacobian would exceed
+// kMaxOutputErrorJacobianEntries the start is kept (reason says so).
+// | experiments: excitation v N_e × m, output q N_e × p | start: discrete plant m → p, D = 0 |
+// | controller: discrete p → m at the start's rate |
+// @throws InputError  as refine_output_error; a controller of other shape or rate; a start
+//                     with a feedthrough.
+OutputErrorResult refine_output_error_closed_loop(const std::vector<ExperimentView>& experiments,
+                                                  const StateSpace& start, const StateSpace& controller,
+                                                  const OutputErrorOptions& options = {});
 
 // The same criterion in the coordinates that keep it small when there are many outputs:
 // A in real modal form (n numbers, every pole inside the unit circle by construction),

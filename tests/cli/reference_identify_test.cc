@@ -53,9 +53,10 @@ TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpoin
   }
   EXPECT_EQ(report["plant"]["order"], 2) << report["fit"]["order_reason"];
   const double mean = report["truth"]["weighted_error_mean"].get<double>();
-  std::printf("axis: order %d, mean error %.4f %%, max %.4f %% at %.4g rad/s\n", report["plant"]["order"].get<int>(),
-              100 * mean, 100 * report["truth"]["weighted_error_max"].get<double>(),
-              report["truth"]["omega_at_max_rad_s"].get<double>());
+  std::printf("axis: order %d, mean error %.4f %%, max %.4f %% at %.4g rad/s; refinement: %s\n",
+              report["plant"]["order"].get<int>(), 100 * mean, 100 * report["truth"]["weighted_error_max"].get<double>(),
+              report["truth"]["omega_at_max_rad_s"].get<double>(),
+              report["fit"]["refinement_reason"].get<std::string>().c_str());
   // Sensor noise 0.2 % of the excursion: measured 0.0166 % mean (max 0.085 % at 1 rad/s, where the
   // loop gain is highest); the bound is 3x that.
   EXPECT_LE(mean, 0.0005);
@@ -75,6 +76,55 @@ TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpoin
   }
   ASSERT_GT(total, 50);
   std::printf("bands cover the truth at %d of %d frequencies\n", inside, total);
+  EXPECT_GE(inside, 0.85 * total);
+}
+
+// The same axis on a short log (the first 8192 samples, 8 s): the loop's start transient
+// (the references' mean is not the operating point the loop stood at) is a larger share of
+// the record, and the structured fit, which cannot model it, lands further from the axis.
+// The closed-loop output-error refinement fits the loop's initial state with the plant,
+// and is kept because on held-out halves it predicts better, significantly and by more
+// than 10 % in error norm.  Measured: mean error 0.0997 % structured (--no-refine),
+// 0.0254 % refined (held-out error norm x0.195, 3.72 standard errors), the bands covering
+// the truth at 343 of 343 frequencies.  The bounds: the refinement at least halves the
+// error (4x measured) and its bands cover >= 85 %, as above.  On the full 30 s log (the
+// test above) the refinement runs and is not kept: held-out fits equal to 0.01 points.
+TEST(ReferenceIdentify, OnAShortLogTheClosedLoopRefinementIsKeptAndLandsNearerTheAxis) {
+  TempDir dir("reference_axis_short");
+  write_files(dir.path());
+  {
+    std::ifstream in(dir / "axis.csv");
+    std::ofstream out(dir / "short.csv");
+    std::string line;
+    for (int k = 0; k <= 8192 && std::getline(in, line); ++k) out << line << "\n";
+  }
+  const std::string args = "identify --controller " + (dir / "controller.json") +
+                           " --excitation r --excitation-at reference --output q --json --band-min 1 --band-max 1000"
+                           " --truth " + (dir / "truth.json") + " " + (dir / "short.csv");
+  const auto r = run_lpvid(args + " --out " + (dir / "out"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto s = run_lpvid(args + " --no-refine --out " + (dir / "plain"));
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto report = nlohmann::json::parse(r.out), plain = nlohmann::json::parse(s.out);
+  const double mean = report["truth"]["weighted_error_mean"].get<double>();
+  const double plain_mean = plain["truth"]["weighted_error_mean"].get<double>();
+  std::printf("axis, 8 s: mean error %.4f %% refined, %.4f %% structured; %s\n", 100 * mean, 100 * plain_mean,
+              report["fit"]["refinement_reason"].get<std::string>().c_str());
+  ASSERT_TRUE(report["refinement"].is_object());
+  EXPECT_EQ(report["refinement"]["kept"], true);
+  EXPECT_EQ(report["plant"]["source"], "output-error refinement (report.refinement)");
+  EXPECT_LE(mean, 0.5 * plain_mean);
+  const FrequencyResponse frd = read_frd_csv(dir / "out/plant_frd.csv");
+  const Axis ax;
+  int inside = 0, total = 0;
+  for (Index k = 0; k < frd.num_frequencies(); ++k) {
+    const double w = frd.omega_rad_s(k);
+    if (w < 1.0 || w > 1000.0) continue;
+    ++total;
+    inside += std::abs(frd.response[static_cast<std::size_t>(k)](0, 0) - ax.response(w)) <=
+              2.0 * std::sqrt(frd.variance[static_cast<std::size_t>(k)](0, 0));
+  }
+  ASSERT_GT(total, 50);
   EXPECT_GE(inside, 0.85 * total);
 }
 
