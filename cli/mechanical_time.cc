@@ -394,6 +394,7 @@ void run_mechanical_time_diagnose(const MechanicalTimeRequest& r) {
                           history_path_for(r.out));
     }
   }
+  summary["out_written"] = !r.out.empty() && d.named >= 0;  // as the frequency route's
   if (!r.report.empty()) outputs.stage(r.report, summary.dump(2) + "\n");
   text += stage_overlay(outputs, r, d.baseline, l.data, "");
   outputs.commit();

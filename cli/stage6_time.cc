@@ -379,7 +379,8 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
                                   {"explained", explained},
                                   {"missing", explained ? nlohmann::json(missing) : nlohmann::json(nullptr)},
                                   {"delta_bic_threshold", req.delta_bic},
-                                  {"out", req.out}};
+                                  {"out", req.out},
+                                  {"out_written", !req.out.empty() && explained}};  // as the frequency route's
   print_summary(req.json, summary, text);
 }
 

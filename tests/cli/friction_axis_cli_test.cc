@@ -88,6 +88,10 @@ TEST(FrictionAxisCli, ARealisticAxisFromALabMatFileThroughTheLoopWithFigures) {
                                          next, round == 1 ? fmt::format(" --png {}", dir / "d1.png") : ""));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json j = nlohmann::json::parse(r.out);
+    // --out is written exactly when something is named, and the report says which (as on
+    // the frequency route).
+    EXPECT_EQ(j["out_written"].get<bool>(), !j["named"].empty());
+    EXPECT_EQ(std::filesystem::exists(next), !j["named"].empty());
     if (j["named"].empty()) {
       last_out = j["summary"].get<std::string>();
       break;

@@ -155,6 +155,15 @@ TEST(Stage6IdentifyCli, TheTimeDomainRouteThroughFitDiagnoseCompareAndHistory) {
   const auto h = nlohmann::json::parse(r.out)["fits"];
   ASSERT_EQ(h.size(), 2u);
   EXPECT_LT(h[1]["error"].get<double>(), 1.5 * h[1]["noise_floor"].get<double>());
+
+  // Nothing is left: diagnose's --out has no model to hold, so it is not written and the
+  // report says so (as on the frequency route).
+  r = run_lpvid("diagnose --model " + (d / "fit2.json") + " --log " + log + " --json --out " + (d / "none.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto none = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(none["explained"].get<bool>()) << none["missing"].dump();
+  EXPECT_FALSE(none["out_written"].get<bool>());
+  EXPECT_FALSE(std::filesystem::exists(d / "none.json"));
 }
 
 TEST(Stage6IdentifyCli, TheTimeDomainRouteRefusesWhatItCannotSimulate) {
