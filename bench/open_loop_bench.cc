@@ -14,6 +14,7 @@
 #include "idlib/identify/output_error.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/signal/periodic_frf.h"
+#include "idlib/validate/nonlinearity.h"
 #include "idlib/validate/time_fit.h"
 #include "tests/support/real_data.h"
 
@@ -92,7 +93,8 @@ void BM_RefineOutputError_SISO_1M(benchmark::State& state) {
 BENCHMARK(BM_RefineOutputError_SISO_1M)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 
 // compare --log with a state-space model: both simulations (x(0) = 0 and fitted, with
-// offsets) and the time-domain tests (fit, whiteness and cross over 25 lags, windows).
+// offsets) and the time-domain tests (fit, whiteness and cross over 25 lags, windows),
+// and the nonlinearity tests (idlib/validate/nonlinearity.h).
 void BM_CompareModelLog_SISO_1M(benchmark::State& state) {
   const StateSpace truth = mechanism();
   const Record rec = record(truth, kSamples);
@@ -102,7 +104,9 @@ void BM_CompareModelLog_SISO_1M(benchmark::State& state) {
     const SimulatedOutput e = simulate_with_fitted_start(truth, rec.u, rec.y, true);
     const SimulatedOutput z = simulate_with_fitted_start(truth, rec.u, rec.y, false);
     const TimeFitResult r = time_fit(rec.y, e.predicted, rec.u, 0.0, kTs, fo);
+    const NonlinearityResult nl = nonlinearity_tests(rec.y - e.predicted, e.predicted);
     benchmark::DoNotOptimize(z.predicted.data());
+    state.counters["nonlinear_seen"] = static_cast<double>(nl.significant.size());
     state.counters["fit_percent"] = r.fit_percent(0);
   }
 }

@@ -13,7 +13,8 @@
 #include "idlib/models/platform.h"
 
 namespace lpvid {
-struct CorrelationTest;  // idlib/validate/time_fit.h
+struct CorrelationTest;     // idlib/validate/time_fit.h
+struct NonlinearityResult;  // idlib/validate/nonlinearity.h
 }
 
 namespace CLI {
@@ -85,6 +86,10 @@ void run_time_compare_with(const TimeCompareCliOptions& o, const PlatformParamet
 // lags_outside_per_lag_bound, and input (inputs[t.input]) for a cross test.
 nlohmann::json correlation_test_json(const CorrelationTest& t, const std::vector<std::string>& outputs,
                                      const std::vector<std::string>& inputs);
+
+// idlib/validate/nonlinearity.h's result as JSON: ran, segments, threshold, seen (any
+// significant), sentence, and the significant tests (residual, feature, of, r, lag, t).
+nlohmann::json nonlinearity_json(const NonlinearityResult& r, const std::vector<std::string>& outputs);
 
 // A state-space or transfer-function model file (o.params) on any log: open loop from
 // the logged input, or closed loop with o.controller from the logged excitation.

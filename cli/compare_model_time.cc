@@ -34,6 +34,7 @@
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/interconnect.h"
+#include "idlib/validate/nonlinearity.h"
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {
@@ -155,6 +156,7 @@ struct ModelTimeCompare {
   Eigen::VectorXd t;
   TimeFitResult r;
   Eigen::VectorXd fit_zero;
+  NonlinearityResult nonlinear;  // on the simulation's residual (idlib/validate/nonlinearity.h)
 };
 
 // The model at the log's rate and the log's outputs.
@@ -280,6 +282,7 @@ void model_compare_residual_tests(ModelTimeCompare& c, const TimeCompareCliOptio
   c.t = c.log.data.col(c.log.column("t"));
   c.r = time_fit(c.y, c.with_x0.predicted, c.cross_input, c.t(0), c.Ts, fo, c.test_predicted);
   c.fit_zero = nrmse_fit_percent(c.y, c.from_rest.predicted);
+  c.nonlinear = nonlinearity_tests(c.y - c.with_x0.predicted, c.with_x0.predicted);
 }
 
 nlohmann::json model_compare_summary(const ModelTimeCompare& c, const TimeCompareCliOptions& o) {
@@ -319,6 +322,7 @@ nlohmann::json model_compare_summary(const ModelTimeCompare& c, const TimeCompar
       {"whiteness", white},
       {"cross_correlation", cross},
       {"failures", failures},
+      {"nonlinearity", nonlinearity_json(c.nonlinear, out_names)},
       {"window_s", c.fo.window_s},
       {"threshold_percent", c.fo.window_threshold_percent}};
 }
@@ -358,6 +362,7 @@ std::string model_compare_text(const ModelTimeCompare& c, const TimeCompareCliOp
       text += fmt::format("                   {:<7} {:11.6g} {:10.6g} {:9.1f}\n",
                           out_names[static_cast<std::size_t>(f.channel)], f.t_start_s, f.t_end_s, f.size_percent);
   }
+  text += "  nonlinearity: " + nonlinearity_sentence(c.nonlinear, out_names) + "\n";
   text += "  (no noise model: the prediction fit equals the simulation fit 'e')\n";
   if (c.growing && !c.closed)
     text += "  the model is unstable: simulated outside its loop it runs away from the log; if the log is of a closed "

@@ -26,6 +26,7 @@
 #include "formats/plot/time_plot.h"
 #include "idlib/core/error.h"
 #include "idlib/sim/moving_beam.h"
+#include "idlib/validate/nonlinearity.h"
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {
@@ -50,6 +51,25 @@ nlohmann::json correlation_test_json(const CorrelationTest& t, const std::vector
                       {"lags_outside_per_lag_bound", t.lags_outside_per_lag_bound}};
   if (t.input >= 0) j["input"] = inputs[static_cast<std::size_t>(t.input)];
   return j;
+}
+
+nlohmann::json nonlinearity_json(const NonlinearityResult& r, const std::vector<std::string>& outputs) {
+  nlohmann::json seen = nlohmann::json::array();
+  for (const Index q : r.significant) {
+    const NonlinearityTest& t = r.tests[static_cast<std::size_t>(q)];
+    seen.push_back({{"residual", outputs[static_cast<std::size_t>(t.residual_channel)]},
+                    {"feature", t.feature},
+                    {"of", outputs[static_cast<std::size_t>(t.feature_channel)]},
+                    {"r", t.r},
+                    {"lag", t.lag},
+                    {"t", t.t}});
+  }
+  return {{"ran", r.ran},
+          {"segments", r.segments},
+          {"threshold", r.threshold},
+          {"seen", !r.significant.empty()},
+          {"significant", seen},
+          {"sentence", nonlinearity_sentence(r, outputs)}};
 }
 
 namespace compare_time_defaults {

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "cli/beam_commands.h"
 #include "cli/common.h"
 #include "cli/logs.h"
 #include "cli/output_set.h"
@@ -24,6 +25,7 @@
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/frequency_error.h"
 #include "idlib/identify/output_error.h"
+#include "idlib/validate/nonlinearity.h"
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {
@@ -116,6 +118,29 @@ nlohmann::json simulation_fit_json(const StateSpace& model, const ExperimentSet&
   const Eigen::VectorXd fit = simulation_fit_percent(model, set.views(), fit_initial_states);
   if (fit.size() == 0) return nullptr;
   return std::vector<double>(fit.data(), fit.data() + fit.size());
+}
+
+// The nonlinearity tests (idlib/validate/nonlinearity.h) on `model`'s simulation
+// residual, each log's initial state fitted, the logs stacked; not run (reason) when the
+// model diverges.
+NonlinearityResult nonlinearity_on_logs(const StateSpace& model, const ExperimentSet& set) {
+  Index rows = 0;
+  for (const ExperimentView& v : set.views()) rows += v.output.rows();
+  const Index p = model.num_outputs();
+  Eigen::MatrixXd e(rows, p), yhat(rows, p);
+  Index at = 0;
+  for (const ExperimentView& v : set.views()) {
+    const SimulatedOutput s = simulate_with_fitted_start(model, v.excitation, v.output, true);
+    if (s.predicted.size() == 0) {
+      NonlinearityResult none;
+      none.reason = "not tested: the model's response diverges on the logs";
+      return none;
+    }
+    e.middleRows(at, v.output.rows()) = v.output - s.predicted;
+    yhat.middleRows(at, v.output.rows()) = s.predicted;
+    at += v.output.rows();
+  }
+  return nonlinearity_tests(e, yhat);
 }
 
 // The band's relative width above which the plant counts as not pinned down by the data.
@@ -391,7 +416,8 @@ nlohmann::json identify_report(const IdentifyCliOptions& o, const IdentifyRoute&
         {"poles", poles_json(r.closed_loop)},
         {"markov_fit_percent", matrix_json(markov_fit_percent(r.closed_loop, r.markov.g))},
         {"simulation_fit_percent", simulation_fit_json(r.closed_loop, set, false)},
-        {"simulation_fit_initial_state_percent", simulation_fit_json(r.closed_loop, set, true)}}},
+        {"simulation_fit_initial_state_percent", simulation_fit_json(r.closed_loop, set, true)},
+        {"nonlinearity", nonlinearity_json(nonlinearity_on_logs(r.closed_loop, set), route.output)}}},
       {"plant",
        {{"order", r.plant.order()}, {"stable", is_stable(r.plant)}, {"poles", poles_json(r.plant)}}},
       {"warnings", r.warnings},
@@ -612,6 +638,7 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
                                         "initial state fitted: {}\n",
                                         o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "),
                                         fmt::join(figures_e, ", "));
+    text += "  nonlinearity: " + report["closed_loop"]["nonlinearity"]["sentence"].get<std::string>() + "\n";
   }
   if (in.truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
