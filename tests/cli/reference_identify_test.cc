@@ -17,6 +17,7 @@
 #include <iterator>
 #include <random>
 #include <string>
+#include <utility>
 
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
@@ -33,6 +34,22 @@ using lpvid::testing::run_lpvid;
 using lpvid::testing::TempDir;
 
 using namespace lpvid::testing::positioning_axis;
+
+// How many of plant_frd.csv's frequencies in 1–1000 rad/s have the axis's true response
+// inside the 95 % band |P̂ − P| <= 2 σ, and how many there are.
+std::pair<int, int> bands_covering_the_axis(const std::string& frd_path) {
+  const FrequencyResponse frd = read_frd_csv(frd_path);
+  const Axis ax;
+  int inside = 0, total = 0;
+  for (Index k = 0; k < frd.num_frequencies(); ++k) {
+    const double w = frd.omega_rad_s(k);
+    if (w < 1.0 || w > 1000.0) continue;
+    ++total;
+    inside += std::abs(frd.response[static_cast<std::size_t>(k)](0, 0) - ax.response(w)) <=
+              2.0 * std::sqrt(frd.variance[static_cast<std::size_t>(k)](0, 0));
+  }
+  return {inside, total};
+}
 
 TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpointIsRecovered) {
   TempDir dir("reference_axis");
@@ -64,16 +81,7 @@ TEST(ReferenceIdentify, APositioningAxisWithAnIntegratorExcitedThroughItsSetpoin
   // the whole loop; identify.h band_support).
   EXPECT_EQ(report["plant"]["support"]["supported"], report["plant"]["support"]["points"]);
   // The integrator is identified as one: a pole at z = 1 within the bands' resolution.
-  const FrequencyResponse frd = read_frd_csv(dir / "out/plant_frd.csv");
-  const Axis ax;
-  int inside = 0, total = 0;
-  for (Index k = 0; k < frd.num_frequencies(); ++k) {
-    const double w = frd.omega_rad_s(k);
-    if (w < 1.0 || w > 1000.0) continue;
-    ++total;
-    inside += std::abs(frd.response[static_cast<std::size_t>(k)](0, 0) - ax.response(w)) <=
-              2.0 * std::sqrt(frd.variance[static_cast<std::size_t>(k)](0, 0));
-  }
+  const auto [inside, total] = bands_covering_the_axis(dir / "out/plant_frd.csv");
   ASSERT_GT(total, 50);
   std::printf("bands cover the truth at %d of %d frequencies\n", inside, total);
   EXPECT_GE(inside, 0.85 * total);
@@ -114,16 +122,7 @@ TEST(ReferenceIdentify, OnAShortLogTheClosedLoopRefinementIsKeptAndLandsNearerTh
   EXPECT_EQ(report["refinement"]["kept"], true);
   EXPECT_EQ(report["plant"]["source"], "output-error refinement (report.refinement)");
   EXPECT_LE(mean, 0.5 * plain_mean);
-  const FrequencyResponse frd = read_frd_csv(dir / "out/plant_frd.csv");
-  const Axis ax;
-  int inside = 0, total = 0;
-  for (Index k = 0; k < frd.num_frequencies(); ++k) {
-    const double w = frd.omega_rad_s(k);
-    if (w < 1.0 || w > 1000.0) continue;
-    ++total;
-    inside += std::abs(frd.response[static_cast<std::size_t>(k)](0, 0) - ax.response(w)) <=
-              2.0 * std::sqrt(frd.variance[static_cast<std::size_t>(k)](0, 0));
-  }
+  const auto [inside, total] = bands_covering_the_axis(dir / "out/plant_frd.csv");
   ASSERT_GT(total, 50);
   EXPECT_GE(inside, 0.85 * total);
 }

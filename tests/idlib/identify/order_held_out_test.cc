@@ -8,39 +8,17 @@
 
 #include "idlib/identify/identify.h"
 #include "idlib/identify/identify_detail.h"
+#include "tests/idlib/identify/mode_and_pole.h"
 
 namespace lpvid {
 namespace order_held_out_test {
 
-constexpr double kTs = 1e-3;
+using testing::mode_and_pole::kTs;
 
-StateSpace truth() {
-  StateSpace s;
-  const double w = 60.0, z = 0.05, r = std::exp(-z * w * kTs), th = w * std::sqrt(1 - z * z) * kTs;
-  s.A = Eigen::MatrixXd::Zero(3, 3);
-  s.A << r * std::cos(th), -r * std::sin(th), 0, r * std::sin(th), r * std::cos(th), 0, 0, 0, std::exp(-20.0 * kTs);
-  s.B = (Eigen::MatrixXd(3, 1) << 0.02, 0.0, 0.01).finished();
-  s.C = (Eigen::MatrixXd(1, 3) << 0.0, 1.0, 1.0).finished();
-  s.D = Eigen::MatrixXd::Zero(1, 1);
-  s.sample_period_s = kTs;
-  return s;
-}
-
-// N samples of white u from rest, y plus white noise of `noise` × y's RMS.
+// N samples of white u (seed 11) from rest, y plus white noise of `noise` × y's RMS.
 void simulate(Index N, double noise, Eigen::MatrixXd& u, Eigen::MatrixXd& y) {
-  const StateSpace s = truth();
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  u.resize(N, 1);
-  y.resize(N, 1);
-  Eigen::Vector3d x = Eigen::Vector3d::Zero();
-  for (Index t = 0; t < N; ++t) {
-    u(t, 0) = normal(rng);
-    y(t, 0) = (s.C * x)(0);
-    x = s.A * x + s.B * u(t, 0);
-  }
-  const double rms = std::sqrt((y.array() - y.mean()).square().mean());
-  for (Index t = 0; t < N; ++t) y(t, 0) += noise * rms * normal(rng);
+  testing::mode_and_pole::simulate_open_loop(testing::mode_and_pole::plant(), N, Eigen::Vector3d::Zero(), noise, 11, u,
+                                             y);
 }
 
 const IdentifyChoices::HeldOutOrder::Row* row_of(const IdentifyChoices::HeldOutOrder& h, Index order) {

@@ -13,24 +13,17 @@
 
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/interconnect.h"
+#include "tests/idlib/identify/mode_and_pole.h"
 
 namespace lpvid {
 namespace output_error_closed_loop_test {
 
-constexpr double kTs = 1e-3;
+using testing::mode_and_pole::kTs;
+using testing::mode_and_pole::markov_error;
 constexpr double kKp = 2.0, kKi = 0.01;
 
 StateSpace truth(double real_pole_rad_s, double radius_scale = 1.0) {
-  StateSpace s;
-  const double w = 60.0, z = 0.05, r = std::exp(-z * w * kTs) * radius_scale, th = w * std::sqrt(1 - z * z) * kTs;
-  s.A = Eigen::MatrixXd::Zero(3, 3);
-  s.A << r * std::cos(th), -r * std::sin(th), 0, r * std::sin(th), r * std::cos(th), 0, 0, 0,
-      std::exp(real_pole_rad_s * kTs) * (real_pole_rad_s < 0 ? radius_scale : 1.0);
-  s.B = (Eigen::MatrixXd(3, 1) << 0.02, 0.0, 0.01).finished();
-  s.C = (Eigen::MatrixXd(1, 3) << 0.0, 1.0, 1.0).finished();
-  s.D = Eigen::MatrixXd::Zero(1, 1);
-  s.sample_period_s = kTs;
-  return s;
+  return testing::mode_and_pole::plant(real_pole_rad_s, radius_scale);
 }
 
 StateSpace controller() {
@@ -68,13 +61,6 @@ void simulate(const StateSpace& plant, double noise, Eigen::MatrixXd& v, Eigen::
       xk += e;
     }
   }
-}
-
-double markov_error(const StateSpace& a, const StateSpace& b) {
-  const MarkovSequence ga = markov_parameters(a, 400), gb = markov_parameters(b, 400);
-  double e = 0, n = 0;
-  for (std::size_t k = 1; k < ga.size(); ++k) e += (ga[k] - gb[k]).squaredNorm(), n += gb[k].squaredNorm();
-  return std::sqrt(e / n);
 }
 
 TEST(OutputErrorClosedLoop, NoiseFreeLoopLogsGiveTheTruthFromAStartWithMovedPoles) {

@@ -11,49 +11,19 @@
 #include "idlib/core/error.h"
 #include "idlib/identify/plant_fit.h"
 #include "idlib/lti/analysis.h"
+#include "tests/idlib/identify/mode_and_pole.h"
 
 namespace lpvid {
 namespace output_error_test {
 
-constexpr double kTs = 1e-3;
+using testing::mode_and_pole::kTs;
+using testing::mode_and_pole::markov_error;
 
-// Mode at 60 rad/s (damping 0.05) and a real pole at 20 rad/s; y the mode's second state
-// plus the pole.
-StateSpace truth(double radius_scale = 1.0) {
-  StateSpace s;
-  const double w = 60.0, z = 0.05, r = std::exp(-z * w * kTs) * radius_scale, th = w * std::sqrt(1 - z * z) * kTs;
-  s.A = Eigen::MatrixXd::Zero(3, 3);
-  s.A << r * std::cos(th), -r * std::sin(th), 0, r * std::sin(th), r * std::cos(th), 0, 0, 0,
-      std::exp(-20.0 * kTs) * radius_scale;
-  s.B = (Eigen::MatrixXd(3, 1) << 0.02, 0.0, 0.01).finished();
-  s.C = (Eigen::MatrixXd(1, 3) << 0.0, 1.0, 1.0).finished();
-  s.D = Eigen::MatrixXd::Zero(1, 1);
-  s.sample_period_s = kTs;
-  return s;
-}
+StateSpace truth(double radius_scale = 1.0) { return testing::mode_and_pole::plant(-20.0, radius_scale); }
 
-// N samples of white u, y from the initial state x0, plus white noise of `noise` × y's RMS.
+// 4000 samples of white u (seed 7), y from the initial state x0, plus white noise.
 void simulate(const StateSpace& s, const Eigen::Vector3d& x0, double noise, Eigen::MatrixXd& u, Eigen::MatrixXd& y) {
-  const Index N = 4000;
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  u.resize(N, 1);
-  y.resize(N, 1);
-  Eigen::Vector3d x = x0;
-  for (Index t = 0; t < N; ++t) {
-    u(t, 0) = normal(rng);
-    y(t, 0) = (s.C * x)(0);
-    x = s.A * x + s.B * u(t, 0);
-  }
-  const double rms = std::sqrt((y.array() - y.mean()).square().mean());
-  for (Index t = 0; t < N; ++t) y(t, 0) += noise * rms * normal(rng);
-}
-
-double markov_error(const StateSpace& a, const StateSpace& b) {
-  const MarkovSequence ga = markov_parameters(a, 400), gb = markov_parameters(b, 400);
-  double e = 0, n = 0;
-  for (std::size_t k = 1; k < ga.size(); ++k) e += (ga[k] - gb[k]).squaredNorm(), n += gb[k].squaredNorm();
-  return std::sqrt(e / n);
+  testing::mode_and_pole::simulate_open_loop(s, 4000, x0, noise, 7, u, y);
 }
 
 TEST(OutputError, RefinesAStartWithMovedPolesToTheTruthAndItsInitialState) {
