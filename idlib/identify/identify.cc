@@ -98,6 +98,13 @@ void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateS
       fmt::format("covariance of the output-error refinement: a sandwich over {} record segments", oe.replicates);
 }
 
+
+bool reclosed_loop_misses_far_more(double era_fit_percent, double reclosed_fit_percent) {
+  constexpr double kWorseFactor = 2.0, kMinPoints = 1.0;
+  const double e_era = std::max(1e-12, 100.0 - era_fit_percent), e_back = 100.0 - reclosed_fit_percent;
+  return e_back > kWorseFactor * e_era && e_back - e_era > kMinPoints;
+}
+
 }  // namespace identify_detail
 
 namespace {
@@ -111,7 +118,6 @@ namespace {
 // more than twice as badly (in 100 − fit) as the ERA closed loop it came from is warned of.
 void judge_reclosed_loop(const std::vector<ExperimentView>& experiments, const StateSpace& controller,
                          IdentifyResult& result) {
-  constexpr double kWorseFactor = 2.0;
   const StateSpace reclosed = closed_loop_output(result.plant, controller);
   double radius = 0;
   for (const auto& z : poles(reclosed)) radius = std::max(radius, std::abs(z));
@@ -131,15 +137,17 @@ void judge_reclosed_loop(const std::vector<ExperimentView>& experiments, const S
   if (result.era_fit_percent.size() == 0 || result.reclosed_fit_percent.size() == 0) return;
   std::vector<std::string> figures;
   double worst = 0;
+  bool misses = false;
   for (Index i = 0; i < result.era_fit_percent.size(); ++i) {
     figures.push_back(fmt::format("{:.1f} % ({:.1f} %)", result.reclosed_fit_percent(i), result.era_fit_percent(i)));
     const double e_era = std::max(1e-12, 100.0 - result.era_fit_percent(i)), e_back = 100.0 - result.reclosed_fit_percent(i);
     worst = std::max(worst, e_back / e_era);
+    misses = misses || identify_detail::reclosed_loop_misses_far_more(result.era_fit_percent(i), result.reclosed_fit_percent(i));
   }
   result.reclosed_reason = fmt::format("the plant closed with the controller simulates the logs to {} per output (in "
                                        "brackets the ERA closed loop it came from)",
                                        fmt::join(figures, ", "));
-  if (worst > kWorseFactor)
+  if (misses)
     result.warnings.push_back(fmt::format(
         "unloop: the plant closed with the controller misses the logs {:.3g}x as much as the ERA closed loop it came "
         "from ({}): unloop did not recover the plant (the controller's and the plant's modes near z = 1 confused, "

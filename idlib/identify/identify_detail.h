@@ -21,6 +21,13 @@
 
 namespace lpvid::identify_detail {
 
+// The era route's warning on the plant unloop returns (judge_reclosed_loop, identify.cc):
+// closed again with the controller, it misses the logs more than 2x as much as the ERA
+// closed loop it came from (in 100 − fit %) AND by more than 1 point of fit — two loops
+// that both simulate the logs within a point (99.99 % against 99.97 %: 3x "as much") are
+// not set against each other.
+bool reclosed_loop_misses_far_more(double era_fit_percent, double reclosed_fit_percent);
+
 // kStructured: the first horizon tried is the power of two at or above 1/64 of the
 // shortest record (1024 lags for 60 s at 1 kHz, 16384 for 100 s at 10 kHz), at least
 // kMinHorizonLags; it is doubled while the response has not ended, up to a quarter of
