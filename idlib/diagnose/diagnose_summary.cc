@@ -136,8 +136,17 @@ void summary_nothing(Diagnosis& out, const SummaryInputs& in) {
   // scaling of M, D and K; only a known value tells them apart.
   bool any_prior = false;
   for (const PhysicalParameter& q : out.baseline.model.parameters) any_prior = any_prior || q.has_prior();
+  // An input gain by what the effect is (every block a gain on the inputs: the library's
+  // gain_error, or a user's effect of that kind), not by its name.
+  auto input_gain = [&](const std::string& name) {
+    const EffectInfo* e = in.model.effect_info(name);
+    if (e == nullptr || e->blocks.empty()) return false;
+    for (const Block& b : e->blocks)
+      if (b.kind != BlockKind::kGain || b.side != BlockSide::kInput) return false;
+    return true;
+  };
   bool gain_candidate = false;
-  for (const CandidateOutcome& c : out.ranked) gain_candidate = gain_candidate || c.effect == "gain_error";
+  for (const CandidateOutcome& c : out.ranked) gain_candidate = gain_candidate || (c.members.size() <= 1 && input_gain(c.effect));
   if (!any_prior && gain_candidate)
     s.push_back("  note: these data cannot tell an input gain from a scaling of the masses, damping and stiffness "
                 "(the fit takes the scaling); to test for one, give a known value as a prior (a weighed mass: lpvid "
@@ -189,16 +198,16 @@ void summary_winner(Diagnosis& out, const SummaryInputs& in) {
                           100.0 * winner->excess_share, 100.0 * winner->band_share, winner->delta_bic));
   // what the priors say (a tie the data alone cannot break)
   if (out.baseline.priors_contradicted > 0) {
-    // The estimates the base pulled beyond kPriorPullFlag sigmas, and where the
-    // winner leaves them: said as it is, returned or not.
+    // The estimates the fit flagged as pulled beyond kPriorPullFlag sigmas, and where the
+    // winner's fit leaves them (its own flag): said as it is, returned or not.
     std::vector<std::string> pulls;
     Index returned = 0;
     for (const ParameterEstimate& b : out.baseline.parameters)
-      if (b.prior_sigma > 0 && std::abs(b.estimate - b.prior_mean) > kPriorPullFlag * b.prior_sigma)
+      if (b.prior_contradicted)
         for (const ParameterEstimate& w : winner->fit.parameters)
           if (w.name == b.name) {
             const double pull = w.prior_sigma > 0 ? (w.estimate - w.prior_mean) / w.prior_sigma : 0.0;
-            if (std::abs(pull) <= kPriorPullFlag) ++returned;
+            if (!w.prior_contradicted) ++returned;
             pulls.push_back(fmt::format("{} {:.4g} -> {:.4g} ({:+.1f} -> {:+.1f} sigma)", b.name, b.estimate,
                                         w.estimate, (b.estimate - b.prior_mean) / b.prior_sigma, pull));
           }

@@ -543,6 +543,7 @@ class FitRound {
         const double pull = (e.estimate - par.prior_mean) / par.prior_sigma;
         if (std::abs(pull) > kPriorPullFlag) {
           ++result_.priors_contradicted;
+          e.prior_contradicted = true;
           e.flags.push_back(
               fmt::format("{:+.1f} sigma from its prior {:g} ± {:g}", pull, par.prior_mean, par.prior_sigma));
           result_.report.warnings.push_back(fmt::format(

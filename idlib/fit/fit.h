@@ -166,6 +166,7 @@ struct ParameterEstimate {
   bool at_bound = false;   // estimate at (within 1e-6 of the span of) a bound
   std::vector<std::string> flags;  // e.g. "at upper bound 2", "corr -0.999 with ...", "+4.2 sigma from its prior"
   double prior_mean = 0.0, prior_sigma = 0.0;  // the parameter's prior (sigma 0: none)
+  bool prior_contradicted = false;  // further than kPriorPullFlag prior sigmas from its prior (flagged)
 };
 
 // An estimate further than this many prior standard deviations from its prior's
