@@ -99,3 +99,25 @@ void BM_MarkovRegularized_2x2_1M_coloured(benchmark::State& state) {
 BENCHMARK(BM_MarkovRegularized_2x2_1M_coloured)->Arg(600)->Arg(2000)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// The ARX estimate (markov_arx.h) on the same 3 x 3 x 1e6 log, 2000 lags: per output the
+// Gram matrix of [q_i, v] at lags 0..60 by blocked FFT, then orders 1..60 (one Cholesky
+// of up to 300 regressors per output and order), the recursion to 2000 lags, and
+// estimate_markov's FIR residual for noise_std.
+void BM_MarkovArx_3x3_1M_2000lags(benchmark::State& state) {
+  std::mt19937_64 rng(kBenchSeed);
+  const Eigen::MatrixXd v = white(kSamples, kChannels, rng);
+  const Eigen::MatrixXd q = fir_output(v, rng);
+  lpvid::MarkovOptions options;
+  options.num_lags = kLags;
+  options.method = lpvid::MarkovOptions::Method::kArx;
+  const std::vector<lpvid::ExperimentView> experiments{{v, q}};
+  Index order = 0;
+  for (auto _ : state) {
+    lpvid::MarkovResult r = lpvid::estimate_markov(experiments, options);
+    order = r.arx_order;
+    benchmark::DoNotOptimize(r.g.data());
+  }
+  state.counters["arx_order"] = static_cast<double>(order);
+}
+BENCHMARK(BM_MarkovArx_3x3_1M_2000lags)->Iterations(1)->Unit(benchmark::kMillisecond);

@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "idlib/core/parallel.h"
+#include "idlib/signal/markov_arx.h"
 #include "idlib/signal/markov_regularized.h"
 #include "idlib/signal/real_fft.h"
 
@@ -728,6 +729,8 @@ void MarkovOptions::validate() const {
         tolerance));
   if (max_iterations <= 0)
     throw InputError(fmt::format("Markov options: max_iterations = {}; it must be > 0", max_iterations));
+  if (arx_order < 0)
+    throw InputError(fmt::format("Markov options: arx_order = {}; it must be >= 0 (0: chosen from the data)", arx_order));
   if (regularized_tuning_lags < 2)
     throw InputError(fmt::format("Markov options: regularized_tuning_lags = {}; it must be >= 2",
                                  regularized_tuning_lags));
@@ -777,22 +780,28 @@ MarkovResult estimate_markov(const std::vector<ExperimentView>& experiments,
                                    a + 1, options.remove_mean ? " (zero after mean removal)" : " zero"));
 
   MarkovResult res;
+  if (options.method == MarkovOptions::Method::kArx) res = estimate_markov_arx(experiments, options);
   res.total_samples = total;
   res.excitation_rms = (v_energy_total / static_cast<double>(total)).cwiseSqrt();
   res.output_rms = (ch.q_energy.colwise().sum().transpose() / static_cast<double>(total)).cwiseSqrt();
-  res.g.assign(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
   Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(p);  // residual energy per output
   bool residual_known = false;
+  if (options.method != MarkovOptions::Method::kArx) res.g.assign(static_cast<size_t>(L + 1), Eigen::MatrixXd::Zero(p, m));
   if (options.method == MarkovOptions::Method::kCorrelation)
     estimate_by_correlation(experiments, ch, L, res);
-  else
+  else if (options.method != MarkovOptions::Method::kArx)  // kArx: its residual as an FIR below
     residual_known = estimate_by_least_squares(experiments, ch, options, intercept, total, reuse, res, sum_sq);
   if (!residual_known) sum_sq = markov_residual_energy(experiments, ch, res.g, L, intercept);
 
   // kRegularized: the prior keeps the effective number of parameters far below m (L + 1);
   // the residual energy over the samples is its noise estimate (slightly high).
-  const double dof = static_cast<double>(
-      total - (options.method == MarkovOptions::Method::kRegularized ? 0 : m * (L + 1)) - (intercept ? E : 0));
+  // kArx: the noise as least squares defines it (the residual of g as a finite impulse
+  // response, not the ARX model's one-step innovation, which is far smaller and would put
+  // realize's floor under the estimate's own error), with the ARX model's unknowns.
+  const Index unknowns = options.method == MarkovOptions::Method::kRegularized ? 0
+                         : options.method == MarkovOptions::Method::kArx       ? m + res.arx_order * (1 + m)
+                                                                               : m * (L + 1);
+  const double dof = static_cast<double>(total - unknowns - (intercept ? E : 0));
   const Eigen::VectorXd sigma = (sum_sq / dof).cwiseSqrt();
   res.noise_std = sigma * v_energy_total.cwiseSqrt().cwiseInverse().transpose();
   // kRegularized: noise_std stays the formula above (the level realize's order rule is
