@@ -67,6 +67,23 @@ TEST(MarkovStable, AGrowingResponseIsSaidAndNoStableModelFitsItAsWell) {
   std::printf("growing response: %s\n", fit.result.reason.c_str());
 }
 
+// A start so unstable its impulse response overflows over the lags (the slow mode pushed
+// to |z| = 4.9, 2000 lags: 4.9^2000 is far beyond a double), as ERA gave on the F-16's
+// 2000 lags (|z| 4.71): its error is +inf, not NaN — a NaN made "the stable model fits
+// worse" true and realize kept the model that diverges — and the stable fit is finite.
+TEST(MarkovStable, AStartWhoseResponseOverflowsMissesWithoutBound) {
+  const MarkovSequence g = markov_of(two_modes(1.0), 2000);
+  const StateSpace start = two_modes(5.0);
+  const MarkovStableFit fit = fit_markov_stable(g, start);
+  std::printf("overflowing start: relative impulse-response error %g -> %.3g; %s\n", fit.start_error, fit.error,
+              fit.result.reason.c_str());
+  EXPECT_TRUE(std::isinf(fit.start_error));
+  ASSERT_TRUE(fit.result.accepted) << fit.result.reason;
+  EXPECT_TRUE(std::isfinite(fit.error));
+  EXPECT_LE(fit.error, fit.start_error);
+  EXPECT_LT(radius(fit.result.model), 1.0);
+}
+
 TEST(MarkovStable, ShapesThatDoNotMatchAreRefused) {
   StateSpace start = two_modes(1.0);
   const MarkovSequence g(20, Eigen::MatrixXd::Zero(2, 1));
