@@ -203,6 +203,12 @@ MarkovResult estimate_markov_arx(const std::vector<ExperimentView>& experiments,
   if (options.arx_order > 0) {
     fits.push_back(solve_order(psi, options.arx_order, m));
     chosen = options.arx_order;
+    if (fits.front().radius > growth_limit)
+      throw NumericalError(fmt::format(
+          "estimate_markov (arx): ARX order {} has a pole at |z| = {:.6g}, so its response grows without bound over "
+          "the {} lags; give another --arx-order, or leave it out for the criterion's choice among the orders whose "
+          "response does not grow",
+          chosen, fits.front().radius, L));
   } else {
     Eigen::VectorXd energy(p);
     for (Index i = 0; i < p; ++i) energy(i) = psi[static_cast<std::size_t>(i)](0, 0);

@@ -185,6 +185,26 @@ TEST(MarkovArx, TheTruncationTestDoesNotFireOnAResponseThatHasDiedOut) {
   EXPECT_EQ(fired, 0);
 }
 
+// A response that truly grows (a pole at |z| = 1.01, 1500 samples from rest): a given
+// ARX order whose response grows beyond e^0.1 over the horizon is refused by name —
+// before, its recursion ran on and the CSV writer failed on a NaN standard error once it
+// overflowed.  (Without a given order the criterion's search takes the best-scored order
+// that does not grow, here order 1 at |z| 0.98, however much worse it scores: not
+// mended, said in the closing note.)
+TEST(MarkovArx, AGivenOrderWhoseResponseGrowsIsRefusedWithTheReason) {
+  const Plant s = modal_plant({{1.01, 0.2}}, 1, 1, 9151);
+  const Record r = simulate(s, 1500, 0.0, 9152);
+  MarkovOptions o = arx_options(300);
+  o.arx_order = 2;
+  try {
+    estimate_markov({{r.v, r.q}}, o);
+    FAIL() << "a given ARX order whose response grows was accepted";
+  } catch (const NumericalError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("ARX order 2 has a pole at |z| = 1.01"));
+    EXPECT_THAT(e.what(), HasSubstr("give another --arx-order"));
+  }
+}
+
 TEST(MarkovArx, AnOrderTheRecordsCannotSupportIsRefusedWithTheLimit) {
   const Plant s = modal_plant({{0.9, 0.3}}, 1, 1, 9141);
   const Record r = simulate(s, 200, 0.05, 9142);
