@@ -4,7 +4,7 @@
 //
 //   open loop (no --controller):  ŷ = M u, u the logged plant input (--input);
 //   closed loop (--controller C): ŷ = M (I + C M)⁻¹ v, v the logged excitation at the
-//     plant input (--excitation), or v = C (r − r̄) from the logged references
+//     plant input (--excitation), or v = C (r − r°) from the logged references
 //     (--excitation-at reference, as identify).
 //
 // Both simulated from x(0) = 0 ('z') and from the x(0) that fits the log best ('e',

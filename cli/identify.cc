@@ -607,8 +607,9 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
   } else {
     const IdentifyChoices& ch = r.choices;
     if (route.at_reference)
-      text += fmt::format("  excitation at the reference: v = C (r - mean r), the controller's response to {} from "
-                          "rest, is the plant-input excitation (e = r - q)\n",
+      text += fmt::format("  excitation at the reference: v = C (r - r°), the controller's response to {} about its "
+                          "operating point r° (the first setpoint if the log starts at rest there, else the mean), "
+                          "is the plant-input excitation (e = r - q)\n",
                           fmt::join(route.excitation, ","));
     text += fmt::format("  excitation: {}\n", ch.excitation_reason);
     text += fmt::format("  {}\n  fit band: {}\n  start: {}\n  plant order {}: {}\n  tail: {}\n  bands: {}\n  plant: {}, "

@@ -429,8 +429,23 @@ Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
                                  "reference per measured output, e = r - q)",
                                  reference.cols(), controller.num_inputs()));
   if (!reference.allFinite()) throw InputError("reference excitation: a reference value is not finite");
-  const Eigen::MatrixXd centred = reference.rowwise() - reference.colwise().mean();
-  return simulate_discrete(controller, centred);
+  // The operating point: the first setpoint when the references hold still there (a log
+  // that starts at rest before its moves: the loop stood at r(0)), else each reference's
+  // mean.  Filtering r minus anything else from rest adds the controller's step response
+  // to the difference — a derivative's kick at the first sample that the loop never
+  // applied (measured: a point-to-point log starting 0.1 m below its mean put 10⁴ A into
+  // v's first sample, whose broadband power outweighed the moves' above a few hertz), and
+  // a ramp through an integral action.  The constant left in v is removed downstream.
+  if (reference.rows() == 0) return Eigen::MatrixXd::Zero(0, controller.num_outputs());
+  const Index n = reference.rows(), still = std::max<Index>(kReferenceAtRestSamples, n / 200);
+  bool at_rest = n > still;
+  for (Index j = 0; j < reference.cols() && at_rest; ++j) {
+    const double range = reference.col(j).maxCoeff() - reference.col(j).minCoeff();
+    at_rest = (reference.col(j).head(still).array() - reference(0, j)).abs().maxCoeff() <= 1e-6 * range;
+  }
+  const Eigen::RowVectorXd operating = at_rest ? Eigen::RowVectorXd(reference.row(0)) : reference.colwise().mean();
+  const Eigen::MatrixXd deviation = reference.rowwise() - operating;
+  return simulate_discrete(controller, deviation);
 }
 
 BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const std::vector<Eigen::MatrixXd>& variance,

@@ -206,15 +206,18 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
 // Reference excitation (issue 24: a positioning axis excited through its setpoint).
 // With e = r − q the loop applies u = C(r − q) = C(−q) + C r: the references act as the
 // plant-input excitation v = C r of identify_closed_loop's loop (u = u_c + v), exactly
-// and for any controller.  Returns v = C (r − r̄) from the controller's zero state, r̄ each
-// reference's mean: the experiment is taken as deviations about an operating point at
-// which the loop stood still before the log (a log that starts from rest at r = 0 with
-// a zero-mean excitation is the same case).  A controller state at the first sample
-// that differs from this (a move in progress) leaves its decaying response in the
-// output as an unmodelled disturbance.
+// and for any controller.  Returns v = C (r − r°) from the controller's zero state: the
+// experiment is taken as deviations about the setpoint r° at which the loop stood still
+// before the log — r(0) when every reference holds it (within 1e-6 of its range) over
+// the first max(kReferenceAtRestSamples, N/200) samples (a log that starts at rest before
+// its moves), else each reference's mean (a zero-mean excitation about the operating
+// point); the constant this leaves in v and q is removed with their means downstream.
+// A controller state at the first sample that differs from this (a move in progress)
+// leaves its decaying response in the output as an unmodelled disturbance.
 // | controller: p inputs (e) -> m outputs | reference: N x p | result: N x m |
 // @throws InputError  reference's columns differ from the controller's inputs; a
 //                     non-finite reference.
+inline constexpr Index kReferenceAtRestSamples = 10;
 Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
                                               const Eigen::Ref<const Eigen::MatrixXd>& reference);
 

@@ -285,11 +285,21 @@ PlantFitResult choose_from_ladder(const StructuredRun& run, const MarkovBins& fi
     }
   if (best < 0 && beyond < 0) {
     throw NumericalError(fmt::format(
-        "no candidate plant (orders {}) {}", order_list(ch.order_candidates),
+        "no candidate plant (orders {}) {}{}", order_list(ch.order_candidates),
         open_loop ? "is stable and fits the open-loop logs to their noise floor; the plant may need an order beyond "
                     "the ladder (give --plant-order) or the route markov + realize"
                   : "closes a stable loop with the controller that fits the logs; check that the controller is the "
-                    "one that ran and that the logs are closed-loop data"));
+                    "one that ran and that the logs are closed-loop data",
+        open_loop || !run.coloured ? std::string()
+                                   : fmt::format(
+                                         "; or the excitation does not determine the loop's response: its spectral "
+                                         "density spans a factor {:.3g} and the information in it ends at {:.4g} "
+                                         "rad/s (the fit band), too narrow for the {}-lag response the starting "
+                                         "models come from (a few sines or slow point-to-point moves excite a "
+                                         "handful of frequencies) — add broadband excitation (noise or a "
+                                         "multisine on the reference or the plant input) over the band the plant "
+                                         "is wanted in",
+                                         run.colour_ratio, ch.fit_band_max_rad_s, run.L)));
   }
   Index chosen = at_floor;
   std::string why;

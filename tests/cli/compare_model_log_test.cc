@@ -88,7 +88,7 @@ TEST(CompareModelLog, TheTrueAxisReachesTheNoiseCeilingInClosedLoopAndAGainError
   const double fit = j["fit_percent"]["q"].get<double>();
   std::printf("axis in closed loop: truth fits %.4f %% ('z' %.4f %%), the noise allows %.4f %%\n", fit,
               j["fit_zero_state_percent"]["q"].get<double>(), ceiling);
-  // The model's loop, driven by v = C (r - mean r), is the noise-free loop up to a
+  // The model's loop, driven by v = C (r - r°), is the noise-free loop up to a
   // constant (the operating point: the fitted offset, 5 mm) and a decaying start (the
   // fitted initial state): 4 values fitted to 30 000 samples can raise the fit above the
   // ceiling by about sqrt(4 / 30000) of the noise's share (0.01 of ~0.3 points), and a
