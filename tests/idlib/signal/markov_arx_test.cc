@@ -189,11 +189,11 @@ TEST(MarkovArx, TheTruncationTestDoesNotFireOnAResponseThatHasDiedOut) {
 // ARX order whose response grows beyond e^0.1 over the horizon is refused by name —
 // before, its recursion ran on and the CSV writer failed on a NaN standard error once it
 // overflowed.  (Without a given order the criterion's search takes the best-scored order
-// that does not grow, here order 1 at |z| 0.98, however much worse it scores: not
-// mended, said in the closing note.)
+// that does not grow, here order 1, and warns: the next test.)
+Record growing_record() { return simulate(modal_plant({{1.01, 0.2}}, 1, 1, 9151), 1500, 0.0, 9152); }
+
 TEST(MarkovArx, AGivenOrderWhoseResponseGrowsIsRefusedWithTheReason) {
-  const Plant s = modal_plant({{1.01, 0.2}}, 1, 1, 9151);
-  const Record r = simulate(s, 1500, 0.0, 9152);
+  const Record r = growing_record();
   MarkovOptions o = arx_options(300);
   o.arx_order = 2;
   try {
@@ -211,8 +211,7 @@ TEST(MarkovArx, AGivenOrderWhoseResponseGrowsIsRefusedWithTheReason) {
 // AICc order has a spurious pole at |z| 1.014 and still predicts held-out halves better
 // than least squares: docs/real-data.md) and in its termination line.
 TEST(MarkovArx, TheCriterionsChoiceFarBehindAGrowingOrderIsWarnedOf) {
-  const Plant s = modal_plant({{1.01, 0.2}}, 1, 1, 9151);
-  const Record r = simulate(s, 1500, 0.0, 9152);
+  const Record r = growing_record();
   const MarkovResult m = estimate_markov({{r.v, r.q}}, arx_options(300));
   EXPECT_LE(m.arx_spectral_radius, 1.0 + 0.1 / 300);
   EXPECT_THAT(m.report.termination, HasSubstr("better-scored order(s) had a pole outside, the best of them order"));
