@@ -2,6 +2,8 @@
 // logs -> Markov parameters -> Hankel SVD and order -> closed loop G -> plant P,
 // with the Hankel singular values, a Bode plot and a report beside the models.
 #include <CLI/CLI.hpp>
+#include <limits>
+#include <optional>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -20,8 +22,10 @@
 #include "formats/plot/bode_plot.h"
 #include "formats/plot/sv_plot.h"
 #include "idlib/core/error.h"
+#include "idlib/identify/direct.h"
 #include "idlib/identify/identify.h"
 #include "idlib/lti/analysis.h"
+#include "idlib/lti/interconnect.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/validate/frequency_error.h"
 #include "idlib/identify/output_error.h"
@@ -60,6 +64,7 @@ struct IdentifyCliOptions {
   bool band_given = false;  // --band-min or --band-max on the command line
   bool no_refine = false;
   bool no_order_check = false;
+  bool no_direct = false;
 };
 
 nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
@@ -262,6 +267,10 @@ struct IdentifyInputs {
   Eigen::VectorXd weights;
   ExperimentSet set;
   std::vector<std::string> loop_inputs;  // the inputs of v -> q
+  // --excitation-at reference: the references as logged (the direct route's e = r - q).
+  std::vector<Eigen::MatrixXd> references;
+  // The direct route ran (identify_direct): why, and what it found; null otherwise.
+  nlohmann::json direct;
 };
 
 IdentifyInputs read_identify_inputs(const IdentifyCliOptions& o, const IdentifyRoute& route) {
@@ -289,6 +298,7 @@ IdentifyInputs read_identify_inputs(const IdentifyCliOptions& o, const IdentifyR
   // is v -> q.
   in.loop_inputs = excitation;
   if (route.at_reference) {
+    in.references = in.set.excitations;
     for (auto& x : in.set.excitations) x = reference_as_input_excitation(controller, x);
     in.loop_inputs.clear();
     for (Index j = 0; j < controller.num_outputs(); ++j)
@@ -598,7 +608,11 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
   const auto& output = route.output;
   const double Ts = in.set.sample_period_s;
   std::string text = fmt::format("identify ({}{}): {} experiment(s), Ts = {:.6g} s\n", era ? "era" : "structured",
-                                 o.open_loop ? ", open loop" : "", in.set.paths.size(), Ts);
+                                 !in.direct.is_null() ? ", direct" : o.open_loop ? ", open loop" : "",
+                                 in.set.paths.size(), Ts);
+  if (!in.direct.is_null())
+    text += fmt::format("  route: direct — {}; the plant fitted to {} and the outputs\n",
+                        in.direct["why"].get<std::string>(), in.direct["input"].get<std::string>());
   if (era) {
     text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
                         r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
@@ -650,13 +664,134 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
   return text;
 }
 
-void run(const IdentifyCliOptions& o) {
-  const IdentifyRoute route = identify_route(o);
+// The direct route (issue 24: a closed loop exercised by point-to-point moves, or logged
+// with the drive's command as its "excitation"): when the route through the loop's
+// response finds no plant, the plant is fitted where such logs determine it (direct.h).
+// Two readings of the logs are tried: (a) the loop as declared: low-order starts fitted to
+// the input the loop applied, u = v + C(r - q), and q, each refined by output error in
+// its loop (the loop simulated from v, so the output noise the feedback returns to u
+// does not bias it); (b) with --excitation-at input, the excitation columns as the
+// plant's own input (a drive's logged command: v is u), fitted as open-loop data (D = 0).
+// The reading whose plant closes a stable loop with the controller and leaves the
+// smaller output error is taken, and said so; none: the closed-loop route's failure
+// stands, with what the direct route found.
+IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, IdentifyInputs& in,
+                               const std::string& failure) {
+  struct Reading {
+    std::string name, sentence;
+    IdentifyInputs in;
+    std::optional<IdentifyResult> r;
+    double cost = std::numeric_limits<double>::infinity();
+    bool loop_stable = false, open_loop = true;
+    std::string outcome;
+  };
+  const StateSpace& C = in.controller;
+  std::vector<std::string> u_names;
+  for (Index j = 0; j < C.num_outputs(); ++j)
+    u_names.push_back(C.output_names.size() == static_cast<std::size_t>(C.num_outputs())
+                          ? C.output_names[static_cast<std::size_t>(j)]
+                          : fmt::format("u{}", j + 1));
+  std::vector<Reading> readings(route.at_reference ? 1 : 2);
+  Reading& a = readings[0];
+  a.name = "applied";
+  a.sentence = route.at_reference ? "u = C(r - q), the input the loop applied"
+                                  : "u = v + C(-q), the input the loop applied with v added";
+  a.open_loop = false;
+  IdentifyInputs applied = in;
+  for (std::size_t e = 0; e < in.set.outputs.size(); ++e) {
+    const Eigen::MatrixXd none(0, 0);
+    applied.set.excitations[e] =
+        route.at_reference ? applied_plant_input(C, none, in.references[e], in.set.outputs[e])
+                           : applied_plant_input(C, in.set.excitations[e], none, in.set.outputs[e]);
+  }
+  applied.loop_inputs = u_names;
+  IdentifyCliOptions oo = o;
+  oo.open_loop = true;
+  IdentifyRoute rr = route;
+  rr.at_reference = false;
+  rr.options.open_loop_feedthrough = false;
+  // Each reading: the Markov estimate and the report's fields from the open-loop route
+  // on its (u, q), unrefined; the plant from the ARX ladder (direct.h), refined in the
+  // loop (`loop` the loop's own logs) or as open-loop data (`loop` empty).
+  const auto fit_reading = [&](Reading& x, const IdentifyInputs& data, const std::vector<ExperimentView>& loop,
+                               const char* how) {
+    IdentifyRoute base_route = rr;
+    base_route.excitation = data.loop_inputs;
+    base_route.options.refine_output_error = false;
+    base_route.options.check_order_held_out = false;
+    try {
+      IdentifyResult base = identify_from_logs(oo, base_route, data);
+      const DirectLadder ladder =
+          identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C, kDirectMaxOrder, base);
+      if (!ladder.found) {
+        x.outcome = fmt::format("{}: {}", x.sentence, ladder.reason);
+        return;
+      }
+      x.r = std::move(base);
+      x.cost = x.r->choices.refinement.cost;
+      x.loop_stable = true;
+      x.outcome = fmt::format("{}: order {} refined {}, normalised squared simulation error {:.4g}", x.sentence,
+                              x.r->plant.order(), how, x.cost);
+    } catch (const NumericalError& e) {
+      x.outcome = fmt::format("{}: no plant ({})", x.sentence, e.what());
+    }
+  };
+  fit_reading(a, applied, in.set.views(), "in its loop");
+  if (a.r) {
+    a.r->closed_loop.input_names = in.loop_inputs;
+    a.r->closed_loop.output_names = route.output;
+  }
+  a.in = in;  // the loop's own data: the plant is reported inside its loop
+  if (!route.at_reference) {
+    Reading& b = readings[1];
+    b.name = "excitation is the input";
+    b.sentence = "u = v, the excitation columns as the plant's own input (a drive's logged command)";
+    b.in = in;
+    fit_reading(b, b.in, {}, "as open-loop data");
+  }
+  Reading* best = nullptr;
+  for (Reading& x : readings)
+    if (x.r && x.loop_stable && std::isfinite(x.cost) && (best == nullptr || x.cost < best->cost)) best = &x;
+  std::vector<std::string> outcomes;
+  for (const Reading& x : readings) outcomes.push_back(x.outcome);
+  if (best == nullptr)
+    throw NumericalError(fmt::format("{}; nor did the direct route (the plant fitted to the input the loop applied): {}",
+                                     failure, fmt::join(outcomes, "; ")));
+  IdentifyResult r = std::move(*best->r);
+  in = std::move(best->in);
+  in.direct = {{"why", "the route through the loop's response found no plant: " + failure},
+               {"reading", best->name},
+               {"input", best->sentence},
+               {"readings", outcomes}};
+  r.warnings.push_back(fmt::format("identify: the closed-loop route found no plant; the direct route took {} ({})",
+                                   best->sentence, fmt::join(outcomes, "; ")));
+  if (best->open_loop) {
+    o = oo;
+    route = rr;
+    route.excitation = in.loop_inputs;
+  }
+  return r;
+}
+
+void run(const IdentifyCliOptions& given) {
+  IdentifyCliOptions o = given;
+  IdentifyRoute route = identify_route(o);
   OutputSet outputs;
   check_identify_outputs(outputs, o);
-  const IdentifyInputs in = read_identify_inputs(o, route);
-  const IdentifyResult r = identify_from_logs(o, route, in);
+  IdentifyInputs in = read_identify_inputs(o, route);
+  IdentifyResult r;
+  try {
+    r = identify_from_logs(o, route, in);
+  } catch (const NumericalError& e) {
+    if (route.era || o.open_loop || o.no_direct) throw;
+    r = identify_direct(o, route, in, e.what());
+  }
   nlohmann::json report = identify_report(o, route, in, r);
+  if (!in.direct.is_null()) {
+    report["route"] = "direct: the closed-loop route found no plant; the plant from the input the loop applied";
+    report["controller"] = given.controller;
+    report["direct"] = in.direct;
+  }
   const IdentifyBode bode = identify_bode(report, o, route, in, r);
   const std::optional<InstabilityEvidence> instability = instability_of(r.plant, bode.support);
   add_instability(report, instability);
@@ -715,6 +850,9 @@ Command make_identify_command() {
             app->add_flag("--json", o->json, "print the report as JSON");
             app->add_flag("--no-refine", o->no_refine,
                           "structured: keep the structured fit (no output-error refinement on the logs)");
+            app->add_flag("--no-direct", o->no_direct,
+                          "closed loop, structured: when no plant fits through the loop's response, fail instead of "
+                          "identifying the plant directly from the input the loop applied");
             app->add_flag("--no-order-check", o->no_order_check,
                           "open loop, structured, refined: keep the ladder's order (do not check orders n-2..n+2 on "
                           "held-out halves of the logs)");

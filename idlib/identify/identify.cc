@@ -375,8 +375,17 @@ IdentifyResult identify_open_loop_at(const std::vector<ExperimentView>& experime
           ++kept;
         }
       }
+    if (!options.open_loop_feedthrough) {
+      D.setZero();
+      r.feedthrough_variance.setZero();
+      kept = 0;
+    }
     r.plant.D = D;
     r.choices.feedthrough_reason =
+        !options.open_loop_feedthrough
+            ? std::string("no feedthrough (D = 0): the plant of a sampled loop has none, and the input the loop applied "
+                          "holds the output's own noise at lag 0")
+            :
         kept > 0 ? fmt::format("D from the lag-0 Markov parameter: {} of {} entries above {:g} standard errors (largest "
                                "{:.3g})",
                                kept, p * m, kFeedthroughSigmas, largest)
@@ -446,6 +455,28 @@ Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
   const Eigen::RowVectorXd operating = at_rest ? Eigen::RowVectorXd(reference.row(0)) : reference.colwise().mean();
   const Eigen::MatrixXd deviation = reference.rowwise() - operating;
   return simulate_discrete(controller, deviation);
+}
+
+Eigen::MatrixXd applied_plant_input(const StateSpace& controller, const Eigen::Ref<const Eigen::MatrixXd>& added,
+                                    const Eigen::Ref<const Eigen::MatrixXd>& reference,
+                                    const Eigen::Ref<const Eigen::MatrixXd>& output) {
+  controller.validate();
+  const Index n = output.rows(), p = controller.num_inputs(), m = controller.num_outputs();
+  if (output.cols() != p || (reference.size() > 0 && (reference.rows() != n || reference.cols() != p)) ||
+      (added.size() > 0 && (added.rows() != n || added.cols() != m)))
+    throw InputError(fmt::format("plant input: a controller of {} input(s) and {} output(s) for {} x {} outputs, {} x "
+                                 "{} references and {} x {} added excitations",
+                                 p, m, output.rows(), output.cols(), reference.rows(), reference.cols(), added.rows(),
+                                 added.cols()));
+  if (!output.allFinite() || !reference.allFinite() || !added.allFinite())
+    throw InputError("plant input: a logged value is not finite");
+  if (n == 0) return Eigen::MatrixXd::Zero(0, m);
+  Eigen::MatrixXd e = -output;
+  if (reference.size() > 0) e += reference;
+  e.rowwise() -= Eigen::RowVectorXd(e.row(0));
+  Eigen::MatrixXd u = simulate_discrete(controller, e);
+  if (added.size() > 0) u += added;
+  return u;
 }
 
 BandSupport band_support(const std::vector<Eigen::MatrixXcd>& response, const std::vector<Eigen::MatrixXd>& variance,

@@ -71,6 +71,11 @@ struct IdentifyOptions {
   // chose on data kept out of the fit (order_held_out.cc) and take another where the
   // held-out data prove it predicts better.
   bool check_order_held_out = true;
+  // identify_open_loop: false fixes D = 0 (no lag-0 feedthrough).  The direct route on a
+  // closed loop's logs (cli identify) needs it: a plant inside a sampled loop has none,
+  // and u computed from the same output holds that output's noise at lag 0, so a free D
+  // would fit the controller's inverse instead of the plant.
+  bool open_loop_feedthrough = true;
   // Relative tolerance on |Ts_log - Ts_controller| / Ts_controller.
   double sample_period_tolerance = 1e-6;
   // Reports (idlib/core/progress.h), nullptr: none.  Task "identify", one step per
@@ -220,6 +225,19 @@ IdentifyResult identify_open_loop(const std::vector<ExperimentView>& experiments
 inline constexpr Index kReferenceAtRestSamples = 10;
 Eigen::MatrixXd reference_as_input_excitation(const StateSpace& controller,
                                               const Eigen::Ref<const Eigen::MatrixXd>& reference);
+
+// The plant input a loop applied, for the direct route (identify a closed loop's plant
+// from u and q as open-loop data, when the route through the loop's response finds no
+// plant): u = v + C(e − e(0)) with e = r − q, filtered from the controller's zero state
+// — e(0) taken as the loop's standing error (a loop at rest tracks its setpoint; filtering
+// the raw error would add the controller's step response to it, a kick the loop never
+// applied).  `added` is the excitation added to the controller's output (N x m, or empty:
+// none), `reference` the setpoints (N x p, or empty: a constant setpoint).
+// | controller: p inputs (e) -> m outputs | output: N x p | result: N x m |
+// @throws InputError  shapes that differ from the controller's; non-finite values.
+Eigen::MatrixXd applied_plant_input(const StateSpace& controller, const Eigen::Ref<const Eigen::MatrixXd>& added,
+                                    const Eigen::Ref<const Eigen::MatrixXd>& reference,
+                                    const Eigen::Ref<const Eigen::MatrixXd>& output);
 
 // Where the data pin the plant down (issue 24: "say what the data cannot support"): the
 // relative width of the 95 % band, r(ω) = kBandRadiusPerSigma √(Σ_ij var_ij) / ‖P̂‖_F,
