@@ -667,14 +667,13 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
 // The direct route (issue 24: a closed loop exercised by point-to-point moves, or logged
 // with the drive's command as its "excitation"): when the route through the loop's
 // response finds no plant, the plant is fitted where such logs determine it (direct.h).
-// Two readings of the logs are tried: (a) the loop as declared: low-order starts fitted to
-// the input the loop applied, u = v + C(r - q), and q, each refined by output error in
-// its loop (the loop simulated from v, so the output noise the feedback returns to u
-// does not bias it); (b) with --excitation-at input, the excitation columns as the
-// plant's own input (a drive's logged command: v is u), fitted as open-loop data (D = 0).
-// The reading whose plant closes a stable loop with the controller and leaves the
-// smaller output error is taken, and said so; none: the closed-loop route's failure
-// stands, with what the direct route found.
+// References: low-order starts fitted to the input the loop applied, u = C(r - q), and q,
+// each refined by output error in its loop (simulated from v, so the output noise the
+// feedback returns to u does not bias it).  An input-side excitation: the columns read
+// as the plant's own input (a drive's logged command: v is u), fitted as open-loop data
+// (D = 0) and kept when the plant closes a stable loop with the controller.  Said so in
+// the report; no plant: the closed-loop route's failure stands, with what the direct
+// route found.
 IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, IdentifyInputs& in,
                                const std::string& failure) {
   struct Reading {
@@ -691,7 +690,14 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
     u_names.push_back(C.output_names.size() == static_cast<std::size_t>(C.num_outputs())
                           ? C.output_names[static_cast<std::size_t>(j)]
                           : fmt::format("u{}", j + 1));
-  std::vector<Reading> readings(route.at_reference ? 1 : 2);
+  // One reading per way the excitation can enter: references — the loop as declared;
+  // an input-side column — the plant's own input (a drive's command).  The declared
+  // input-side loop (u = v + C(-q)) is not tried: where the route through the loop's
+  // response fails on such logs, a linear fit of it can still close a stable loop —
+  // measured on a friction axis whose drive command was given as the excitation: an
+  // order-3 plant with a pole at +1150 rad/s, 100 % off the axis, bands "supported" —
+  // where the refusal was the honest answer.
+  std::vector<Reading> readings(2);
   Reading& a = readings[0];
   a.name = "applied";
   a.sentence = route.at_reference ? "u = C(r - q), the input the loop applied"
@@ -736,7 +742,7 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
       x.outcome = fmt::format("{}: no plant ({})", x.sentence, e.what());
     }
   };
-  fit_reading(a, applied, in.set.views(), "in its loop");
+  if (route.at_reference) fit_reading(a, applied, in.set.views(), "in its loop");
   if (a.r) {
     a.r->closed_loop.input_names = in.loop_inputs;
     a.r->closed_loop.output_names = route.output;
@@ -749,6 +755,10 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
     b.in = in;
     fit_reading(b, b.in, {}, "as open-loop data");
   }
+  if (route.at_reference)
+    readings.pop_back();
+  else
+    readings.erase(readings.begin());
   Reading* best = nullptr;
   for (Reading& x : readings)
     if (x.r && x.loop_stable && std::isfinite(x.cost) && (best == nullptr || x.cost < best->cost)) best = &x;
