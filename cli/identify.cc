@@ -676,111 +676,78 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
 // route found.
 IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, IdentifyInputs& in,
                                const std::string& failure) {
-  struct Reading {
-    std::string name, sentence;
-    IdentifyInputs in;
-    std::optional<IdentifyResult> r;
-    double cost = std::numeric_limits<double>::infinity();
-    bool loop_stable = false, open_loop = true;
-    std::string outcome;
-  };
   const StateSpace& C = in.controller;
-  std::vector<std::string> u_names;
-  for (Index j = 0; j < C.num_outputs(); ++j)
-    u_names.push_back(C.output_names.size() == static_cast<std::size_t>(C.num_outputs())
-                          ? C.output_names[static_cast<std::size_t>(j)]
-                          : fmt::format("u{}", j + 1));
-  // One reading per way the excitation can enter: references — the loop as declared;
-  // an input-side column — the plant's own input (a drive's command).  The declared
-  // input-side loop (u = v + C(-q)) is not tried: where the route through the loop's
-  // response fails on such logs, a linear fit of it can still close a stable loop —
-  // measured on a friction axis whose drive command was given as the excitation: an
-  // order-3 plant with a pole at +1150 rad/s, 100 % off the axis, bands "supported" —
-  // where the refusal was the honest answer.
-  std::vector<Reading> readings(2);
-  Reading& a = readings[0];
-  a.name = "applied";
-  a.sentence = route.at_reference ? "u = C(r - q), the input the loop applied"
-                                  : "u = v + C(-q), the input the loop applied with v added";
-  a.open_loop = false;
-  IdentifyInputs applied = in;
-  for (std::size_t e = 0; e < in.set.outputs.size(); ++e) {
-    const Eigen::MatrixXd none(0, 0);
-    applied.set.excitations[e] =
-        route.at_reference ? applied_plant_input(C, none, in.references[e], in.set.outputs[e])
-                           : applied_plant_input(C, in.set.excitations[e], none, in.set.outputs[e]);
+  // One reading per way the excitation enters: references — the loop as declared, u =
+  // C(r - q), refined in its loop; an input-side column — the plant's own input (a
+  // drive's command), refined as open-loop data.  The declared input-side loop (u = v +
+  // C(-q)) is not fitted: where the route through the loop's response fails on such
+  // logs, a linear fit of it can still close a stable loop — measured on a friction axis
+  // whose drive command was given as the excitation: an order-3 plant with a pole at
+  // +1150 rad/s, 100 % off the axis, bands "supported" — where the refusal was the honest
+  // answer.
+  const bool in_loop = route.at_reference;
+  const std::string name = in_loop ? "applied" : "excitation is the input";
+  const std::string sentence =
+      in_loop ? "u = C(r - q), the input the loop applied"
+              : "u = v, the excitation columns as the plant's own input (a drive's logged command)";
+  IdentifyInputs data = in;
+  if (in_loop) {
+    data.loop_inputs.clear();
+    for (Index j = 0; j < C.num_outputs(); ++j)
+      data.loop_inputs.push_back(C.output_names.size() == static_cast<std::size_t>(C.num_outputs())
+                                     ? C.output_names[static_cast<std::size_t>(j)]
+                                     : fmt::format("u{}", j + 1));
+    for (std::size_t e = 0; e < in.set.outputs.size(); ++e)
+      data.set.excitations[e] =
+          applied_plant_input(C, Eigen::MatrixXd(0, 0), in.references[e], in.set.outputs[e]);
   }
-  applied.loop_inputs = u_names;
+  // The Markov estimate and the report's fields from the open-loop route on (u, q),
+  // unrefined; the plant from the ARX ladder (direct.h).
   IdentifyCliOptions oo = o;
   oo.open_loop = true;
   IdentifyRoute rr = route;
   rr.at_reference = false;
   rr.options.open_loop_feedthrough = false;
-  // Each reading: the Markov estimate and the report's fields from the open-loop route
-  // on its (u, q), unrefined; the plant from the ARX ladder (direct.h), refined in the
-  // loop (`loop` the loop's own logs) or as open-loop data (`loop` empty).
-  const auto fit_reading = [&](Reading& x, const IdentifyInputs& data, const std::vector<ExperimentView>& loop,
-                               const char* how) {
-    IdentifyRoute base_route = rr;
-    base_route.excitation = data.loop_inputs;
-    base_route.options.refine_output_error = false;
-    base_route.options.check_order_held_out = false;
-    try {
-      IdentifyResult base = identify_from_logs(oo, base_route, data);
-      const DirectLadder ladder =
-          identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C, kDirectMaxOrder, base);
-      if (!ladder.found) {
-        x.outcome = fmt::format("{}: {}", x.sentence, ladder.reason);
-        return;
-      }
-      x.r = std::move(base);
-      x.cost = x.r->choices.refinement.cost;
-      x.loop_stable = true;
-      x.outcome = fmt::format("{}: order {} refined {}, normalised squared simulation error {:.4g}", x.sentence,
-                              x.r->plant.order(), how, x.cost);
-    } catch (const NumericalError& e) {
-      x.outcome = fmt::format("{}: no plant ({})", x.sentence, e.what());
+  rr.excitation = data.loop_inputs;
+  IdentifyRoute base_route = rr;
+  base_route.options.refine_output_error = false;
+  base_route.options.check_order_held_out = false;
+  std::string outcome;
+  std::optional<IdentifyResult> r;
+  try {
+    IdentifyResult base = identify_from_logs(oo, base_route, data);
+    const std::vector<ExperimentView> loop = in_loop ? in.set.views() : std::vector<ExperimentView>{};
+    const DirectLadder ladder =
+        identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C, kDirectMaxOrder, base);
+    if (ladder.found) {
+      r = std::move(base);
+      outcome = fmt::format("{}: order {} refined {}, normalised squared simulation error {:.4g}", sentence,
+                            r->plant.order(), in_loop ? "in its loop" : "as open-loop data",
+                            r->choices.refinement.cost);
+    } else {
+      outcome = fmt::format("{}: {}", sentence, ladder.reason);
     }
-  };
-  if (route.at_reference) fit_reading(a, applied, in.set.views(), "in its loop");
-  if (a.r) {
-    a.r->closed_loop.input_names = in.loop_inputs;
-    a.r->closed_loop.output_names = route.output;
+  } catch (const NumericalError& e) {
+    outcome = fmt::format("{}: no plant ({})", sentence, e.what());
   }
-  a.in = in;  // the loop's own data: the plant is reported inside its loop
-  if (!route.at_reference) {
-    Reading& b = readings[1];
-    b.name = "excitation is the input";
-    b.sentence = "u = v, the excitation columns as the plant's own input (a drive's logged command)";
-    b.in = in;
-    fit_reading(b, b.in, {}, "as open-loop data");
-  }
-  if (route.at_reference)
-    readings.pop_back();
-  else
-    readings.erase(readings.begin());
-  Reading* best = nullptr;
-  for (Reading& x : readings)
-    if (x.r && x.loop_stable && std::isfinite(x.cost) && (best == nullptr || x.cost < best->cost)) best = &x;
-  std::vector<std::string> outcomes;
-  for (const Reading& x : readings) outcomes.push_back(x.outcome);
-  if (best == nullptr)
+  if (!r)
     throw NumericalError(fmt::format("{}; nor did the direct route (the plant fitted to the input the loop applied): {}",
-                                     failure, fmt::join(outcomes, "; ")));
-  IdentifyResult r = std::move(*best->r);
-  in = std::move(best->in);
-  in.direct = {{"why", "the route through the loop's response found no plant: " + failure},
-               {"reading", best->name},
-               {"input", best->sentence},
-               {"readings", outcomes}};
-  r.warnings.push_back(fmt::format("identify: the closed-loop route found no plant; the direct route took {} ({})",
-                                   best->sentence, fmt::join(outcomes, "; ")));
-  if (best->open_loop) {
+                                     failure, outcome));
+  if (in_loop) {  // reported inside its loop, on the loop's own data
+    r->closed_loop.input_names = in.loop_inputs;
+    r->closed_loop.output_names = route.output;
+  } else {
+    in = std::move(data);
     o = oo;
     route = rr;
-    route.excitation = in.loop_inputs;
   }
-  return r;
+  in.direct = {{"why", "the route through the loop's response found no plant: " + failure},
+               {"reading", name},
+               {"input", sentence},
+               {"readings", {outcome}}};
+  r->warnings.push_back(
+      fmt::format("identify: the closed-loop route found no plant; the direct route took {} ({})", sentence, outcome));
+  return std::move(*r);
 }
 
 void run(const IdentifyCliOptions& given) {
@@ -862,7 +829,7 @@ Command make_identify_command() {
                           "structured: keep the structured fit (no output-error refinement on the logs)");
             app->add_flag("--no-direct", o->no_direct,
                           "closed loop, structured: when no plant fits through the loop's response, fail instead of "
-                          "identifying the plant directly from the input the loop applied");
+                          "taking the direct route (docs/math.md section 2b)");
             app->add_flag("--no-order-check", o->no_order_check,
                           "open loop, structured, refined: keep the ladder's order (do not check orders n-2..n+2 on "
                           "held-out halves of the logs)");
