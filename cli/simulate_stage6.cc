@@ -227,11 +227,15 @@ stage6::ExperimentRun fly_stage6(const Stage6Options& o, const Stage6Flight& f,
   if (o.experiment && gaps.min_gap_m <= 0) {
     std::string what = "lower the signal's level (lpvid excite --rms or --peak)";
     if (!excitation) {
-      // The level that flies, found as the default one is: halving from the user's.
-      const ExperimentRun lower = simulate_experiment_in_gap(f.truth, f.effects, f.q0, f.qr, f.smc, f.sim, true);
+      // The level that flies, found as the default one is: halving from the user's,
+      // whose run (above) is not flown again — the search starts at half of it.
+      stage6::SimulationOptions half = f.sim;
+      half.excitation_std *= 0.5;
+      const ExperimentRun lower = simulate_experiment_in_gap(f.truth, f.effects, f.q0, f.qr, f.smc, half, true);
       what = lower.gaps.min_gap_m > 0
                  ? fmt::format("give --excitation-scale {:g} (the gaps then stay within {:.0f} to {:.0f} um)",
-                               o.excitation_scale * lower.scale, 1e6 * lower.gaps.min_gap_m, 1e6 * lower.gaps.max_gap_m)
+                               o.excitation_scale * 0.5 * lower.scale, 1e6 * lower.gaps.min_gap_m,
+                               1e6 * lower.gaps.max_gap_m)
                  : "give a much smaller --excitation-scale";
     }
     throw InputError(fmt::format(
