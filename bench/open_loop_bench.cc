@@ -1,5 +1,6 @@
 // Issue 24's benchmarks: the open-loop route (identify_open_loop, structured fit and
-// output-error refinement) and the refinement alone on 10⁶ samples; compare --log's
+// output-error refinement) and the refinement alone on 10⁶ samples; the direct route on
+// a point-to-point axis with and without friction; compare --log's
 // numerics for any model on 10⁶ samples; the periodic FRF on the F-16 ground vibration
 // test (real data, read from ../shared/real-data when present, else skipped with the
 // reason in the table).
@@ -10,12 +11,14 @@
 #include <random>
 
 #include "formats/io/csv_log.h"
+#include "idlib/identify/direct.h"
 #include "idlib/identify/identify.h"
 #include "idlib/identify/output_error.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/signal/periodic_frf.h"
 #include "idlib/validate/nonlinearity.h"
 #include "idlib/validate/time_fit.h"
+#include "tests/support/friction_axis.h"
 #include "tests/support/real_data.h"
 
 namespace {
@@ -136,5 +139,46 @@ void BM_PeriodicFrf_F16_Level1(benchmark::State& state) {
   state.counters["samples"] = static_cast<double>(v.rows());
 }
 BENCHMARK(BM_PeriodicFrf_F16_Level1)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+
+// identify's direct route (direct.h) on point-to-point moves, after parsing: the friction
+// axis of tests/support/friction_axis.h, 30 s at 1 kHz, under its PD; /0 the axis with no
+// friction (the linear ladder, orders 1..4), /1 with Coulomb friction and an offset (the
+// ladder with friction beside the plant, orders 1..2, as identify runs it after the
+// linear one).  The route is for such short, low-order logs; 10⁶ samples of it would be
+// the output-error refinement's cost, measured above.
+void BM_IdentifyDirect_FrictionAxis_30s(benchmark::State& state) {
+  const bool friction = state.range(0) != 0;
+  friction_axis::Truth t;
+  if (!friction) t.coulomb_N = t.offset_N = 0.0;
+  friction_axis::Experiment e;
+  e.point_to_point = true;
+  const friction_axis::Log log = friction_axis::simulate(t, e);
+  // The simulator's PD on e = r − enc, as tests/cli/reference_identify_test.cc writes it.
+  const double wc = 2 * M_PI * 30.0, kp = t.m_kg * wc * wc, kd = 2 * 0.7 * t.m_kg * wc;
+  const double a = std::exp(-2 * M_PI * 300.0 * kTs), c = (1 - a) / kTs, kf = t.k_f_N_per_A;
+  StateSpace C;
+  C.A.resize(2, 2);
+  C.A << a, -c, 0.0, 0.0;
+  C.B.resize(2, 1);
+  C.B << c, 1.0;
+  C.C.resize(1, 2);
+  C.C << kd * a / kf, -kd * c / kf;
+  C.D = Eigen::MatrixXd::Constant(1, 1, (kp + kd * c) / kf);
+  C.sample_period_s = kTs;
+  const Eigen::MatrixXd r = log.r, q = log.x;
+  const Eigen::MatrixXd u = applied_plant_input(C, Eigen::MatrixXd(0, 0), r, q);
+  const Eigen::MatrixXd v = simulate_discrete(C, (r.array() - r(0, 0)).matrix());
+  const std::vector<ExperimentView> loop = {{v, q}}, applied = {{u, q}};
+  for (auto _ : state) {
+    IdentifyResult base;
+    const DirectLadder ladder = identify_direct_in_loop(loop, applied, kTs, C, friction ? 2 : kDirectMaxOrder, base,
+                                                        friction);
+    benchmark::DoNotOptimize(base.plant.A.data());
+    state.counters["order"] = static_cast<double>(ladder.order);
+    state.counters["coulomb"] = ladder.friction ? ladder.friction->coulomb(0, 0) : 0.0;
+  }
+}
+BENCHMARK(BM_IdentifyDirect_FrictionAxis_30s)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime()->UseRealTime();
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <limits>
 #include <optional>
+#include <algorithm>
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -613,6 +615,8 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
   if (!in.direct.is_null())
     text += fmt::format("  route: direct — {}; the plant fitted to {} and the outputs\n",
                         in.direct["why"].get<std::string>(), in.direct["input"].get<std::string>());
+  if (!in.direct.is_null() && !in.direct["friction"].is_null())
+    text += "  friction: " + in.direct["friction"]["sentence"].get<std::string>() + "\n";
   if (era) {
     text += fmt::format("  horizon: {} lags ({:.4g} s)\n  closed loop: order {} ({})\n  plant: order {} ({} modes removed), {}\n",
                         r.num_lags, static_cast<double>(r.num_lags) * Ts, r.closed_loop.order(), r.era.selection.reason,
@@ -654,6 +658,9 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
                                         o.open_loop ? "u -> y" : "v -> q", fmt::join(figures, ", "),
                                         fmt::join(figures_e, ", "));
     text += "  nonlinearity: " + report["closed_loop"]["nonlinearity"]["sentence"].get<std::string>() + "\n";
+    if (!in.direct.is_null() && !in.direct["friction"].is_null())
+      text += "  (the fits and the nonlinearity above are of the linear part's loop alone: the friction fitted beside "
+              "it is what they miss)\n";
   }
   if (in.truth)
     text += fmt::format("  against {}: weighted error mean {:.3f} %, max {:.3f} % ({}-{} rad/s)\n", o.truth,
@@ -674,6 +681,40 @@ std::string identify_text(const IdentifyCliOptions& o, const IdentifyRoute& rout
 // (D = 0) and kept when the plant closes a stable loop with the controller.  Said so in
 // the report; no plant: the closed-loop route's failure stands, with what the direct
 // route found.
+// The friction the direct route fitted beside the plant (direct.h DirectFriction), in
+// the plant input's units, and a sentence for the summary.
+nlohmann::json friction_json(const DirectFriction& f, const std::vector<std::string>& inputs,
+                             const std::vector<std::string>& outputs) {
+  std::vector<std::string> parts;
+  for (Index i = 0; i < f.coulomb.rows(); ++i) {
+    const std::string in = i < static_cast<Index>(inputs.size()) ? inputs[static_cast<std::size_t>(i)]
+                                                                  : fmt::format("u{}", i + 1);
+    for (Index j = 0; j < f.coulomb.cols(); ++j) {
+      const std::string out = j < static_cast<Index>(outputs.size()) ? outputs[static_cast<std::size_t>(j)]
+                                                                      : fmt::format("y{}", j + 1);
+      const double c = f.coulomb(i, j);
+      if (f.coulomb.size() > 1 && i != j) continue;  // the diagonal: each input's own axis
+      parts.push_back(fmt::format("{:.4g} on {} {} {}'s motion", std::abs(c), in, c < 0 ? "against" : "WITH", out));
+    }
+    parts.push_back(fmt::format("an offset of {:.4g} on {}", f.offset(i), in));
+  }
+  nlohmann::json coulomb = nlohmann::json::array();
+  for (Index i = 0; i < f.coulomb.rows(); ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Index j = 0; j < f.coulomb.cols(); ++j) row.push_back(f.coulomb(i, j));
+    coulomb.push_back(row);
+  }
+  std::vector<double> offset(f.offset.data(), f.offset.data() + f.offset.size());
+  return {{"coulomb", coulomb},
+          {"offset", offset},
+          {"sentence",
+           fmt::format("the linear plant's residual followed the sign of the velocity, so the plant was fitted with "
+                       "friction beside it (Coulomb-like and an offset while it moves; the rests, where a stuck axis "
+                       "holds whatever balances it, left out): {} (forces at the input, in its units); the plant is the "
+                       "linear part",
+                       fmt::join(parts, ", "))}};
+}
+
 IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, IdentifyInputs& in,
                                const std::string& failure) {
   const StateSpace& C = in.controller;
@@ -713,17 +754,54 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
   base_route.options.refine_output_error = false;
   base_route.options.check_order_held_out = false;
   std::string outcome;
+  nlohmann::json friction;  // null: the plant alone
+  std::string friction_tried;  // why friction was sought and not found
   std::optional<IdentifyResult> r;
   try {
     IdentifyResult base = identify_from_logs(oo, base_route, data);
+    const IdentifyResult unfitted = base;
     const std::vector<ExperimentView> loop = in_loop ? in.set.views() : std::vector<ExperimentView>{};
-    const DirectLadder ladder =
+    DirectLadder ladder =
         identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C, kDirectMaxOrder, base);
+    // Friction: when the linear plant's residual follows the sign of the velocity (the
+    // test of the summary's nonlinearity line, judged over record segments), the ladder
+    // again with friction beside the plant, up to the linear one's order (direct.h).
+    // When no linear plant closes a stable loop, with friction too (up to the largest order).
+    bool flips = !ladder.found;
+    if (ladder.found) {
+      const NonlinearityResult nl = nonlinearity_on_logs(base.closed_loop, in_loop ? in.set : data.set);
+      flips = std::any_of(nl.significant.begin(), nl.significant.end(), [&](Index i) {
+        return nl.tests[static_cast<std::size_t>(i)].feature == "sign of the rate";
+      });
+    }
+    {
+      if (flips) {
+        IdentifyResult with = unfitted;
+        const DirectLadder lf = identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C,
+                                                        ladder.found ? ladder.arx_order : kDirectMaxOrder, with, true);
+        if (lf.found) {
+          base = std::move(with);
+          ladder = lf;
+        } else if (ladder.found) {
+          friction_tried = fmt::format("the residual follows the sign of the velocity, and no plant with friction "
+                                       "beside it was found ({}): the plant is the best linear approximation",
+                                       lf.reason);
+        } else {
+          ladder.reason += fmt::format("; nor with friction beside the plant: {}", lf.reason);
+        }
+      }
+    }
     if (ladder.found) {
       r = std::move(base);
       outcome = fmt::format("{}: order {} refined {}, normalised squared simulation error {:.4g}", sentence,
                             r->plant.order(), in_loop ? "in its loop" : "as open-loop data",
                             r->choices.refinement.cost);
+      if (ladder.friction) {
+        friction = friction_json(*ladder.friction, data.loop_inputs, route.output);
+        outcome += "; " + friction["sentence"].get<std::string>();
+      } else if (!friction_tried.empty()) {
+        outcome += "; " + friction_tried;
+      }
     } else {
       outcome = fmt::format("{}: {}", sentence, ladder.reason);
     }
@@ -744,7 +822,8 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
   in.direct = {{"why", "the route through the loop's response found no plant: " + failure},
                {"reading", name},
                {"input", sentence},
-               {"readings", {outcome}}};
+               {"readings", {outcome}},
+               {"friction", friction}};
   r->warnings.push_back(
       fmt::format("identify: the closed-loop route found no plant; the direct route took {} ({})", sentence, outcome));
   return std::move(*r);

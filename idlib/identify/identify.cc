@@ -35,7 +35,8 @@ namespace identify_detail {
 // (N p ln(V_rest / V_free) > 2 n_x E): a record that starts from rest is fitted without
 // them.  Fills r.choices.refinement(_reason); when kept, the plant, the fit's covariance
 // (the bands) and, in closed loop, the closed loop.
-void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r) {
+void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r,
+                    const std::vector<Eigen::VectorXd>& residual_weights) {
   const bool closed = controller != nullptr;
   const auto refine = [&](const StateSpace& start, const OutputErrorOptions& o) {
     return closed ? refine_output_error_closed_loop(experiments, start, *controller, o)
@@ -43,6 +44,7 @@ void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateS
   };
   OutputErrorOptions rest, with_states;
   rest.estimate_initial_states = false;
+  rest.residual_weights = with_states.residual_weights = residual_weights;
   if (closed) rest.max_jacobian_entries = with_states.max_jacobian_entries = kClosedLoopRefinementEntries;
   const OutputErrorResult at_rest = refine(r.plant, rest);
   const OutputErrorResult free = refine(at_rest.accepted ? at_rest.model : r.plant, with_states);

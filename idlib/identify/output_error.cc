@@ -54,7 +54,10 @@ struct OeLoop {
 
 struct Data {
   std::vector<Eigen::MatrixXd> u, y;  // scaled, as logged: N_e × m, N_e × p
-  Index rows = 0;                     // Σ N_e
+  std::vector<Eigen::VectorXd> weight;  // OutputErrorOptions::residual_weights (empty: none)
+  Index rows = 0;                       // Σ N_e
+  // The residual's weight at sample t of experiment e.
+  double w(Index e, Index t) const { return weight.empty() ? 1.0 : weight[static_cast<std::size_t>(e)](t); }
 };
 
 class OeProblem {
@@ -90,6 +93,7 @@ class OeProblem {
         const Eigen::VectorXd ut = u.row(t).transpose();
         r.segment(row, p) = C * x + D * ut + Eigen::Map<const Eigen::VectorXd>(theta + l_.oO + p * e, p) -
                             y.row(t).transpose();
+        if (!d_.weight.empty()) r.segment(row, p) *= d_.w(e, t);
         if (J) {
           auto Jt = J->middleRows(row, p);
           Jt.noalias() = C * dX;
@@ -99,6 +103,7 @@ class OeProblem {
           if (l_.free_d)
             for (Index j = 0; j < m; ++j)
               for (Index i = 0; i < p; ++i) Jt(i, l_.oD + i + p * j) += ut(j);
+          if (!d_.weight.empty()) Jt *= d_.w(e, t);
           dXn.noalias() = A * dX;
           for (Index j = 0; j < n; ++j)
             for (Index i = 0; i < n; ++i) dXn(i, l_.oA + i + n * j) += x(j);
@@ -151,6 +156,7 @@ class OeProblem {
       for (Index t = 0; t < v.rows(); ++t, row += p) {
         q.noalias() = C * x;
         r.segment(row, p) = q + offset - y.row(t).transpose();
+        if (!d_.weight.empty()) r.segment(row, p) *= d_.w(ex, t);
         e = -q;
         u.noalias() = K.Ck * xk + K.Dk * e;
         u += v.row(t).transpose();
@@ -161,6 +167,7 @@ class OeProblem {
           auto Jt = J->middleRows(row, p);
           Jt = Jq;
           for (Index i = 0; i < p; ++i) Jt(i, l_.oO + p * ex + i) += 1.0;
+          if (!d_.weight.empty()) Jt *= d_.w(ex, t);
           dU.noalias() = K.Ck * dK;
           dU.noalias() -= K.Dk * Jq;
           dXn.noalias() = A * dX;
@@ -332,6 +339,24 @@ void sandwich_covariance(const OeProblem& problem, const Layout& l, const Eigen:
             cov_theta(l.oD + i + p * j, l.oD + i + p * j) * sy(i) * sy(i) / (su(j) * su(j));
 }
 
+OutputErrorResult with_reason(OutputErrorResult r, std::string reason) {
+  r.reason = std::move(reason);
+  return r;
+}
+
+// Whether `options` weighs the residuals; refuses weights that do not fit the records.
+bool checked_weights(const std::vector<ExperimentView>& experiments, const OutputErrorOptions& options) {
+  const auto& w = options.residual_weights;
+  if (w.empty()) return false;
+  if (w.size() != experiments.size())
+    throw InputError(fmt::format("output error: {} residual weights for {} experiments", w.size(), experiments.size()));
+  for (std::size_t e = 0; e < experiments.size(); ++e)
+    if (w[e].size() != experiments[e].excitation.rows() || !(w[e].array() >= 0.0).all())
+      throw InputError(fmt::format("output error: experiment {}'s residual weights: {} values >= 0 needed for {} samples",
+                                   e + 1, w[e].size(), experiments[e].excitation.rows()));
+  return true;
+}
+
 // The full form, open loop (controller nullptr) or in the loop with the known controller.
 OutputErrorResult refine_full(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                               const StateSpace* controller, const OutputErrorOptions& options) {
@@ -371,7 +396,11 @@ OutputErrorResult refine_full(const std::vector<ExperimentView>& experiments, co
                              options.max_jacobian_entries);
     return res;
   }
+  const bool weighted = checked_weights(experiments, options);
+  d.weight = options.residual_weights;
   if (static_cast<double>(res.residuals) * static_cast<double>(l.P) > kMaxOutputErrorJacobianEntries) {
+    if (weighted) return with_reason(res, "not refined: its Jacobian is too large for the full form, and the modal "
+                                           "form has no weights");
     OutputErrorResult modal = refine_output_error_modal(experiments, start, options);
     modal.form_reason = fmt::format("the full form's Jacobian would hold {:.3g} entries ({} residuals x {} "
                                     "parameters), above {:.3g}",
@@ -449,6 +478,9 @@ OutputErrorResult refine_full(const std::vector<ExperimentView>& experiments, co
                                poles(loop_model).cwiseAbs().maxCoeff());
       return res;
     }
+  } else if (!is_stable(refined) && weighted) {
+    return with_reason(res, "not refined: the output-error optimum is unstable and the stable (modal) form has no "
+                            "weights");
   } else if (!is_stable(refined)) {
     // The modal form keeps every pole inside the unit circle by construction: its optimum
     // is the best stable model (or, with poles on its bound, says the logs cannot tell).

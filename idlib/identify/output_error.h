@@ -56,6 +56,11 @@ struct OutputErrorOptions {
   // Segments for the sandwich covariance: records cut into pieces of at least this
   // many samples (and at least 8 pieces in all when the records allow).
   Index min_segment_samples = 64;
+  // Per experiment (N_e values >= 0), or empty: each sample's residual weighed so (0:
+  // left out of the criterion, the simulation running through it) — the direct route
+  // leaves out where a friction axis rests and settles after (direct.h).  The full form
+  // only: where the modal form would run, the start is kept (reason says so).
+  std::vector<Eigen::VectorXd> residual_weights;
   void validate() const;  // @throws InputError
 };
 

@@ -575,6 +575,8 @@ OutputErrorResult refine(const std::vector<ExperimentView>& experiments, const S
 
 OutputErrorResult refine_output_error_modal(const std::vector<ExperimentView>& experiments, const StateSpace& start,
                                             const OutputErrorOptions& options) {
+  if (!options.residual_weights.empty())
+    throw InputError("output error in modal form: residual weights are not supported (refine_output_error has them)");
   return output_error_modal::refine(experiments, start, options);
 }
 

@@ -61,6 +61,26 @@ TEST(ArxStrictlyProper, AnInputWithNoPowerGivesNoModelAndShortRecordsAreRefused)
 
 // u = v + C(e − e(0)), e = r − q, from the controller's zero state: a PD
 // u = k_p e + k_d (e_k − e_{k−1}) computed by hand.
+// The friction inputs of a position that rests, moves up at constant speed, rests and
+// moves down: sign +1 / −1 while it moves (the central difference over ±5 samples sees
+// the move 5 samples before it starts: the ends of each move are widened by that), 0 at
+// rest (inside the 2 % deadband), the last column all ones.
+TEST(FrictionInputs, AreTheVelocitysSignOutsideRestAndAConstant) {
+  const Index N = 100;
+  Eigen::MatrixXd q(N, 1);
+  for (Index k = 0; k < N; ++k)
+    q(k, 0) = k < 20 ? 0.0 : k < 40 ? 0.5 * (k - 20) : k < 60 ? 10.0 : k < 80 ? 10.0 - 0.5 * (k - 60) : 0.0;
+  q(50, 0) += 1e-3;  // a count of noise at rest: inside the deadband
+  const Eigen::MatrixXd w = friction_inputs(q);
+  ASSERT_EQ(w.rows(), N);
+  ASSERT_EQ(w.cols(), 2);
+  EXPECT_TRUE(w.col(1).isOnes());
+  for (Index k = 0; k < N; ++k) {
+    const double expected = k >= 16 && k <= 44 ? 1.0 : k >= 56 && k <= 84 ? -1.0 : 0.0;
+    EXPECT_EQ(w(k, 0), expected) << "sample " << k;
+  }
+}
+
 TEST(AppliedPlantInput, IsThePdsOutputOnTheTrackingErrorAboutItsStandingValue) {
   const double kp = 3.0, kd = 40.0;
   StateSpace pd;  // x = e_{k−1}: u = (k_p + k_d) e_k − k_d x

@@ -43,6 +43,37 @@ TEST(OutputError, RefinesAStartWithMovedPolesToTheTruthAndItsInitialState) {
   EXPECT_LT(simulation_fit_percent(r.model, {{u, y}}, false)(0), 99.9);
 }
 
+// Residual weights (OutputErrorOptions::residual_weights): samples weighed 0 leave the
+// criterion while the simulation runs through them.  The truth's noise-free logs with a
+// stretch of 500 output samples overwritten (a disturbance no linear model of u follows,
+// as a stuck axis's rests are for the direct route): unweighted, the refinement is pulled
+// away from the truth; with that stretch weighed 0 it reaches the truth to the solver's
+// tolerance, as on clean logs (the test above).  Weights of the wrong size or negative
+// are refused, and so is the modal form, which has none.
+TEST(OutputError, SamplesWeighedZeroLeaveTheCriterion) {
+  Eigen::MatrixXd u, y;
+  simulate(truth(), Eigen::Vector3d(0.5, -0.3, 0.2), 0.0, u, y);
+  const double rms = std::sqrt(y.squaredNorm() / static_cast<double>(y.rows()));
+  y.middleRows(1500, 500).array() += 3.0 * rms;
+  const StateSpace start = truth(0.995);
+  const OutputErrorResult plain = refine_output_error({{u, y}}, start);
+  OutputErrorOptions o;
+  o.residual_weights = {Eigen::VectorXd::Ones(u.rows())};
+  o.residual_weights[0].segment(1500, 500).setZero();
+  const OutputErrorResult weighed = refine_output_error({{u, y}}, start, o);
+  ASSERT_TRUE(weighed.accepted) << weighed.reason;
+  std::printf("unweighted: Markov error %.3g (%s); weighed: %.3g\n", markov_error(plain.model, truth()),
+              plain.reason.c_str(), markov_error(weighed.model, truth()));
+  EXPECT_GT(markov_error(plain.model, truth()), 1e-3);
+  EXPECT_LE(markov_error(weighed.model, truth()), 1e-6);
+  o.residual_weights[0].resize(10);
+  EXPECT_THROW(refine_output_error({{u, y}}, start, o), InputError);
+  o.residual_weights[0] = -Eigen::VectorXd::Ones(u.rows());
+  EXPECT_THROW(refine_output_error({{u, y}}, start, o), InputError);
+  o.residual_weights[0] = Eigen::VectorXd::Ones(u.rows());
+  EXPECT_THROW(refine_output_error_modal({{u, y}}, start, o), InputError);
+}
+
 TEST(OutputError, WithNoiseTheBandsHoldTheTruthsResponse) {
   Eigen::MatrixXd u, y;
   simulate(truth(), Eigen::Vector3d::Zero(), 0.05, u, y);
