@@ -690,10 +690,10 @@ nlohmann::json friction_json(const DirectFriction& f, const std::vector<std::str
     const std::string in = i < static_cast<Index>(inputs.size()) ? inputs[static_cast<std::size_t>(i)]
                                                                   : fmt::format("u{}", i + 1);
     for (Index j = 0; j < f.coulomb.cols(); ++j) {
+      if (f.coulomb.size() > 1 && i != j) continue;  // the diagonal: each input's own axis
       const std::string out = j < static_cast<Index>(outputs.size()) ? outputs[static_cast<std::size_t>(j)]
                                                                       : fmt::format("y{}", j + 1);
       const double c = f.coulomb(i, j);
-      if (f.coulomb.size() > 1 && i != j) continue;  // the diagonal: each input's own axis
       parts.push_back(fmt::format("{:.4g} on {} {} {}'s motion", std::abs(c), in, c < 0 ? "against" : "WITH", out));
     }
     parts.push_back(fmt::format("an offset of {:.4g} on {}", f.offset(i), in));
@@ -774,21 +774,19 @@ IdentifyResult identify_direct(IdentifyCliOptions& o, IdentifyRoute& route, Iden
         return nl.tests[static_cast<std::size_t>(i)].feature == "sign of the rate";
       });
     }
-    {
-      if (flips) {
-        IdentifyResult with = unfitted;
-        const DirectLadder lf = identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C,
-                                                        ladder.found ? ladder.arx_order : kDirectMaxOrder, with, true);
-        if (lf.found) {
-          base = std::move(with);
-          ladder = lf;
-        } else if (ladder.found) {
-          friction_tried = fmt::format("the residual follows the sign of the velocity, and no plant with friction "
-                                       "beside it was found ({}): the plant is the best linear approximation",
-                                       lf.reason);
-        } else {
-          ladder.reason += fmt::format("; nor with friction beside the plant: {}", lf.reason);
-        }
+    if (flips) {
+      IdentifyResult with = unfitted;
+      const DirectLadder lf = identify_direct_in_loop(loop, data.set.views(), in.set.sample_period_s, C,
+                                                      ladder.found ? ladder.arx_order : kDirectMaxOrder, with, true);
+      if (lf.found) {
+        base = std::move(with);
+        ladder = lf;
+      } else if (ladder.found) {
+        friction_tried = fmt::format("the residual follows the sign of the velocity, and no plant with friction "
+                                     "beside it was found ({}): the plant is the best linear approximation",
+                                     lf.reason);
+      } else {
+        ladder.reason += fmt::format("; nor with friction beside the plant: {}", lf.reason);
       }
     }
     if (ladder.found) {

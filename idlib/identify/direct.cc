@@ -19,14 +19,12 @@ namespace lpvid {
 
 namespace {
 
-// arx_strictly_proper, with the regression's residual sum of squares (summed over the
-// outputs) and its row count.
-// `levels` (per experiment N_e x c, or empty): inputs that enter at lag 1 only — levels
+// arx_strictly_proper, with two options for the direct route's friction rungs: `weights`
+// (per experiment N_e, each equation weighed by its sample's) and `levels` (per experiment N_e x c, or empty): inputs that enter at lag 1 only — levels
 // constant over long stretches (a friction's sign between reversals), whose lags the
 // stretches cannot tell apart; their B columns are [β; 0; …] (the first block), after u's.
-StateSpace arx_fit(const std::vector<ExperimentView>& experiments, Index order, double sample_period_s, double* rss,
-                   Index* residuals, const std::vector<Eigen::VectorXd>& weights = {},
-                   const std::vector<Eigen::MatrixXd>& levels = {}) {
+StateSpace arx_fit(const std::vector<ExperimentView>& experiments, Index order, double sample_period_s,
+                   const std::vector<Eigen::VectorXd>& weights = {}, const std::vector<Eigen::MatrixXd>& levels = {}) {
   if (order < 1) throw InputError(fmt::format("ARX order {}: give at least 1", order));
   if (experiments.empty()) throw InputError("ARX: no experiments");
   const Index m = experiments.front().excitation.cols(), p = experiments.front().output.cols();
@@ -71,8 +69,6 @@ StateSpace arx_fit(const std::vector<ExperimentView>& experiments, Index order, 
   qr.setThreshold(1e-12);
   if (qr.rank() < cols) return StateSpace{};
   const Eigen::MatrixXd theta = scale.cwiseInverse().asDiagonal() * qr.solve(Y);  // cols x p
-  if (rss) *rss = (Y - Phi * theta).squaredNorm();
-  if (residuals) *residuals = rows * p;
   // Block observer form: x(k+1) = A x(k) + B u(k), q(k) = x_1(k).
   const Index n = order * p;
   StateSpace s;
@@ -143,7 +139,7 @@ DirectFriction keep_plant_inputs(IdentifyResult& r, Index m, const StateSpace& c
 }  // namespace
 
 StateSpace arx_strictly_proper(const std::vector<ExperimentView>& experiments, Index order, double sample_period_s) {
-  return arx_fit(experiments, order, sample_period_s, nullptr, nullptr);
+  return arx_fit(experiments, order, sample_period_s);
 }
 
 Eigen::MatrixXd friction_inputs(const Eigen::Ref<const Eigen::MatrixXd>& output) {
@@ -296,7 +292,7 @@ DirectLadder identify_direct_in_loop(const std::vector<ExperimentView>& loop,
 
   for (Index n = 1; n <= max_order; ++n) {
     // The ARX start of u alone (the linear rung; with friction, its loop gives the settling time).
-    const StateSpace arx = arx_fit(applied, n, sample_period_s, nullptr, nullptr);
+    const StateSpace arx = arx_fit(applied, n, sample_period_s);
     if (arx.order() == 0) {
       ladder.rungs.push_back(fmt::format("{}: the ARX regression is rank-deficient", n));
       continue;
@@ -315,7 +311,7 @@ DirectLadder identify_direct_in_loop(const std::vector<ExperimentView>& loop,
             ? std::min(fd.settle_cap, static_cast<Index>(std::ceil(5.0 / -std::log(slowest))))
             : fd.settle_cap;
     weights = fd.weights(settle);
-    const StateSpace sw = arx_fit(applied, n, sample_period_s, nullptr, nullptr, weights, fd.levels);
+    const StateSpace sw = arx_fit(applied, n, sample_period_s, weights, fd.levels);
     if (sw.order() == 0) {
       ladder.rungs.push_back(fmt::format("{} with friction: the ARX regression is rank-deficient", n));
       continue;
