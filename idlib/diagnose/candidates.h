@@ -56,6 +56,11 @@ std::vector<std::pair<std::string, double>> library_defaults(const PhysicalModel
 void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const std::vector<Phenomenon>& phenomena,
                         const CandidateContext& ctx);
 
+// The judgement half of evaluate_candidate, for c.fit already fitted (c.fitted):
+// error, ΔBIC, failing bands and the verdict against the baseline.  `fo` are the
+// options the fit ran with.  Fills every field of c but the member_* ones.
+void judge_fitted(CandidateOutcome& c, const FitOptions& fo, const CandidateContext& ctx);
+
 // Pairs, then triples, of the singles (DiagnoseOptions::combination_pool, header of
 // diagnose.h): each refitted and judged (evaluate_candidate), then every member's
 // need tested against the combination without it.  `singles` are the evaluated
@@ -64,6 +69,10 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
 // explained_ratio × the floor.
 std::vector<CandidateOutcome> evaluate_combinations(const std::vector<CandidateOutcome>& singles,
                                                     const CandidateContext& ctx);
+
+// Whether an effect is one of the library's structural modes (structural_mode,
+// structural_mode_2, ...): interchangeable members of a combination.
+bool is_mode_effect(const std::string& name);
 
 // Whether an outcome leaves only noise: error within explained_ratio × the floor and
 // at most 10 % of the baseline's failing-band points.

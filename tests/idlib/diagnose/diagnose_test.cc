@@ -232,15 +232,17 @@ TEST_P(TwoHiddenEffects, BothAreNamedAndTheErrorEndsWithinTheFloor) {
 }
 
 // com_offset with a coil lag, a delay, a flexible mode (seeds 221, 222) and a rod
-// twist (seed 221).  Not here: rod twist + com_offset of seed 222 (twist 3.9x / 2.8x
-// the bending) FAILS: the base ends on its bending bounds, rod_twist alone stops at
-// 19.8 % and every pair above 11 % (a basin the refit does not leave; issue 25's
-// "design values far off"), so nothing is named — measured, left open.
+// twist (seed 222).  Seed 222's twist is 3.9x / 2.8x the bending (issue 25's "design
+// values far off": the base ends on its bending bounds, rod_twist alone stops at
+// 19.8 % and the pair's own refits at 18.7 %): the pair is found through the triple
+// with input_delay idle at 0 (candidates.cc, pairs_from_idle_members).  The rod twist
+// of seed 221, the easier draw (35.7 % -> 0.0530 % for a 0.0529 % floor, measured
+// 2026-12-02), gave its place to it for CI's time (docs/dev/CI.md).
 std::vector<PairCase> pair_cases() {
   std::vector<PairCase> full;
   for (HiddenEffect e : {HiddenEffect::kCoilLag, HiddenEffect::kDelay, HiddenEffect::kMode})
     for (std::uint64_t s : {221, 222}) full.push_back({HiddenEffect::kComOffset, e, s});
-  full.push_back({HiddenEffect::kComOffset, HiddenEffect::kRodTwist, 221});
+  full.push_back({HiddenEffect::kComOffset, HiddenEffect::kRodTwist, 222});
   const std::vector<PairCase> subset = {{HiddenEffect::kComOffset, HiddenEffect::kCoilLag, 221}};
   return testing::statistical_cases(full, subset);
 }
