@@ -25,9 +25,7 @@ ModelLayout::ModelLayout(const PhysicalModel& model) {
   n_in = static_cast<Index>(b.input_names.size());
   n_out = static_cast<Index>(b.output_names.size());
   n_dof = static_cast<Index>(b.dof_names.size());
-  if (base == "platform") platform.emplace(model);
-  if (base == "stage6") stage6.emplace(model);
-  if (model.user_base != nullptr) mechanical.emplace(model);
+  if (b.compile) b.compile(*this, model);  // the base's own parameter positions
   delays.assign(static_cast<std::size_t>(n_in), {});
   for (const std::string& name : model.effects) {
     const EffectInfo* e = model.effect_info(name);
@@ -88,12 +86,8 @@ void check_schedule(const PhysicalModel& model, double schedule) {
                                    b.schedule_name, b.name, b.schedule_unit));
     return;  // a base without a scheduling variable needs none
   }
-  if (model.base == "platform") {
-    check_platform_beam_position(model, schedule);
-    return;
-  }
-  if (model.base == "stage6") {
-    check_stage6_hover_height(schedule);
+  if (const BaseInfo& b = model.base_info(); b.check_schedule) {
+    b.check_schedule(model, schedule);
     return;
   }
   if (!std::isfinite(schedule)) throw InputError(fmt::format("operating point {} is not finite", schedule));

@@ -37,6 +37,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -105,6 +106,9 @@ struct EffectInfo {
 
 // What a base is: its parameters and channels.  The physics is in the base's
 // folder (evaluate.h dispatches on the name).
+struct PhysicalModel;
+struct ModelLayout;  // idlib/physical/evaluate.h
+
 struct BaseInfo {
   std::string name;         // "platform"
   std::string description;  // one line
@@ -128,6 +132,13 @@ struct BaseInfo {
   // bending_scale_psi/theta on k_torque_low_Nm_per_rad, 0.5–2x).  A scale the data
   // push onto its bound says the design value itself is off (diagnose's guidance).
   std::vector<std::pair<std::string, std::string>> design_scales;
+  // The base's own hooks, so that the framework (evaluate.cc, fit, diagnose) knows
+  // no base by name.  compile: records the base's parameter positions in the layout
+  // (ModelLayout::platform, ::stage6, ::mechanical — each base's matrices read them).
+  // check_schedule: @throws InputError for an operating point outside the base's
+  // range (the platform's beam stroke, the stage's gap); empty: finite is enough.
+  std::function<void(ModelLayout&, const PhysicalModel&)> compile;
+  std::function<void(const PhysicalModel&, double)> check_schedule;
 };
 
 // The library's bases ("platform", "stage6").  A model may instead carry a base of

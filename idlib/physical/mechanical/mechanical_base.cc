@@ -10,6 +10,7 @@
 #include <map>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/evaluate.h"
 
 namespace lpvid {
 namespace {
@@ -368,6 +369,7 @@ std::shared_ptr<const UserBase> make_mechanical_base(const MechanicalDescription
   if (llt.info() != Eigen::Success)
     fail("the mass matrix is not positive definite at the parameters' values; every DOF needs a mass or inertia "
          "(> 0) and the couplings must be smaller than the diagonal");
+  b.compile = [](ModelLayout& layout, const PhysicalModel& model) { layout.mechanical.emplace(model); };
   return base;
 }
 

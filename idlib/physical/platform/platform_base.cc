@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/evaluate.h"
 #include "idlib/models/platform.h"
 
 namespace lpvid {
@@ -99,6 +100,8 @@ BaseInfo make_platform_base() {
        false,
        {}},
   };
+  b.compile = [](ModelLayout& layout, const PhysicalModel& model) { layout.platform.emplace(model); };
+  b.check_schedule = check_platform_beam_position;
   return b;
 }
 

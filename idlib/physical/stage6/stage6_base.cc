@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "idlib/core/error.h"
+#include "idlib/physical/evaluate.h"
 #include "idlib/stage6/stage6.h"
 
 namespace lpvid {
@@ -95,6 +96,8 @@ BaseInfo make_stage6_base() {
        false,
        {}},
   };
+  b.compile = [](ModelLayout& layout, const PhysicalModel& model) { layout.stage6.emplace(model); };
+  b.check_schedule = [](const PhysicalModel&, double z0_m) { check_stage6_hover_height(z0_m); };
   return b;
 }
 

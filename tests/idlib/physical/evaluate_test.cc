@@ -9,7 +9,9 @@
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/models/platform.h"
+#include "idlib/physical/mechanical/mechanical_base.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "tests/support/two_mass_axis.h"
 
 namespace lpvid {
 namespace evaluate_test {
@@ -265,6 +267,35 @@ TEST(PhysicalEvaluate, FractionalDelayStateSpaceEqualsTheSampledResponse) {
 TEST(PhysicalEvaluate, BeamOutsideTheStrokeIsInputError) {
   EXPECT_THROW(physical_response(lpvid_defaults(), 0.3, grid()), InputError);
   EXPECT_THROW(physical_state_space(lpvid_defaults(), 0.0, -1.0), InputError);
+}
+
+// The framework knows no base by name (docs/architecture.md): each base's BaseInfo
+// carries the check of its own operating point, which check_schedule calls.
+TEST(PhysicalEvaluate, EachBaseChecksItsOwnOperatingPoint) {
+  const auto message = [](const PhysicalModel& m, double s) {
+    try {
+      check_schedule(m, s);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const PhysicalModel platform = PhysicalModel::bare("platform"), stage = PhysicalModel::bare("stage6");
+  EXPECT_EQ(message(platform, 0.1), "");
+  EXPECT_NE(message(platform, 0.2).find("outside the stroke |x_b| <= beam_stroke_m = 0.15 m"), std::string::npos);
+  EXPECT_EQ(message(stage, 5e-4), "");
+  EXPECT_NE(message(stage, 0.01).find("hover height z_0 = 0.01 m"), std::string::npos);
+  // a user's base without a scheduling variable: none needed, and any finite value passes
+  const PhysicalModel axis = PhysicalModel::bare(make_mechanical_base(two_mass_axis::axis()));
+  ASSERT_TRUE(axis.base_info().schedule_name.empty());
+  EXPECT_EQ(message(axis, std::nan("")), "");
+  EXPECT_EQ(message(axis, 3.0), "");
+  EXPECT_NE(message(axis, INFINITY).find("is not finite"), std::string::npos);
+  // and each compiles its own indices into the layout
+  EXPECT_TRUE(ModelLayout(platform).platform.has_value());
+  EXPECT_TRUE(ModelLayout(stage).stage6.has_value());
+  EXPECT_TRUE(ModelLayout(axis).mechanical.has_value());
+  EXPECT_FALSE(ModelLayout(axis).platform.has_value());
 }
 
 }  // namespace evaluate_test
