@@ -301,6 +301,12 @@ nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d,
                      {"design_value", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.design_value)},
                      {"suggested", h.design.empty() ? nlohmann::json(nullptr) : number_or_null(h.suggested)},
                      {"effects", h.effects}});
+  nlohmann::json idle = nlohmann::json::array();
+  for (const IdleEffect& e : d.idle_effects)
+    idle.push_back({{"effect", e.effect},
+                    {"why_tried", e.why_tried},
+                    {"error_without", e.error_without},
+                    {"delta_bic", e.delta_bic}});
   return {
       {"explained", d.explained},
       {"indistinguishable", d.indistinguishable},
@@ -321,6 +327,7 @@ nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d,
       {"combinations", candidates.combinations},
       {"descriptions", descriptions},
       {"design_hints", hints},
+      {"idle_effects", idle},
       {"widened_error", d.design_hints.empty() ? nlohmann::json(nullptr) : number_or_null(d.widened_error)},
       {"delta_bic_threshold", o.delta_bic},
       {"summary", d.summary},

@@ -301,8 +301,18 @@ void summary_description(Diagnosis& out, const SummaryInputs& in) {
 
 }  // namespace
 
+// Effects of the model the data do not need (Diagnosis::idle_effects).
+void summary_idle(Diagnosis& out) {
+  for (const IdleEffect& e : out.idle_effects)
+    out.summary.push_back(fmt::format(
+        "idle: {} adds nothing the data need ({}): refitted without it the error is {} ({} with it), ΔBIC {:+.1f}; "
+        "remove it: lpvid model remove {} --model MODEL, then fit",
+        e.effect, e.why_tried, percent(e.error_without), percent(out.baseline_error), e.delta_bic, e.effect));
+}
+
 void summarise(Diagnosis& out, const SummaryInputs& in) {
   summary_baseline(out, in);
+  summary_idle(out);
   if (in.distorted) summary_design(out);
   if (!in.something)
     summary_nothing(out, in);

@@ -290,6 +290,34 @@ TEST(DesignValuesFarOff, TheReportNamesTheDesignValueAndTheValueTheDataWant) {
   EXPECT_TRUE(said) << report(d);
 }
 
+// An effect that stood in for another (issue 25, "delay vs lag"): a model with both a
+// coil lag and an input delay, on a plant whose only dynamic beyond the base is a
+// delay (seed 201).  The lag is idle: refitted without it the error does not rise and
+// BIC improves; the delay is not (without it the lag cannot follow a 1-sample-scale
+// delay at high frequency).  The report says which to remove, and how.
+TEST(IdleEffects, ALagBesideTheDelayItStoodInForIsReportedIdle) {
+  LoopCase c = testing::make_loop_case(201, HiddenEffect::kDelay, Route::kAnalyzer);
+  c.start.add_effect("input_delay");
+  c.start.add_effect("actuator_lag");
+  DiagnoseOptions o;
+  o.fit = testing::loop_fit_options(c);
+  o.candidates = {"sensor_gain"};  // the idle check does not depend on the candidates
+  const Diagnosis d = diagnose(c.start, c.data, o);  // its baseline is the fit of both
+  std::vector<std::string> idle;
+  for (const IdleEffect& e : d.idle_effects) {
+    idle.push_back(e.effect);
+    std::printf("idle: %s (%s): error %.4f %% without, %.4f %% with; dBIC %+.1f\n", e.effect.c_str(),
+                e.why_tried.c_str(), 100 * e.error_without, 100 * d.baseline_error, e.delta_bic);
+    EXPECT_LE(e.error_without, d.baseline_error * 1.001) << report(d);
+    EXPECT_LT(e.delta_bic, o.significance_delta_bic) << report(d);
+  }
+  EXPECT_EQ(idle, std::vector<std::string>{"actuator_lag"}) << report(d) << c.draw.description;
+  bool said = false;
+  for (const std::string& line : d.summary)
+    said = said || line.find("lpvid model remove actuator_lag --model MODEL") != std::string::npos;
+  EXPECT_TRUE(said) << report(d);
+}
+
 // Issue 25, confounded pairs: a force constant common to all coils (indep
 // HiddenEffect::kGain, here 0.80) is exactly a scaling of M, D and K on S: the base
 // fits it within the noise with every mass 1/0.80 too heavy, and gain_error adds
