@@ -11,6 +11,7 @@
 #include <optional>
 
 #include "idlib/core/error.h"
+#include "idlib/core/parallel.h"
 #include "idlib/identify/identify_detail.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/interconnect.h"
@@ -240,67 +241,62 @@ DirectLadder identify_direct_in_loop(const std::vector<ExperimentView>& loop,
   DirectLadder ladder;
   const std::vector<std::string> input_names = result.plant.input_names, output_names = result.plant.output_names;
   const Index m = controller.num_outputs(), p = applied.front().output.cols();
-  std::optional<IdentifyResult> best;
-  std::optional<DirectFriction> best_friction;
-  double best_bic = std::numeric_limits<double>::infinity();
 
-  std::vector<Eigen::VectorXd> weights;  // with friction: the rung's residual weights (below)
-  // One rung: order n, linear or (`friction`) with the friction inputs, on the given
-  // data; kept as the best by BIC.
+  // One rung: order n, linear or (`friction`) with the friction inputs and their
+  // residual weights, on the given data.
+  struct Rung {
+    std::string text;                       // the sentence of the ladder
+    std::optional<IdentifyResult> fit;      // when the rung gave a plant
+    std::optional<DirectFriction> friction;
+    double bic = std::numeric_limits<double>::infinity();
+  };
   const auto rung = [&](Index n, const StateSpace& start, const std::vector<ExperimentView>& on_loop,
-                        const std::vector<ExperimentView>& on_applied, const StateSpace& K) {
+                        const std::vector<ExperimentView>& on_applied, const StateSpace& K,
+                        const std::vector<Eigen::VectorXd>& weights) {
     const std::string label = friction ? " with friction" : "";
+    Rung out;
     IdentifyResult r = result;
     r.plant = start;
     r.fit.plant = start;
     if (!is_stable(closed_loop_output(start, K), 0.0)) {
-      ladder.rungs.push_back(fmt::format("{}{}: the ARX start does not close a stable loop", n, label));
-      return;
+      out.text = fmt::format("{}{}: the ARX start does not close a stable loop", n, label);
+      return out;
     }
     if (loop.empty())
-      identify_detail::refine_on_logs(on_applied, nullptr, r, friction ? weights : std::vector<Eigen::VectorXd>{});
+      identify_detail::refine_on_logs(on_applied, nullptr, r, weights);
     else
-      identify_detail::refine_on_logs(on_loop, &K, r, friction ? weights : std::vector<Eigen::VectorXd>{});
+      identify_detail::refine_on_logs(on_loop, &K, r, weights);
     const auto& f = r.choices.refinement;
     if (!f.kept) {
-      ladder.rungs.push_back(fmt::format("{}{}: the refinement in the loop was not kept ({})", n, label,
-                                         r.choices.refinement_reason));
-      return;
+      out.text = fmt::format("{}{}: the refinement in the loop was not kept ({})", n, label,
+                             r.choices.refinement_reason);
+      return out;
     }
-    std::optional<DirectFriction> fr;
-    if (friction) fr = keep_plant_inputs(r, m, K);
+    if (friction) out.friction = keep_plant_inputs(r, m, K);
     if (loop.empty() && !is_stable(closed_loop_output(r.plant, controller), 0.0)) {
-      ladder.rungs.push_back(fmt::format("{}{}: the refined plant does not close a stable loop", n, label));
-      return;
+      out.text = fmt::format("{}{}: the refined plant does not close a stable loop", n, label);
+      out.friction.reset();
+      return out;
     }
     if (friction) r.closed_loop = loop.empty() ? r.plant : closed_loop_output(r.plant, controller);
     const double N = static_cast<double>(f.residuals);
-    const double bic = N * std::log(f.cost / N) + static_cast<double>(f.parameters) * std::log(N);
-    ladder.rungs.push_back(
-        fmt::format("{}{}: normalised squared simulation error {:.4g}, BIC {:.6g}", n, label, f.cost, bic));
-    if (bic < best_bic) {
-      best_bic = bic;
-      ladder.order = r.plant.order();
-      ladder.arx_order = n;
-      best = std::move(r);
-      best_friction = fr;
-    }
+    out.bic = N * std::log(f.cost / N) + static_cast<double>(f.parameters) * std::log(N);
+    out.text = fmt::format("{}{}: normalised squared simulation error {:.4g}, BIC {:.6g}", n, label, f.cost, out.bic);
+    out.fit = std::move(r);
+    return out;
   };
 
   FrictionData fd;
   if (friction) fill_friction_data(fd, applied, loop, controller);
 
-  for (Index n = 1; n <= max_order; ++n) {
+  // The orders are independent: each on a core of its own (parallel_for; the choice
+  // below runs in order, so the result does not depend on the schedule).  Orders 3-4
+  // of a 30 000-sample log take most of the ladder's time.
+  const auto one_order = [&](Index n) {
     // The ARX start of u alone (the linear rung; with friction, its loop gives the settling time).
     const StateSpace arx = arx_fit(applied, n, sample_period_s);
-    if (arx.order() == 0) {
-      ladder.rungs.push_back(fmt::format("{}: the ARX regression is rank-deficient", n));
-      continue;
-    }
-    if (!friction) {
-      rung(n, arx, loop, applied, controller);
-      continue;
-    }
+    if (arx.order() == 0) return Rung{fmt::format("{}: the ARX regression is rank-deficient", n), {}, {}};
+    if (!friction) return rung(n, arx, loop, applied, controller, {});
     // The settling time from the linear start's loop; the start with friction: the ARX of
     // u with the signs as levels (arx_fit) on the weighed samples, the constant's column
     // zero (the ARX's offset is its own).
@@ -310,19 +306,34 @@ DirectLadder identify_direct_in_loop(const std::vector<ExperimentView>& loop,
         slowest > 0.0 && slowest < 1.0
             ? std::min(fd.settle_cap, static_cast<Index>(std::ceil(5.0 / -std::log(slowest))))
             : fd.settle_cap;
-    weights = fd.weights(settle);
+    const std::vector<Eigen::VectorXd> weights = fd.weights(settle);
     const StateSpace sw = arx_fit(applied, n, sample_period_s, weights, fd.levels);
-    if (sw.order() == 0) {
-      ladder.rungs.push_back(fmt::format("{} with friction: the ARX regression is rank-deficient", n));
-      continue;
-    }
+    if (sw.order() == 0) return Rung{fmt::format("{} with friction: the ARX regression is rank-deficient", n), {}, {}};
     StateSpace start = sw;
     start.B.conservativeResize(Eigen::NoChange, m + p + 1);
     start.B.rightCols(1).setZero();
     start.D = Eigen::MatrixXd::Zero(sw.C.rows(), m + p + 1);
-    rung(n, start, fd.loop_w, fd.applied_w, fd.controller_w);
-    if (!ladder.rungs.empty())
-      ladder.rungs.back() += fmt::format(" (rests and {} samples after each left out)", settle);
+    Rung out = rung(n, start, fd.loop_w, fd.applied_w, fd.controller_w, weights);
+    out.text += fmt::format(" (rests and {} samples after each left out)", settle);
+    return out;
+  };
+  std::vector<Rung> rungs(static_cast<std::size_t>(std::max<Index>(max_order, 0)));
+  parallel_for(max_order, [&](Index i) { rungs[static_cast<std::size_t>(i)] = one_order(i + 1); });
+
+  // The order by BIC (the first of equals).
+  std::optional<IdentifyResult> best;
+  std::optional<DirectFriction> best_friction;
+  double best_bic = std::numeric_limits<double>::infinity();
+  for (Index i = 0; i < max_order; ++i) {
+    Rung& g = rungs[static_cast<std::size_t>(i)];
+    ladder.rungs.push_back(g.text);
+    if (g.fit && g.bic < best_bic) {
+      best_bic = g.bic;
+      ladder.order = g.fit->plant.order();
+      ladder.arx_order = i + 1;
+      best = std::move(g.fit);
+      best_friction = g.friction;
+    }
   }
   if (!best) {
     ladder.reason = fmt::format("no order 1..{} gave a plant whose loop is stable and fits the logs ({})", max_order,
