@@ -46,7 +46,9 @@ floor.  Significant candidates rank by BIC; others that also leave only noise ar
 as indistinguishable on these data, or as separated by the priors when they tie on the
 data but their estimates contradict the model's priors (design values with ±sigma) by
 more than --delta-bic.  When no single effect leaves only noise, pairs
-(and triples) are tried and named together when each member is needed.  When nothing explains it, the residual is described by a resonance or lag in one
+(and triples) are tried and named together when each member is needed.  An effect the model
+already has but the data do not need (refitted without it, the error does not rise and
+BIC does not worsen) is reported as idle, with the 'lpvid model remove' line.  When nothing explains it, the residual is described by a resonance or lag in one
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).
