@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -12,6 +13,7 @@
 #include "idlib/identify/output_error_detail.h"
 #include "idlib/lti/analysis.h"
 #include "idlib/lti/interconnect.h"
+#include "idlib/signal/correlation.h"
 
 namespace lpvid {
 
@@ -286,6 +288,30 @@ ceres::Solver::Options solver_options(int max_iterations) {
   return so;
 }
 
+Index sandwich_segment_length(const Eigen::Ref<const Eigen::MatrixXd>& residual, Index min_segment_samples) {
+  const Index rows = residual.rows();
+  const Index longest = std::max(min_segment_samples, rows / kMinSandwichSegments);
+  const Index shortest = std::min(longest, std::max(min_segment_samples, rows / kMaxSandwichSegments));
+  if (shortest >= longest) return longest;
+  // Lags up to the longest segment's share: a τ beyond it asks for the longest anyway.
+  const Index max_lag = std::min<Index>(rows - 1, static_cast<Index>(std::ceil(static_cast<double>(longest) / kSegmentsPerTau)));
+  double tau = 1.0;
+  for (Index i = 0; i < residual.cols(); ++i) {
+    const std::vector<Eigen::MatrixXd> R = autocorrelation(residual.col(i), max_lag);
+    const double r0 = R[0](0, 0);
+    if (!(r0 > 0.0)) continue;
+    double t = 1.0;
+    for (Index k = 1; k <= max_lag; ++k) {
+      const double rho = R[static_cast<std::size_t>(k)](0, 0) / r0;
+      if (!(rho > 0.0)) break;
+      t += 2.0 * rho;
+    }
+    tau = std::max(tau, t);
+  }
+  const auto want = static_cast<Index>(std::ceil(kSegmentsPerTau * tau));
+  return std::clamp(want, shortest, longest);
+}
+
 }  // namespace output_error_detail
 
 namespace {
@@ -305,7 +331,8 @@ void sandwich_covariance(const OeProblem& problem, const Layout& l, const Eigen:
   const Eigen::MatrixXd JQ = J * Q;
   const Eigen::MatrixXd H = JQ.transpose() * JQ;
   const Eigen::MatrixXd Hinv = H.completeOrthogonalDecomposition().pseudoInverse();
-  const Index seg = std::max(options.min_segment_samples, rows / 8);
+  const Index seg = output_error_detail::sandwich_segment_length(
+      Eigen::Map<const Eigen::MatrixXd>(r.data(), p, rows).transpose(), options.min_segment_samples);
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Q.cols(), Q.cols());
   Index segments = 0;
   for (Index start_row = 0; start_row < rows; start_row += seg) {

@@ -54,7 +54,8 @@ struct OutputErrorOptions {
   // x_e(0) fitted per experiment (true) or 0 (the record starts from rest).
   bool estimate_initial_states = true;
   // Segments for the sandwich covariance: records cut into pieces of at least this
-  // many samples (and at least 8 pieces in all when the records allow).
+  // many samples; within that, 10 residual correlation times long and 8-64 pieces in all
+  // when the records allow (output_error_detail::sandwich_segment_length).
   Index min_segment_samples = 64;
   // Per experiment (N_e values >= 0), or empty: each sample's residual weighed so (0:
   // left out of the criterion, the simulation running through it) — the direct route

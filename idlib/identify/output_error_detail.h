@@ -29,4 +29,20 @@ ChannelScales channel_scales(const std::vector<ExperimentView>& experiments);
 // Levenberg–Marquardt, dense QR, tight tolerances, silent, one thread.
 ceres::Solver::Options solver_options(int max_iterations);
 
+// The length of the record segments whose score sums make the sandwich covariance (batch
+// means): long against the residual's correlation, so that a segment's sum carries its
+// own correlated stretch (the relative bias of a batch-means variance is about τ/L, τ
+// the residual's integrated autocorrelation time in samples: L = kSegmentsPerTau τ, 10 %),
+// and otherwise as many as the record allows, between kMinSandwichSegments (the
+// estimate of a variance from S segments has S − 1 degrees of freedom: from 8 it scatters
+// by ±27 %, and with it every band of the record at once) and kMaxSandwichSegments
+// (±18 %, the structured route's replicates; more cost and add little).  Never shorter
+// than min_segment_samples.  τ is the largest over the channels of 1 + 2 Σ ρ(k), summed
+// until ρ first falls to zero or below (the initial positive sequence), ρ from the
+// FFT autocorrelation (idlib/signal/correlation.h).
+// | residual: rows × p (time along rows; weighted as the criterion weighs it) |
+inline constexpr Index kMinSandwichSegments = 8, kMaxSandwichSegments = 64;
+inline constexpr double kSegmentsPerTau = 10.0;
+Index sandwich_segment_length(const Eigen::Ref<const Eigen::MatrixXd>& residual, Index min_segment_samples);
+
 }  // namespace lpvid::output_error_detail

@@ -441,7 +441,7 @@ void sandwich_covariance(const Layout& l, const Data& d, const Eigen::VectorXd& 
   const Eigen::MatrixXd Qc = Qg.rightCols(Pf - gqr.rank());
   const Eigen::MatrixXd Hz = Qc.transpose() * fp.H * Qc;
   const Eigen::MatrixXd Hinv = Hz.completeOrthogonalDecomposition().pseudoInverse();
-  const Index seg = std::max(options.min_segment_samples, N / 8);
+  const Index seg = output_error_detail::sandwich_segment_length(ev.R, options.min_segment_samples);
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(Pf, Pf);
   Index segments = 0;
   for (Index r0 = 0; r0 < N; r0 += seg) {

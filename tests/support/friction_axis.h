@@ -238,6 +238,31 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   return log;
 }
 
+// The axis's linear part (its mass, viscous friction and force constant) exactly as
+// simulate() integrates it: with the current held over a sample, the 100 semi-implicit
+// substeps (v' = v + h (k_f i − c v)/m, x' = x + h (v + v')/2) are one linear map per
+// sample on [position; velocity], x_{k+1} = A x_k + B i_k, the encoder reading the
+// position (before its quantisation).  This, not the exact ZOH of the continuous axis, is
+// what a linear fit of the simulator's logs should recover: the two differ by the
+// integration's own error (~c h / m relative, 1e-4 here), which a noise-free fit resolves.
+struct SampleMap {
+  Eigen::Matrix2d A;
+  Eigen::Vector2d B;
+};
+inline SampleMap linear_sample_map(const Truth& p, double rate_hz) {
+  constexpr int kSub = 100;  // as simulate()
+  const double h = 1.0 / rate_hz / kSub, d = 1.0 - h * p.c_Ns_per_m / p.m_kg, g = h * p.k_f_N_per_A / p.m_kg;
+  Eigen::Matrix2d phi;
+  phi << 1.0, 0.5 * h * (1.0 + d), 0.0, d;
+  const Eigen::Vector2d gamma(0.5 * h * g, g);
+  SampleMap m{Eigen::Matrix2d::Identity(), Eigen::Vector2d::Zero()};
+  for (int s = 0; s < kSub; ++s) {  // x ← Φ x + Γ i, kSub times
+    m.A = phi * m.A;
+    m.B = phi * m.B + gamma;
+  }
+  return m;
+}
+
 // The base a user would describe (samples/mechanical/ball_screw_axis.json, built here
 // in code: the library tests link no JSON reader): one DOF, mass and viscous friction
 // free, the datasheet force constant fixed.

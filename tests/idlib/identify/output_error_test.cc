@@ -6,9 +6,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "idlib/core/error.h"
+#include "idlib/identify/output_error_detail.h"
 #include "idlib/identify/plant_fit.h"
 #include "idlib/lti/analysis.h"
 #include "tests/idlib/identify/mode_and_pole.h"
@@ -241,6 +243,34 @@ TEST(OutputErrorModal, LogsThatPullAPoleOutsideGiveTheBestStableModel) {
   EXPECT_LT(r.cost, r.start_cost);
   EXPECT_NE(r.reason.find("unstable"), std::string::npos) << r.reason;
   EXPECT_NE(r.reason.find("at the bound"), std::string::npos) << r.reason;
+}
+
+// The sandwich's segments (output_error_detail::sandwich_segment_length) follow the
+// residual's correlation: an AR(1) residual e(t) = ρ e(t−1) + w(t) has the integrated
+// autocorrelation time τ = (1 + ρ)/(1 − ρ) (closed form), and the segments are 10 τ long
+// within [N/64, N/8] and at least 64 samples.  White: the shortest, N/64; ρ = 0.9 (τ 19):
+// 190 samples, within ±25 % (the sample ρ(k) of 8000 samples scatters by ~1/√N each,
+// summed over the ~40 lags to ρ's first zero); ρ = 0.999 (τ 1999): the longest, N/8.
+TEST(SandwichSegments, FollowTheResidualsCorrelationTimeBetweenEightAndSixtyFourSegments) {
+  constexpr Index kN = 8000;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> w;
+  auto ar1 = [&](double rho) {
+    Eigen::MatrixXd e(kN, 2);
+    for (Index c = 0; c < 2; ++c) {
+      double x = 0.0;
+      for (Index t = 0; t < kN; ++t) e(t, c) = x = (c == 0 ? rho : 0.0) * x + w(rng);  // column 1 white
+    }
+    return e;
+  };
+  using output_error_detail::sandwich_segment_length;
+  EXPECT_EQ(sandwich_segment_length(ar1(0.0), 64), kN / 64);
+  const Index l = sandwich_segment_length(ar1(0.9), 64);  // the correlated output decides
+  std::printf("AR(1) rho 0.9: segments of %ld samples for 10 tau = 190\n", static_cast<long>(l));
+  EXPECT_NEAR(static_cast<double>(l), 190.0, 0.25 * 190.0);
+  EXPECT_EQ(sandwich_segment_length(ar1(0.999), 64), kN / 8);
+  EXPECT_EQ(sandwich_segment_length(ar1(0.0).topRows(1024), 64), 64);  // never below 64 samples
+  EXPECT_EQ(sandwich_segment_length(ar1(0.0).topRows(300), 64), 64);    // nor 8 segments below that
 }
 
 }  // namespace output_error_test
