@@ -696,7 +696,6 @@ nlohmann::json friction_json(const DirectFriction& f, const std::vector<std::str
       const double c = f.coulomb(i, j);
       parts.push_back(fmt::format("{:.4g} on {} {} {}'s motion", std::abs(c), in, c < 0 ? "against" : "WITH", out));
     }
-    parts.push_back(fmt::format("an offset of {:.4g} on {}", f.offset(i), in));
   }
   nlohmann::json coulomb = nlohmann::json::array();
   for (Index i = 0; i < f.coulomb.rows(); ++i) {
@@ -704,14 +703,13 @@ nlohmann::json friction_json(const DirectFriction& f, const std::vector<std::str
     for (Index j = 0; j < f.coulomb.cols(); ++j) row.push_back(f.coulomb(i, j));
     coulomb.push_back(row);
   }
-  std::vector<double> offset(f.offset.data(), f.offset.data() + f.offset.size());
   return {{"coulomb", coulomb},
-          {"offset", offset},
           {"sentence",
            fmt::format("the linear plant's residual followed the sign of the velocity, so the plant was fitted with "
-                       "friction beside it (Coulomb-like and an offset while it moves; the rests, where a stuck axis "
-                       "holds whatever balances it, left out): {} (forces at the input, in its units); the plant is the "
-                       "linear part",
+                       "friction beside it (Coulomb-like and a constant force while it moves; the rests, where a stuck "
+                       "axis holds whatever balances it, left out): {} (forces at the input, in its units); the plant is "
+                       "the linear part; the constant force is not given: the logs cannot tell it from the encoder's "
+                       "offset (for the offset as a parameter, fit the physics with `fit --log`)",
                        fmt::join(parts, ", "))}};
 }
 

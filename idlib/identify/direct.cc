@@ -115,8 +115,7 @@ DirectFriction keep_plant_inputs(IdentifyResult& r, Index m, const StateSpace& c
       loop.C * (Eigen::MatrixXd::Identity(loop.order(), loop.order()) - loop.A).partialPivLu().solve(loop.B) + loop.D;
   DirectFriction f;
   const Eigen::MatrixXd F = G1.leftCols(m).colPivHouseholderQr().solve(G1.rightCols(mw));  // m x mw
-  f.coulomb = F.leftCols(p);  // [sign (p), constant]
-  f.offset = F.col(p);
+  f.coulomb = F.leftCols(p);  // [sign (p), constant]: the constant's is not determined (direct.h)
   const Eigen::MatrixXd Bu = P.B.leftCols(m);
   P.B = Bu;
   P.D = P.D.leftCols(m).eval();
