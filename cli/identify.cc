@@ -65,6 +65,7 @@ struct IdentifyCliOptions {
   std::string excitation_at = "input";
   bool band_given = false;  // --band-min or --band-max on the command line
   bool no_refine = false;
+  std::string initial_state = "auto";
   bool no_order_check = false;
   bool no_direct = false;
 };
@@ -219,6 +220,16 @@ IdentifyRoute identify_route(const IdentifyCliOptions& o) {
   options.plant_order = o.plant_order;
   options.fit_band_max_rad_s = o.fit_band_max;
   options.refine_output_error = !o.no_refine;
+  if (o.initial_state == "auto")
+    options.initial_states = IdentifyOptions::InitialStates::kAuto;
+  else if (o.initial_state == "zero")
+    options.initial_states = IdentifyOptions::InitialStates::kZero;
+  else if (o.initial_state == "estimate")
+    options.initial_states = IdentifyOptions::InitialStates::kEstimate;
+  else
+    throw InputError(fmt::format("--initial-state {}: use 'auto' (default: fitted where Akaike's criterion says it "
+                                 "pays), 'zero' (the records start from rest) or 'estimate'",
+                                 o.initial_state));
   options.check_order_held_out = !o.no_order_check;
   if (!route.era && o.order > 0)
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");
@@ -902,6 +913,10 @@ Command make_identify_command() {
             app->add_flag("--json", o->json, "print the report as JSON");
             app->add_flag("--no-refine", o->no_refine,
                           "structured: keep the structured fit (no output-error refinement on the logs)");
+            app->add_option("--initial-state", o->initial_state,
+                            "the refinement's initial states: auto (default: each log's fitted where Akaike's "
+                            "criterion says it pays), zero (the records start from rest; the model that simulates "
+                            "best from zero state) or estimate (always fitted)");
             app->add_flag("--no-direct", o->no_direct,
                           "closed loop, structured: when no plant fits through the loop's response, fail instead of "
                           "taking the direct route (docs/math.md section 2b)");

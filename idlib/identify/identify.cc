@@ -36,7 +36,8 @@ namespace identify_detail {
 // them.  Fills r.choices.refinement(_reason); when kept, the plant, the fit's covariance
 // (the bands) and, in closed loop, the closed loop.
 void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r,
-                    const std::vector<Eigen::VectorXd>& residual_weights) {
+                    const std::vector<Eigen::VectorXd>& residual_weights, IdentifyOptions::InitialStates initial) {
+  using Initial = IdentifyOptions::InitialStates;
   const bool closed = controller != nullptr;
   const auto refine = [&](const StateSpace& start, const OutputErrorOptions& o) {
     return closed ? refine_output_error_closed_loop(experiments, start, *controller, o)
@@ -47,12 +48,14 @@ void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateS
   rest.residual_weights = with_states.residual_weights = residual_weights;
   if (closed) rest.max_jacobian_entries = with_states.max_jacobian_entries = kClosedLoopRefinementEntries;
   const OutputErrorResult at_rest = refine(r.plant, rest);
-  const OutputErrorResult free = refine(at_rest.accepted ? at_rest.model : r.plant, with_states);
+  const OutputErrorResult free = initial == Initial::kZero
+                                     ? OutputErrorResult{}
+                                     : refine(at_rest.accepted ? at_rest.model : r.plant, with_states);
   const Index loop_states = r.plant.order() + (closed ? controller->order() : 0);
   const double extra = 2.0 * static_cast<double>(loop_states * static_cast<Index>(experiments.size()));
-  const bool use_free = free.accepted && (!at_rest.accepted || static_cast<double>(free.residuals) *
-                                                                      std::log(at_rest.cost / free.cost) >
-                                                                  extra);
+  const bool use_free =
+      free.accepted && (initial == Initial::kEstimate || !at_rest.accepted ||
+                        static_cast<double>(free.residuals) * std::log(at_rest.cost / free.cost) > extra);
   OutputErrorResult oe = use_free ? free : at_rest;
   if (oe.accepted)
     oe.reason = fmt::format(
@@ -60,12 +63,16 @@ void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateS
         "{:.4g} (the structured fit, from rest) -> {:.4g} from rest{}; {}{}{}",
         closed ? " of the loop with the controller" : "", at_rest.start_cost,
         at_rest.accepted ? at_rest.cost : at_rest.start_cost,
-        use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
-                               "factor {:.4g} for {:g} more values)",
-                               free.cost, at_rest.accepted ? at_rest.cost / free.cost : 0.0, extra / 2)
-                 : fmt::format(" (fitting the initial states too{} does not pay by Akaike's criterion)",
-                               free.accepted ? fmt::format(" lowers it by a factor {:.4g} only", at_rest.cost / free.cost)
-                                             : std::string("")),
+        initial == Initial::kZero ? std::string(" (the initial states held at zero, as asked: --initial-state zero)")
+        : use_free && initial == Initial::kEstimate
+            ? fmt::format(" -> {:.4g} with each log's initial state fitted (as asked: --initial-state estimate)",
+                          free.cost)
+        : use_free ? fmt::format(" -> {:.4g} with each log's initial state fitted (kept: Akaike's criterion, a "
+                                 "factor {:.4g} for {:g} more values)",
+                                 free.cost, at_rest.accepted ? at_rest.cost / free.cost : 0.0, extra / 2)
+                   : fmt::format(" (fitting the initial states too{} does not pay by Akaike's criterion)",
+                                 free.accepted ? fmt::format(" lowers it by a factor {:.4g} only", at_rest.cost / free.cost)
+                                               : std::string("")),
         closed ? "the loop stable" : "stable", oe.iterations >= 200 ? "; stopped at the iteration limit" : "",
         oe.form == "modal"
             ? fmt::format("; in modal form with C and D eliminated ({}){}", oe.form_reason,
@@ -287,7 +294,7 @@ IdentifyResult identify_closed_loop(const std::vector<ExperimentView>& experimen
   if (!open && options.refine_output_error) {
     report_progress(options.progress, {"identify", "output-error refinement", 0, 0, ""});
     IdentifyResult refined = r;
-    identify_detail::refine_on_logs(experiments, &controller, refined);
+    identify_detail::refine_on_logs(experiments, &controller, refined, {}, options.initial_states);
     if (!refined.choices.refinement.kept) {
       r.choices.refinement = refined.choices.refinement;
       r.choices.refinement_reason = refined.choices.refinement_reason;
@@ -396,7 +403,7 @@ IdentifyResult identify_open_loop_at(const std::vector<ExperimentView>& experime
                                kFeedthroughSigmas, largest);
     if (options.refine_output_error) {
       report_progress(options.progress, {"identify", "output-error refinement", 0, 0, ""});
-      identify_detail::refine_on_logs(experiments, nullptr, r);
+      identify_detail::refine_on_logs(experiments, nullptr, r, {}, options.initial_states);
     } else {
       r.choices.refinement_reason = "not refined (switched off)";
     }

@@ -67,6 +67,13 @@ struct IdentifyOptions {
   // controller, when its Jacobian holds at most kClosedLoopRefinementEntries) only when the
   // loop is stable and it predicts held-out halves of the logs better (order_held_out.cc).
   bool refine_output_error = true;
+  // The refinement's initial states (MATLAB ssest's InitialState): kAuto fits each log's
+  // initial state only when Akaike's criterion says the extra values pay (a record that
+  // starts from rest is fitted without them); kZero never (the user knows the records
+  // start from rest, or wants the model that simulates best from zero state); kEstimate
+  // always.
+  enum class InitialStates { kAuto, kZero, kEstimate };
+  InitialStates initial_states = InitialStates::kAuto;
   // identify_open_loop, kStructured, refined, plant_order 0: check the order the ladder
   // chose on data kept out of the fit (order_held_out.cc) and take another where the
   // held-out data prove it predicts better.

@@ -119,8 +119,10 @@ IdentifyChoices::HeldOutOrder check_order_held_out(const std::vector<ExperimentV
 // The output-error refinement of a structured result `r` on its logs (identify.cc): open
 // loop (controller nullptr) or in the loop with the known controller; `residual_weights`
 // as OutputErrorOptions's (empty: every sample alike).
+// `initial` as IdentifyOptions::initial_states.
 void refine_on_logs(const std::vector<ExperimentView>& experiments, const StateSpace* controller, IdentifyResult& r,
-                    const std::vector<Eigen::VectorXd>& residual_weights = {});
+                    const std::vector<Eigen::VectorXd>& residual_weights = {},
+                    IdentifyOptions::InitialStates initial = IdentifyOptions::InitialStates::kAuto);
 
 // identify_closed_loop: whether the refined plant (r, refinement kept) predicts held-out
 // halves of the logs better than the structured fit does, each fitted on the other half

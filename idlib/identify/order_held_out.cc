@@ -290,7 +290,7 @@ bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, 
       return false;
     }
     IdentifyResult half_refined = half;
-    refine_on_logs(train, &controller, half_refined);
+    refine_on_logs(train, &controller, half_refined, {}, o.initial_states);
     predict(closed_loop_output(half.plant, controller), test, scale, structured);
     predict(closed_loop_output(half_refined.plant, controller), test, scale, refined);
     if (!structured.ok || !refined.ok) {

@@ -484,6 +484,36 @@ TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) 
   EXPECT_EQ(cmp["stable"], true);
 }
 
+// The same with --initial-state zero (MATLAB ssest's InitialState 'zero'): the refinement
+// holds the initial state at zero, so it fits the model that simulates the record best
+// from rest — the figure the issue compares with n4sid (issue 24: "robot arm >= 90 % at
+// order <= 6").  Measured: order 6 (the held-out check again), 90.9 % from zero state
+// (the default's 88.8 %; n4sid's 89.3 %), 94.4 % with the initial state fitted (the
+// default's 97.2 %: the record does not start from rest, and this model was not fitted
+// to its start).  Bounds: from zero state at least 90 % (the issue's figure, 0.9 points
+// below the measured); the summary says the states were held; a misspelt value refused.
+TEST(RealData, RobotArmFromRestOnlyBeatsN4sidFromZeroState) {
+  LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
+  TempDir dir("arm_identify_zero");
+  const auto r = run_lpvid("identify --open-loop --initial-state zero --excitation u --output y --json --out " +
+                           (dir / "out") + " " + log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["plant"]["stable"], true);
+  EXPECT_LE(report["plant"]["order"].get<int>(), 6);
+  const double fit = report["closed_loop"]["simulation_fit_percent"][0].get<double>();
+  std::printf("robot arm, --initial-state zero: order %d, simulation fit %.1f %% from zero state (n4sid 89.3 %%)\n",
+              report["plant"]["order"].get<int>(), fit);
+  EXPECT_GE(fit, 90.0);
+  EXPECT_THAT(report["fit"]["refinement_reason"].get<std::string>(), HasSubstr("held at zero, as asked"));
+  const auto bad = run_lpvid("identify --open-loop --initial-state rest --excitation u --output y --out " +
+                             (dir / "bad") + " " + log);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_THAT(bad.err, HasSubstr("--initial-state rest: use 'auto'"));
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}
+
 // The order check on held-out halves (identify's `held_out_order`) reproduced by hand as a
 // user would do it: write each half of the record to its own file, identify the first at
 // the chosen order with the horizon the check uses (a quarter of the half, 128 lags),
