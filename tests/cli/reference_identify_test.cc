@@ -248,11 +248,13 @@ friction_axis::Truth write_linear_point_to_point(const std::filesystem::path& di
 // 0.0005 % over 1–10 rad/s, 0.0070 % over 10–60, 0.048 % over 60–400, the loop's
 // simulation fit 100.0 %.  The bound, 0.2 % over 1–400 rad/s, is 10× the measured mean
 // and 25× below the Welch-leakage errors the structured route's failure came from.  The
-// band's coverage is not asserted: the residual is the encoder's quantisation, which
-// repeats with the 12.2 s cycle of moves (2.5 cycles in the log), so the sandwich's
-// segments are not independent.  Measured over ten encoder steps 0.8–1.25 µm: 61 % of
-// the frequencies covered (36 % with the sandwich's former fixed 8 segments; here 65
-// segments, the residual's correlation time allowing the shortest), all-or-nothing per log.
+// band's coverage is not asserted: the residual is the encoder's quantisation, and the
+// sandwich's segments understate the error from one quantisation to the next (not
+// through the 12.2 s cycle's repetition: the residual's autocorrelation beyond a segment
+// stays below 0.3 on the worst-covered logs; why is open).  Measured over ten encoder
+// steps 0.8–1.25 µm: 61 % of the frequencies covered (36 % with the sandwich's former
+// fixed 8 segments; here 65 segments, the residual's correlation time allowing the
+// shortest), all-or-nothing per log.
 // With --no-direct the route's refusal stands: one line, the excitation named as why,
 // nothing written.  The log: tests/support/friction_axis.h, its friction and offset
 // zero (a linear axis), PD on the encoder.
