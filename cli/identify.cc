@@ -230,6 +230,10 @@ IdentifyRoute identify_route(const IdentifyCliOptions& o) {
     throw InputError(fmt::format("--initial-state {}: use 'auto' (default: fitted where Akaike's criterion says it "
                                  "pays), 'zero' (the records start from rest) or 'estimate'",
                                  o.initial_state));
+  if (o.initial_state != "auto" && (route.era || o.no_refine))
+    throw InputError(fmt::format("--initial-state {} sets the output-error refinement's initial states, and {} runs "
+                                 "none; drop one of the two",
+                                 o.initial_state, route.era ? "--method era" : "--no-refine"));
   options.check_order_held_out = !o.no_order_check;
   if (!route.era && o.order > 0)
     throw InputError("--order is the closed-loop order of --method era; with the structured method give --plant-order");

@@ -491,7 +491,8 @@ TEST(RealData, RobotArmOpenLoopIdentifyGivesAStablePlantThatSimulatesTheRecord) 
 // (the default's 88.8 %; n4sid's 89.3 %), 94.4 % with the initial state fitted (the
 // default's 97.2 %: the record does not start from rest, and this model was not fitted
 // to its start).  Bounds: from zero state at least 90 % (the figure, 0.9 points
-// below the measured); the summary says the states were held; a misspelt value refused.
+// below the measured); the summary says the states were held; a misspelt value, or the
+// option beside --no-refine (nothing to hold), refused.
 TEST(RealData, RobotArmFromRestOnlyBeatsN4sidFromZeroState) {
   LPVID_REAL_DATA_OR_SKIP(log, "daisy_robot_arm/robot_arm.csv");
   TempDir dir("arm_identify_zero");
@@ -512,6 +513,12 @@ TEST(RealData, RobotArmFromRestOnlyBeatsN4sidFromZeroState) {
   EXPECT_THAT(bad.err, HasSubstr("--initial-state rest: use 'auto'"));
   EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+  // with no refinement to hold: refused, not ignored
+  const auto unused = run_lpvid("identify --open-loop --no-refine --initial-state zero --excitation u --output y --out " +
+                                (dir / "unused") + " " + log);
+  EXPECT_NE(unused.exit_code, 0);
+  EXPECT_THAT(unused.err, HasSubstr("--no-refine runs none; drop one of the two"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "unused"));
 }
 
 // The order check on held-out halves (identify's `held_out_order`) reproduced by hand as a
