@@ -42,10 +42,12 @@ files, or --averages), or --noise-level; without any of them diagnose stops and 
 The report says where the model fails (distinct phenomena: frequency, channels, data
 sets, size, signature), what is missing and how much of the excess it explains, the
 error before and after, and "explained" only when what remains is within 1.5x the noise
-floor.  Significant candidates rank by BIC; others that also leave only noise are named
-as indistinguishable on these data, or as separated by the priors when they tie on the
-data but their estimates contradict the model's priors (design values with ±sigma) by
-more than --delta-bic.  When no single effect leaves only noise, pairs
+floor.  Significant candidates rank by BIC; others that also leave only noise and whose
+BIC on the data is within --delta-bic of the winner's are named as indistinguishable on
+these data, or as separated by the priors when their estimates contradict the model's
+priors (design values with ±sigma, which may be given for an effect not yet added) by
+more than --delta-bic; ones the likelihood separates are said to bring the error within
+the noise too.  When no single effect leaves only noise, pairs
 (and triples) are tried and named together when each member is needed.  An effect the model
 already has but the data do not need (refitted without it, the error does not rise and
 BIC does not worsen) is reported as idle, with the 'lpvid model remove' line.  When nothing explains it, the residual is described by a resonance or lag in one
@@ -313,6 +315,7 @@ nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d,
       {"explained", d.explained},
       {"indistinguishable", d.indistinguishable},
       {"separated_by_priors", d.separated_by_priors},
+      {"also_explain", d.also_explain},
       {"missing", d.missing.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.missing)},
       {"missing_effects", d.missing_effects},
       {"noise_floor", number_or_null(d.noise_floor)},

@@ -85,7 +85,8 @@ void apply_sets(PhysicalModel& m, const std::vector<std::string>& sets) {
     double v = NAN;
     if (!parse_decimal(text, v))
       throw InputError(fmt::format("--set '{}': '{}' is not a number; give the value in the parameter's unit", s, text));
-    PhysicalParameter& p = m.parameter(name);
+    // a parameter of an effect the model lacks: a design value for when it is added
+    PhysicalParameter& p = m.parameter_or_design_value(name);
     if (v < p.lower || v > p.upper)
       throw InputError(fmt::format("--set '{}': {} is outside the bounds [{}, {}] {} of {}; give a value inside them",
                                    s, v, p.lower, p.upper, p.unit, name));
@@ -185,16 +186,17 @@ void run_set(const ModelCliOptions& o) {
   for (const std::string& n : fixed)
     if (std::find(freed.begin(), freed.end(), n) != freed.end())
       throw InputError(fmt::format("model set: {} is given to both --fix and --free; give it to one", n));
-  for (const std::string& n : fixed) m.parameter(n).free = false;
-  for (const std::string& n : freed) m.parameter(n).free = true;
+  for (const std::string& n : fixed) m.parameter_or_design_value(n).free = false;
+  for (const std::string& n : freed) m.parameter_or_design_value(n).free = true;
   const std::string written = write_changed(o, outputs, m);
   if (!outputs.to_stdout()) {
     std::vector<std::string> lines;
     for (const std::string& s : o.sets) {
-      const PhysicalParameter& p = m.parameter(s.substr(0, s.find('=')));
-      lines.push_back(p.has_prior() ? fmt::format("{} = {:g} {} (prior {:g} ± {:g})", p.name, p.value, p.unit,
-                                                  p.prior_mean, p.prior_sigma)
-                                    : fmt::format("{} = {:g} {}", p.name, p.value, p.unit));
+      const PhysicalParameter& p = m.parameter_or_design_value(s.substr(0, s.find('=')));
+      const std::string when = m.index_of(p.name) < 0 ? " (a design value, used when its effect is added)" : "";
+      lines.push_back(p.has_prior() ? fmt::format("{} = {:g} {} (prior {:g} ± {:g}){}", p.name, p.value, p.unit,
+                                                  p.prior_mean, p.prior_sigma, when)
+                                    : fmt::format("{} = {:g} {}{}", p.name, p.value, p.unit, when));
     }
     if (!fixed.empty()) lines.push_back(fmt::format("fixed {}", fmt::join(fixed, ", ")));
     if (!freed.empty()) lines.push_back(fmt::format("free {}", fmt::join(freed, ", ")));

@@ -82,13 +82,13 @@ class Reader {
     }
     for (auto it = root.begin(); it != root.end(); ++it) {
       static const char* const kKeys[] = {"format", "version", "base", "mechanical", "effects", "definitions",
-                                          "parameters", "fit"};
+                                          "parameters", "design_values", "fit"};
       bool known = false;
       for (const char* k : kKeys) known = known || it.key() == k;
       if (!known)
         fail_at(top(it.key()), fmt::format("unknown key {}; remove it (a model file has format, version, base, "
-                                           "effects, parameters and optionally definitions and fit; mechanical "
-                                           "with the base mechanical)",
+                                           "effects, parameters and optionally definitions, design_values and fit; "
+                                           "mechanical with the base mechanical)",
                                            detail::quote_cell(it.key())));
     }
     PhysicalModel model;
@@ -180,6 +180,15 @@ class Reader {
       if (it == params->end()) continue;  // missing: validate() names it
       model.parameters.push_back(parameter(name, *it));
     }
+    // Values and priors for effects the model does not have yet (after "parameters"
+    // in the file, so that a rule's message finds the name there).
+    if (const auto designs = root.find("design_values"); designs != root.end()) {
+      if (!designs->is_object())
+        fail_at(top("design_values"), "key 'design_values' must be an object name -> {value, unit, lower, upper, "
+                                      "free, prior} (parameters of effects the model does not have yet)");
+      for (auto it = designs->begin(); it != designs->end(); ++it)
+        model.design_values.push_back(parameter(it.key(), it.value(), find_key(text_, it.key(), top("design_values"))));
+    }
     try {
       model.validate();
     } catch (const InputError& e) {
@@ -191,23 +200,27 @@ class Reader {
       const bool missing = what.rfind("missing", 0) == 0;
       fail_at(name.empty() || missing ? top("parameters") : param(name), what);
     }
-    if (const auto fit = root.find("fit"); fit != root.end() && fit->is_object() && fit->contains("smoothing")) {
-      // the force-error route's smoothing, which compare reuses (cli/mechanical_time.h)
-      const json& sm = (*fit)["smoothing"];
-      const bool ok = sm.is_object() && sm.contains("window_s") && sm["window_s"].is_number() &&
-                      sm["window_s"].get<double>() > 0.0 && std::isfinite(sm["window_s"].get<double>()) &&
-                      sm.contains("input") && sm["input"].is_string() &&
-                      (sm["input"] == "held" || sm["input"] == "measured");
-      if (!ok)
-        fail_at(top("smoothing"), "fit.smoothing must be {\"window_s\": seconds > 0, \"input\": \"held\" or "
-                                  "\"measured\"} (as lpvid fit --log writes it); correct it, or remove it to use the "
-                                  "defaults");
-    }
+    check_smoothing(root);
     if (fit_section != nullptr) {
       const auto fit = root.find("fit");
       *fit_section = fit == root.end() ? nlohmann::json() : nlohmann::json::parse(fit->dump());
     }
     return model;
+  }
+
+  // The force-error route's smoothing in the fit section, which compare reuses
+  // (cli/mechanical_time.h): checked when present.
+  void check_smoothing(const json& root) const {
+    const auto fit = root.find("fit");
+    if (fit == root.end() || !fit->is_object() || !fit->contains("smoothing")) return;
+    const json& sm = (*fit)["smoothing"];
+    const bool ok = sm.is_object() && sm.contains("window_s") && sm["window_s"].is_number() &&
+                    sm["window_s"].get<double>() > 0.0 && std::isfinite(sm["window_s"].get<double>()) &&
+                    sm.contains("input") && sm["input"].is_string() && (sm["input"] == "held" || sm["input"] == "measured");
+    if (!ok)
+      fail_at(top("smoothing"), "fit.smoothing must be {\"window_s\": seconds > 0, \"input\": \"held\" or "
+                                "\"measured\"} (as lpvid fit --log writes it); correct it, or remove it to use the "
+                                "defaults");
   }
 
   // A mechanical base's description (docs/formats.md, "Mechanical base descriptions"),
@@ -648,6 +661,13 @@ std::string physical_model_to_json(const PhysicalModel& model, const nlohmann::j
                        i + 1 < model.parameters.size() ? "," : "");
   }
   out += "  }";
+  if (!model.design_values.empty()) {
+    out += ",\n  \"design_values\": {\n";
+    for (std::size_t i = 0; i < model.design_values.size(); ++i)
+      out += fmt::format("    {}: {}{}\n", json(model.design_values[i].name).dump(),
+                         parameter_json_text(model.design_values[i]), i + 1 < model.design_values.size() ? "," : "");
+    out += "  }";
+  }
   if (fit_section.is_object() && !fit_section.empty()) {
     // The fit section names data files, which may not be UTF-8: written with U+FFFD.
     std::string fit = fit_section.dump(2, ' ', false, json::error_handler_t::replace);

@@ -477,27 +477,37 @@ void rank_outcomes(Diagnosis& out, std::vector<CandidateOutcome>& outcomes) {
   for (CandidateOutcome& c : failed) out.ranked.push_back(std::move(c));
 }
 
-// out.indistinguishable and out.separated_by_priors for the winner.
+// out.indistinguishable, out.separated_by_priors and out.also_explain for the winner.
 void name_ties(Diagnosis& out, const CandidateOutcome* winner, const DiagnoseOptions& options) {
   const double f = out.effective_floor;
-  // Another significant candidate the data do not separate from the winner: with
-  // the winner explained, one that explains too; otherwise one whose ΔBIC is within
-  // the significance margin of the winner's (a gain and a uniform scaling of M, D
-  // and K are the same plant: rod_twist against gain_error, issue 25).  Among the
+  const double margin = options.significance_delta_bic;
+  // Another significant candidate the data do not separate from the winner: its
+  // BIC on the data alone (priors aside) within the significance margin of the
+  // winner's (a gain and a uniform scaling of M, D and K are the same plant:
+  // rod_twist against gain_error; a delay and a lag on a band where ωτ << 1) and,
+  // with the winner explained, leaving only noise too.  Both are needed: two
+  // candidates can each bring the error figure within the noise while the
+  // likelihood, which weighs every line by its own noise, separates them by
+  // thousands (a 0.55 ms delay against a lag on 0.15-400 Hz of an analyzer's S:
+  // ΔBIC 29 556, issue 25) — that is also_explain, not a tie.  Among the
   // combinations when the winner is one.
   const bool combination = winner->members.size() > 1;
   for (const CandidateOutcome& c : combination ? out.combinations : out.ranked) {
     if (&c == winner || !c.significant) continue;
-    const bool same = out.explained ? c.error <= options.explained_ratio * f
-                                    : c.delta_bic - winner->delta_bic < options.significance_delta_bic;
+    if (out.explained && c.error > options.explained_ratio * f) continue;
+    if (c.fit.bic - winner->fit.bic >= margin) {
+      if (out.explained) out.also_explain.push_back(c.effect);
+      continue;
+    }
     // The priors separate what the data do not: a candidate that fits within the
     // noise only by pulling estimates far from their priors (rod_twist against a
-    // gain with the masses weighed: 101 sigma) is not a tie.
-    if (same && c.fit.prior_cost - winner->fit.prior_cost > options.significance_delta_bic) {
+    // gain with the masses weighed: 101 sigma; a lag of 0.55 ms against a coil
+    // time constant known to be 50 ± 50 us) is not a tie.
+    if (c.fit.prior_cost - winner->fit.prior_cost > margin) {
       out.separated_by_priors.push_back(c.effect);
       continue;
     }
-    if (same) out.indistinguishable.push_back(c.effect);
+    out.indistinguishable.push_back(c.effect);
   }
 }
 

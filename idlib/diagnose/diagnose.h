@@ -230,14 +230,18 @@ struct Diagnosis {
   std::vector<CandidateOutcome> combinations;
   bool explained = false;                  // the winner is significant and leaves only noise
   // Other significant candidates (or combinations, when the winner is one) the data
-  // do not separate from the winner: when explained, ones that leave only noise too
-  // (a 0.5 ms delay and a 0.5 ms lag in an frf estimate whose floor is 1 %);
-  // otherwise ones whose ΔBIC is within significance_delta_bic of the winner's.
+  // do not separate from the winner: their BIC on the data alone within
+  // significance_delta_bic of the winner's and, when explained, leaving only noise
+  // too (a 0.55 ms delay and a lag on an analyzer's S up to 2 Hz: ΔBIC 3.6 apart).
   std::vector<std::string> indistinguishable;
   // Candidates that would be indistinguishable on the data alone but whose fit pulls
   // the estimates further from their priors (prior chi-square higher by more than
   // significance_delta_bic than the winner's): the priors separate them.
   std::vector<std::string> separated_by_priors;
+  // With the winner explained: other significant candidates that leave only noise
+  // too by the error figure, but whose likelihood on the data is worse than the
+  // winner's by more than significance_delta_bic (the data separate them).
+  std::vector<std::string> also_explain;
   std::string missing;                     // the winner when significant ("A + B" for a combination), else ""
   std::vector<std::string> missing_effects;  // its members ({missing} for one effect)
   // The winning outcome (in ranked or combinations), nullptr when none is significant.

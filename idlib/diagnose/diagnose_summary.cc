@@ -240,16 +240,47 @@ void summary_winner(Diagnosis& out, const SummaryInputs& in) {
   if (second != nullptr)
     s.push_back(fmt::format("  runner-up: {} (error {}, {:.0f} % of the excess; {})", second->effect,
                             percent(second->error), 100.0 * second->excess_share, second->verdict));
-  if (!out.indistinguishable.empty() && second != nullptr) {
+  const auto outcome = [&](const std::string& name) -> const CandidateOutcome* {
+    for (const CandidateOutcome& c : list)
+      if (c.effect == name) return &c;
+    return nullptr;
+  };
+  if (!out.indistinguishable.empty()) {
+    // what would separate them: a prior on a parameter of their own (a datasheet's
+    // value can be given before the effect is added) or on a base parameter
+    std::vector<std::string> own, gaps;
+    for (const ParameterEstimate& p : winner->effect_parameters) own.push_back(p.name);
+    for (const std::string& name : out.indistinguishable)
+      if (const CandidateOutcome* c = outcome(name)) {
+        for (const ParameterEstimate& p : c->effect_parameters)
+          if (std::find(own.begin(), own.end(), p.name) == own.end()) own.push_back(p.name);
+        gaps.push_back(fmt::format("{:+.1f}", c->fit.bic - winner->fit.bic));
+      }
+    if (own.size() > 4) own.resize(4);
     s.push_back(fmt::format(
-        "  indistinguishable on these data from {}: {} {}; {} has the better likelihood (ΔBIC {:.1f} against {:.1f}, "
-        "within {:g}). What would separate them: a prior on a parameter one of them moves (lpvid model set --set "
-        "NAME=VALUE±SIGMA: a weighed mass, a datasheet force constant or stiffness), or another experiment (another "
-        "operating point, a static test, a longer or less noisy measurement, a wider band)",
+        "  indistinguishable on these data from {}: {} {}, and the data's BIC differs from {}'s by {} (within {:g}). "
+        "What would separate them: a prior on a parameter one of them moves (lpvid model set --set NAME=VALUE±SIGMA, "
+        "e.g. on {}, from a datasheet, even before the effect is added; or a weighed mass, a datasheet force constant "
+        "or stiffness), or another experiment (another operating point, a static test, a longer or less noisy "
+        "measurement, a wider band)",
         fmt::join(out.indistinguishable, ", "), out.indistinguishable.size() == 1 ? "it leaves" : "they leave",
-        out.explained ? "the error within the noise too"
-                      : fmt::format("the error at {} against {}", percent(second->error), percent(winner->error)),
-        winner->effect, winner->delta_bic, second->delta_bic, options.significance_delta_bic));
+        out.explained || outcome(out.indistinguishable.front()) == nullptr
+            ? std::string("the error within the noise too")
+            : fmt::format("the error at {} against {}", percent(outcome(out.indistinguishable.front())->error),
+                          percent(winner->error)),
+        winner->effect,
+        fmt::join(gaps, ", "), options.significance_delta_bic, fmt::join(own, " or ")));
+  }
+  if (!out.also_explain.empty()) {
+    std::vector<std::string> each;
+    for (const std::string& name : out.also_explain)
+      if (const CandidateOutcome* c = outcome(name))
+        each.push_back(fmt::format("{}{}, ΔBIC {:+.1f} on the data", out.also_explain.size() == 1 ? "" : name + " ",
+                                   percent(c->error), c->fit.bic - winner->fit.bic));
+    s.push_back(fmt::format("  {} also {} the error within the noise ({}), but the likelihood, line by line, prefers {}: "
+                            "the data separate them",
+                            fmt::join(out.also_explain, ", "), out.also_explain.size() == 1 ? "brings" : "bring",
+                            fmt::join(each, "; "), winner->effect));
   }
   if (out.explained) {
     s.push_back(fmt::format("  explained: with it the error is within the noise ({} <= {:g} x {})",

@@ -401,7 +401,17 @@ void PhysicalModel::add_effect(const std::string& name) {
                                    "effect); rename the user-defined effect's parameters",
                                    name, q.name));
   effects.push_back(name);
-  for (const PhysicalParameter& q : e->parameters) parameters.push_back(q);
+  for (const PhysicalParameter& q : e->parameters) {
+    // the user's design value for it, if any, replaces the library's default
+    const auto known = std::find_if(design_values.begin(), design_values.end(),
+                                    [&](const PhysicalParameter& d) { return d.name == q.name; });
+    if (known == design_values.end()) {
+      parameters.push_back(q);
+    } else {
+      parameters.push_back(*known);
+      design_values.erase(known);
+    }
+  }
   for (const std::string& h : e->holds)
     for (const PhysicalParameter& design : base_info().parameters)
       if (design.name == h) {
@@ -420,7 +430,10 @@ void PhysicalModel::remove_effect(const std::string& name) {
   effects.erase(std::find(effects.begin(), effects.end(), name));
   for (const PhysicalParameter& q : e->parameters) {
     const Index i = index_of(q.name);
-    if (i >= 0) parameters.erase(parameters.begin() + i);
+    if (i < 0) continue;
+    // a prior is what the user knows about the effect: kept for when it comes back
+    if (parameters[static_cast<std::size_t>(i)].has_prior()) design_values.push_back(parameters[static_cast<std::size_t>(i)]);
+    parameters.erase(parameters.begin() + i);
   }
   for (const std::string& h : e->holds)
     if (index_of(h) >= 0) parameter(h).free = true;
@@ -514,6 +527,39 @@ PhysicalParameter& PhysicalModel::parameter(const std::string& name) {
   return const_cast<PhysicalParameter&>(static_cast<const PhysicalModel&>(*this).parameter(name));
 }
 
+namespace {
+// The library entry of a parameter of an effect (library or definition) the model
+// lacks, and that effect's name; nullptr when there is none.
+const PhysicalParameter* absent_effect_parameter(const PhysicalModel& m, const std::string& name, std::string* owner) {
+  auto look = [&](const EffectInfo& e) -> const PhysicalParameter* {
+    if (m.has_effect(e.name)) return nullptr;
+    for (const PhysicalParameter& q : e.parameters)
+      if (q.name == name) {
+        if (owner != nullptr) *owner = e.name;
+        return &q;
+      }
+    return nullptr;
+  };
+  for (const EffectInfo& e : m.library())
+    if (const PhysicalParameter* q = look(e)) return q;
+  for (const EffectInfo& e : m.definitions)
+    if (const PhysicalParameter* q = look(e)) return q;
+  return nullptr;
+}
+}  // namespace
+
+PhysicalParameter& PhysicalModel::parameter_or_design_value(const std::string& name) {
+  if (index_of(name) >= 0) return parameter(name);
+  for (PhysicalParameter& d : design_values)
+    if (d.name == name) return d;
+  if (const PhysicalParameter* q = absent_effect_parameter(*this, name, nullptr)) return design_values.emplace_back(*q);
+  std::vector<std::string> names;
+  for (const auto& q : parameters) names.push_back(q.name);
+  throw InputError(fmt::format("the model has no parameter '{}', and no effect it could add has one; give one of {} "
+                               "or a parameter of an effect it lacks (lpvid model effects)",
+                               name, join(names)));
+}
+
 Eigen::VectorXd PhysicalModel::values() const {
   Eigen::VectorXd v(static_cast<Index>(parameters.size()));
   for (std::size_t i = 0; i < parameters.size(); ++i) v(static_cast<Index>(i)) = parameters[i].value;
@@ -526,6 +572,29 @@ std::vector<Index> PhysicalModel::free_indices() const {
     if (parameters[i].free) out.push_back(static_cast<Index>(i));
   return out;
 }
+
+namespace {
+// A parameter's own rules against its library entry: unit, finite, bounds, prior.
+void check_parameter_rules(const PhysicalParameter& q, const PhysicalParameter& lib) {
+  if (q.unit != lib.unit)
+    throw InputError(fmt::format("parameter '{}' has unit '{}'; its unit is '{}'; convert the value and write that "
+                                 "unit",
+                                 q.name, q.unit, lib.unit));
+  if (!std::isfinite(q.value) || !std::isfinite(q.lower) || !std::isfinite(q.upper))
+    throw InputError(fmt::format("parameter '{}': value {}, bounds [{}, {}]; all must be finite numbers", q.name,
+                                 q.value, q.lower, q.upper));
+  if (q.lower > q.upper)
+    throw InputError(fmt::format("parameter '{}': bounds reversed, lower {} > upper {}; swap them", q.name, q.lower,
+                                 q.upper));
+  if (q.value < q.lower || q.value > q.upper)
+    throw InputError(fmt::format("parameter '{}': value {} is outside its bounds [{}, {}]; change the value or the "
+                                 "bounds",
+                                 q.name, q.value, q.lower, q.upper));
+  if (!std::isfinite(q.prior_mean) || !std::isfinite(q.prior_sigma) || q.prior_sigma < 0.0)
+    throw InputError(fmt::format("parameter '{}': prior {} ± {}; give a finite design value and an uncertainty > 0",
+                                 q.name, q.prior_mean, q.prior_sigma));
+}
+}  // namespace
 
 void PhysicalModel::validate() const {
   const BaseInfo& b = base_info();
@@ -571,23 +640,23 @@ void PhysicalModel::validate() const {
                                          "\"{}\" to \"effects\" or remove the parameter",
                                          q.name, owner, owner));
     }
-    if (q.unit != lib->unit)
-      throw InputError(fmt::format("parameter '{}' has unit '{}'; its unit is '{}'; convert the value and write that "
-                                   "unit",
-                                   q.name, q.unit, lib->unit));
-    if (!std::isfinite(q.value) || !std::isfinite(q.lower) || !std::isfinite(q.upper))
-      throw InputError(fmt::format("parameter '{}': value {}, bounds [{}, {}]; all must be finite numbers", q.name,
-                                   q.value, q.lower, q.upper));
-    if (q.lower > q.upper)
-      throw InputError(fmt::format("parameter '{}': bounds reversed, lower {} > upper {}; swap them", q.name, q.lower,
-                                   q.upper));
-    if (q.value < q.lower || q.value > q.upper)
-      throw InputError(fmt::format("parameter '{}': value {} is outside its bounds [{}, {}]; change the value or the "
-                                   "bounds",
-                                   q.name, q.value, q.lower, q.upper));
-    if (!std::isfinite(q.prior_mean) || !std::isfinite(q.prior_sigma) || q.prior_sigma < 0.0)
-      throw InputError(fmt::format("parameter '{}': prior {} ± {}; give a finite design value and an uncertainty > 0",
-                                   q.name, q.prior_mean, q.prior_sigma));
+    check_parameter_rules(q, *lib);
+  }
+  for (std::size_t k = 0; k < design_values.size(); ++k) {
+    const PhysicalParameter& q = design_values[k];
+    const PhysicalParameter* lib = absent_effect_parameter(*this, q.name, nullptr);
+    if (lib == nullptr)
+      throw InputError(index_of(q.name) >= 0
+                           ? fmt::format("design value '{}' is a parameter the model has; set it under \"parameters\" "
+                                         "and remove it from \"design_values\"",
+                                         q.name)
+                           : fmt::format("design value '{}' is no parameter of an effect the model could add; see "
+                                         "'lpvid model effects' for the parameter names",
+                                         q.name));
+    for (std::size_t j = 0; j < k; ++j)
+      if (design_values[j].name == q.name)
+        throw InputError(fmt::format("design value '{}' is given twice; give it once", q.name));
+    check_parameter_rules(q, *lib);
   }
   for (const auto* x : expected) {
     int count = 0;

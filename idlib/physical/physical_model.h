@@ -174,6 +174,14 @@ struct PhysicalModel {
   // User-defined effects declared in the model file (enabled or not); their names
   // differ from the library's.
   std::vector<EffectInfo> definitions;
+  // What the user knows about an effect the model does not have yet: a datasheet's
+  // coil time constant with its uncertainty (`model set --set
+  // actuator_lag_tau_s=5e-5±5e-5` on a model without actuator_lag).  Each is a
+  // parameter of an absent effect (library or definition) with its value, bounds,
+  // free flag and prior; add_effect starts the effect from it (so diagnose's
+  // candidates and `model add` carry the prior), and remove_effect keeps a removed
+  // parameter's prior here.  Issue 25: the prior that separates a delay from a lag.
+  std::vector<PhysicalParameter> design_values;
 
   // The base alone (no effect).  @throws InputError unknown base.
   static PhysicalModel bare(const std::string& base = "platform");
@@ -214,6 +222,10 @@ struct PhysicalModel {
   // @throws InputError  unknown parameter name (the message lists the model's names).
   const PhysicalParameter& parameter(const std::string& name) const;
   PhysicalParameter& parameter(const std::string& name);
+  // The model's parameter of that name or, for a parameter of an effect the model
+  // lacks, its design value (created from the library's default on first use).
+  // @throws InputError  a name neither the model nor any absent effect has.
+  PhysicalParameter& parameter_or_design_value(const std::string& name);
 
   Eigen::VectorXd values() const;
   std::vector<Index> free_indices() const;
@@ -223,7 +235,8 @@ struct PhysicalModel {
   // parameter list is exactly the base's plus each enabled effect's (no unknown,
   // none missing, none twice); unit equals the library's (or the definition's);
   // value and bounds finite; lower <= upper; lower <= value <= upper; each
-  // definition valid (define_effect).
+  // definition valid (define_effect); each design value a parameter of an absent
+  // effect, given once, with the rules of a parameter.
   void validate() const;
 };
 

@@ -420,6 +420,21 @@ TEST(ModelCli, SetGivesDesignValuesWithPriorsAndRefusesBadOnesLeavingTheFile) {
   EXPECT_THAT(read_bad.err, HasSubstr("bad.json:"));
   EXPECT_THAT(read_bad.err, HasSubstr("sigma > 0"));
   EXPECT_FALSE(std::filesystem::exists(dir / "P.json"));
+  // a design value of an effect the model does not have yet: kept for `model add`
+  const auto lag = run_lpvid(fmt::format("model set --model {} --set actuator_time_constant_s=5e-5±5e-5 --out {}",
+                                         dir / "m.json", dir / "lag.json"));
+  ASSERT_EQ(lag.exit_code, 0) << lag.err;
+  EXPECT_THAT(lag.out, HasSubstr("(a design value, used when its effect is added)"));
+  EXPECT_EQ(read_physical_model(dir / "lag.json").index_of("actuator_time_constant_s"), -1);
+  ASSERT_EQ(run_lpvid(fmt::format("model add actuator_lag --model {}", dir / "lag.json")).exit_code, 0);
+  m = read_physical_model(dir / "lag.json");
+  EXPECT_EQ(m.parameter("actuator_time_constant_s").value, 5e-5);
+  EXPECT_EQ(m.parameter("actuator_time_constant_s").prior_sigma, 5e-5);
+  EXPECT_TRUE(m.design_values.empty());
+  const auto unknown = run_lpvid(fmt::format("model set --model {} --set no_such_s=1", dir / "m.json"));
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_THAT(unknown.err, HasSubstr("no effect it could add has one"));
+  EXPECT_EQ(lpvid::testing::slurp(dir / "m.json"), before);
 }
 
 TEST(ModelCli, DefineAddsAUserDefinedEffectFromAFile) {

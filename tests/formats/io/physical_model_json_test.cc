@@ -56,6 +56,33 @@ TEST(PhysicalModelJson, RoundTripIsExact) {
   }
 }
 
+// Design values of absent effects (issue 25) travel in the file, after "parameters";
+// a broken one is positioned at its name.
+TEST(PhysicalModelJson, DesignValuesOfAbsentEffectsRoundTripAndAreChecked) {
+  PhysicalModel m = platform_defaults_model();
+  PhysicalParameter& tau = m.parameter_or_design_value("actuator_time_constant_s");
+  tau.value = tau.prior_mean = 5e-5;
+  tau.prior_sigma = 5e-5;
+  const std::string text = physical_model_to_json(m);
+  EXPECT_LT(text.find("\"parameters\""), text.find("\"design_values\"")) << text;
+  const PhysicalModel back = parse_physical_model(text, "m.json");
+  ASSERT_EQ(back.design_values.size(), 1u);
+  EXPECT_EQ(back.design_values.front().name, "actuator_time_constant_s");
+  EXPECT_EQ(back.design_values.front().value, 5e-5);
+  EXPECT_EQ(back.design_values.front().prior_mean, 5e-5);
+  EXPECT_EQ(back.design_values.front().prior_sigma, 5e-5);
+  EXPECT_EQ(physical_model_to_json(back), text);
+  const int at = line_of(text, "\"actuator_time_constant_s\"");
+  std::string e = error_of(edit(text, "\"actuator_time_constant_s\"", "\"actuator_time_constant_ms\""));
+  EXPECT_THAT(e, StartsWith(fmt::format("m.json:{}:5: ", at)));
+  EXPECT_THAT(e, HasSubstr("no parameter of an effect the model could add"));
+  e = error_of(edit(text, "\"actuator_time_constant_s\"", "\"platform_mass_kg\""));
+  EXPECT_THAT(e, HasSubstr("is a parameter the model has"));
+  e = error_of(edit(text, "\"design_values\": {", "\"design_values\": [{") );
+  EXPECT_THAT(e, HasSubstr("m.json:"));
+  EXPECT_EQ(e.find('\n'), std::string::npos);
+}
+
 TEST(PhysicalModelJson, BadFilesNameFileLineColumnAndTheRule) {
   const std::string good = physical_model_to_json(platform_defaults_model());
   const int damping_line = line_of(good, "\"damping_z_Ns_per_m\"");

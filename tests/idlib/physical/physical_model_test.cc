@@ -66,6 +66,46 @@ TEST(PhysicalModel, RemoveEffectDropsExactlyItsParameters) {
   EXPECT_THAT(error_of([&] { m.remove_effect("input_delay"); }), HasSubstr("no effect 'input_delay' to remove"));
 }
 
+// A design value for an effect the model lacks (a datasheet's coil L/R with its
+// uncertainty): kept aside, the effect starts from it when added (value, prior,
+// free flag), and a removed effect's prior is kept for when it comes back.
+TEST(PhysicalModel, ADesignValueOfAnAbsentEffectIsWhereTheEffectStartsAndOutlivesItsRemoval) {
+  PhysicalModel m = PhysicalModel::initial();
+  PhysicalParameter& tau = m.parameter_or_design_value("actuator_time_constant_s");
+  tau.value = tau.prior_mean = 5e-5;
+  tau.prior_sigma = 2e-5;
+  EXPECT_EQ(m.index_of("actuator_time_constant_s"), -1);
+  ASSERT_EQ(m.design_values.size(), 1u);
+  EXPECT_NO_THROW(m.validate());
+  EXPECT_EQ(&m.parameter_or_design_value("actuator_time_constant_s"), &m.design_values.front());  // not twice
+  m.add_effect("actuator_lag");
+  EXPECT_TRUE(m.design_values.empty());
+  EXPECT_EQ(m.parameter("actuator_time_constant_s").value, 5e-5);
+  EXPECT_EQ(m.parameter("actuator_time_constant_s").prior_sigma, 2e-5);
+  m.parameter("actuator_time_constant_s").value = 6e-5;  // as a fit leaves it
+  m.remove_effect("actuator_lag");
+  ASSERT_EQ(m.design_values.size(), 1u);
+  EXPECT_EQ(m.design_values.front().prior_mean, 5e-5);
+  m.add_effect("actuator_lag");
+  EXPECT_EQ(m.parameter("actuator_time_constant_s").value, 6e-5);
+  // a removed effect without a prior leaves nothing behind
+  m.add_effect("input_delay");
+  m.remove_effect("input_delay");
+  EXPECT_TRUE(m.design_values.empty());
+  // names neither the model nor an absent effect has, and broken rules
+  EXPECT_THAT(error_of([&] { m.parameter_or_design_value("no_such_s"); }),
+              HasSubstr("no effect it could add has one"));
+  PhysicalModel bad = PhysicalModel::initial();
+  bad.design_values.push_back(bad.parameter("platform_mass_kg"));
+  EXPECT_THAT(error_of([&] { bad.validate(); }), HasSubstr("is a parameter the model has"));
+  bad.design_values.clear();
+  bad.parameter_or_design_value("input_delay_s").value = 1.0;  // beyond its 0.02 s bound
+  EXPECT_THAT(error_of([&] { bad.validate(); }), HasSubstr("outside its bounds"));
+  bad.design_values.front().value = 1e-3;
+  bad.design_values.push_back(bad.design_values.front());
+  EXPECT_THAT(error_of([&] { bad.validate(); }), HasSubstr("given twice"));
+}
+
 TEST(PhysicalModel, RodTwistHoldsTheBendingScalesAtTheDesignAndRemovingItFreesThem) {
   PhysicalModel m = PhysicalModel::initial();
   m.parameter("bending_scale_psi").value = 1.7;
