@@ -105,6 +105,23 @@ void tail_rounds(StructuredRun& run, int pass, const Eigen::VectorXd& grid, Plan
       const std::vector<Eigen::MatrixXd> refit = refit_response_beyond(fit.plant, controller, views, g_final, L);
       for (std::size_t e = 0; e < experiments.size(); ++e) corrected[e] -= refit[e];
     }
+    // A round's plant whose loop with the controller is unstable has a tail that grows
+    // without bound over the record: its correction overflows.  The rounds end with the
+    // fit before it (found on a linear axis's half-log at a forced order 4: the overflow
+    // reached estimate_markov as a log to "rescale", or one with an infinite sample, and
+    // the held-out check of the refinement failed with it).  Finite when squared and
+    // summed, as estimate_markov needs it.
+    bool finite = true;
+    for (const Eigen::MatrixXd& c : corrected) finite = finite && std::isfinite(c.squaredNorm());
+    if (!finite) {
+      ch.tail_reason = fmt::format("stopped at round {}: the plant of the round before closes a loop with the "
+                                   "controller whose response beyond the horizon grows without bound over the record "
+                                   "(an unstable loop), so its tail cannot correct the logs; the rounds end with that "
+                                   "plant",
+                                   round);
+      result.warnings.push_back("identify: tail rounds " + ch.tail_reason);
+      break;
+    }
     run.mo.num_lags = L;
     run.mo.initial_guess = g_final;  // the previous round's ĝ: the correction is small
     const MarkovResult mr = estimate_markov(views, run.mo, &run.corr);

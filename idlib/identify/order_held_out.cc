@@ -272,6 +272,7 @@ bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, 
   std::vector<ExperimentView> first, second;
   split_halves(experiments, first, second);
   HeldOutErrors structured = fresh(p), refined = fresh(p);
+  std::string fallback;  // why a half was compared with the whole logs' structured fit
   for (int fold = 0; fold < 2; ++fold) {
     const std::vector<ExperimentView>& train = fold == 0 ? first : second;
     const std::vector<ExperimentView>& test = fold == 0 ? second : first;
@@ -285,9 +286,18 @@ bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, 
     try {
       half = identify_closed_loop(train, Ts, controller, o);
     } catch (const std::exception& e) {
-      reason = fmt::format("not checked on held-out data (the fit on a half failed: {}): the structured fit is kept",
-                           e.what());
-      return false;
+      // The structured route failed on the half (its stages need more data than a half
+      // may give).  Compare with the structured fit of the whole logs instead, the
+      // refinement refitted on the half from it: that fit has seen the held-out half,
+      // so the comparison favours it, and a refinement that still predicts better is
+      // better.  (Found on a linear axis under a broadband reference: the half's
+      // structured fit failed, the check with it, and a refinement 0.0004 % off the
+      // plant was dropped for a structured fit 48.6 % off.)
+      half = r;
+      if (fallback.empty())
+        fallback = fmt::format("; the structured fit on a half failed ({}), so each half was compared with the "
+                               "structured fit of the whole logs, which has seen it",
+                               e.what());
     }
     IdentifyResult half_refined = half;
     refine_on_logs(train, &controller, half_refined, {}, o.initial_states);
@@ -316,6 +326,7 @@ bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, 
                            : fmt::format("not {:.0f} % better (the closed loop's prediction barely sees the plant where "
                                          "the loop gain is high), the structured fit is kept",
                                          100 * (1 - kMaterialRatio)));
+  reason += fallback;
   return significant && material;
 }
 

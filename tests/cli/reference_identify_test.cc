@@ -234,6 +234,45 @@ friction_axis::Truth write_linear_point_to_point(const std::filesystem::path& di
   return t;
 }
 
+// The linear axis under a broadband reference (5 mm rms low-passed at 20 Hz about a 0.3 Hz
+// sine), its position read with white noise of a 1 um quantiser's variance (0.289 um rms),
+// seed 6 of ten drawn: the route through the loop's response takes order 4 with a pole
+// at +15.6 rad/s, 48.6 % off the axis over 1-400 rad/s, and its output-error refinement
+// brings the loop's simulation error from 109 to 0.0117 (from rest).  The refinement is
+// kept only when it predicts held-out halves better; here the structured fit on a half
+// failed (its tail rounds ran into a loop whose response overflows, then its bands into
+// non-finite bins), and until stop 55 that failure kept the structured fit.  Now the
+// tail rounds stop before an overflowing correction, and a half whose structured fit
+// fails is compared with the whole logs' structured fit, which has seen it (a comparison
+// that favours it).  Measured: kept (held-out error norm x0.00058), 0.0010 % mean error
+// over 1-400 rad/s, the bands covering the axis at every frequency there.  (The other
+// nine seeds: refinement kept, 0.0001-0.0016 %.)  Bound: 0.01 %, 10x the measured, 4800x
+// below the failure.
+TEST(ReferenceIdentify, ABroadbandReferenceWhoseHalfFitFailsStillKeepsTheRefinementThatFitsTheLogs) {
+  TempDir dir("reference_broadband");
+  friction_axis::Truth t;
+  t.coulomb_N = 0.0;
+  t.offset_N = 0.0;
+  friction_axis::Experiment e;
+  e.random_reference = true;
+  e.seed = 6;
+  e.white_position_noise_m = 1e-6 / std::sqrt(12.0);
+  friction_axis::write_csv(friction_axis::simulate(t, e), dir / "log.csv");
+  write_friction_axis_pd(t, dir / "C.json");
+  const auto r = run_lpvid("identify --controller " + (dir / "C.json") +
+                           " --excitation r --excitation-at reference --output enc --json --out " + (dir / "out") + " " +
+                           (dir / "log.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  const std::string why = report["refinement"]["reason"].get<std::string>();
+  EXPECT_TRUE(report["refinement"]["kept"].get<bool>()) << why;
+  const auto [mean, covered] = against_linear_friction_axis(dir / "out/plant_frd.csv", t, 1.0, 400.0);
+  std::printf("broadband reference, seed 6: order %d, mean error %.4f %% over 1-400 rad/s, bands covering %.2f; %s\n",
+              report["plant"]["order"].get<int>(), 100 * mean, covered, why.substr(why.rfind(';') + 1).c_str());
+  EXPECT_LE(mean, 1e-4);
+  EXPECT_GE(covered, 0.9);
+}
+
 // Point-to-point moves (minimum-jerk, with rests: how an industrial axis is exercised,
 // and issue 24's held-out axis) excite a handful of frequencies: the loop's response over
 // the horizon is not determined by them, even noise-free (measured on this log: least
@@ -254,7 +293,10 @@ friction_axis::Truth write_linear_point_to_point(const std::filesystem::path& di
 // stays below 0.3 on the worst-covered logs; why is open).  Measured over ten encoder
 // steps 0.8–1.25 µm: 61 % of the frequencies covered (36 % with the sandwich's former
 // fixed 8 segments; here 65 segments, the residual's correlation time allowing the
-// shortest), all-or-nothing per log.
+// shortest), all-or-nothing per log.  With white noise of the quantiser's variance
+// instead: 93 %, but the mean squared error 2.0-2.1x the predicted variance above 10
+// rad/s over ten draws (0.32x below): the bands are too narrow on these moves even
+// for white noise (subcommands.md, identify).
 // With --no-direct the route's refusal stands: one line, the excitation named as why,
 // nothing written.  The log: tests/support/friction_axis.h, its friction and offset
 // zero (a linear axis), PD on the encoder.

@@ -46,6 +46,9 @@ inline constexpr int kSubsteps = 100;
 struct Experiment {
   double rate_hz = 1000.0, seconds = 30.0;
   double encoder_m = 1e-6;           // quantisation step
+  // > 0: the position sensor's white Gaussian noise (std, m) instead of the quantiser
+  // (an interferometer, or an encoder interpolated finely; drawn from seed + 77)
+  double white_position_noise_m = 0.0;
   double current_noise_A = 0.005;    // the logged current's sensor noise (std)
   bool both_ways = true;             // false: a ramp that never reverses
   // true: point-to-point moves between fixed positions with rests between them
@@ -157,6 +160,8 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   const double alpha_v = std::exp(-2.0 * M_PI * 200.0 * ts);
   std::mt19937 rng(e.seed);
   std::normal_distribution<double> n01(0.0, 1.0);
+  std::mt19937 position_rng(e.seed + 77);
+  std::normal_distribution<double> position_n01(0.0, 1.0);  // its own: a distribution keeps a spare draw
   Log log;
   for (Eigen::VectorXd* v :
        {&log.t, &log.r, &log.i, &log.x, &log.unmodelled_N, &log.motor_N, &log.velocity, &log.ripple_force_N})
@@ -180,7 +185,8 @@ inline Log simulate(const Truth& p, const Experiment& e) {
   auto stribeck = [&](double speed) { return p.stribeck_N * std::exp(-(speed * speed) / (p.stribeck_v * p.stribeck_v)); };
   for (Eigen::Index k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * ts;
-    const double enc = std::round(x / e.encoder_m) * e.encoder_m;
+    const double enc = e.white_position_noise_m > 0.0 ? x + e.white_position_noise_m * position_n01(position_rng)
+                                                      : std::round(x / e.encoder_m) * e.encoder_m;
     const double r = ref(k);
     const double err = r - enc;
     double current;
