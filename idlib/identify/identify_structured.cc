@@ -185,7 +185,15 @@ void estimate_bands(const StructuredRun& run, const std::vector<Eigen::MatrixXd>
     for (auto& rep : reps)
       for (std::size_t f = 0; f < rep.size(); ++f) rep[f] = rep[f] * to_coloured[f];
   }
-  if (reps.size() >= kMinReplicates) {
+  // A replicate with a non-finite bin (the logs' correction by a tail that overflowed
+  // partway, or an unexcited bin's ridge overwhelmed) carries no spread to use.
+  bool finite = true;
+  for (const auto& rep : reps)
+    for (const Eigen::MatrixXcd& b : rep) finite = finite && b.allFinite();
+  if (!finite) {
+    ch.bands_reason = "covariance of the fit's noise model (the Markov estimate's error replicates hold non-finite "
+                      "bins): bins assumed independent, likely too narrow";
+  } else if (reps.size() >= kMinReplicates) {
     use_replicate_covariance(fit, final_data, run.controller, reps, run.fo);
     ch.bands_reason = fmt::format("covariance from {} replicates of the Markov estimate's error, one per {}-sample "
                                   "segment of the records",
