@@ -28,17 +28,17 @@ Example:
   lpvid stage6 fit --log exp/exp_stage6.csv --effects gap --method both   # equation and output error
 These are aliases of the shared commands on a stage6 model file:
   lpvid model init --base stage6 --out m.json && lpvid model add gap_dependence --model m.json --out m.json
-  lpvid fit --model m.json --log exp/exp_stage6.csv --method equation --out stage.json
+  lpvid fit --model m.json --log exp/exp_stage6.csv --out stage.json
   lpvid diagnose --model m.json --log exp/exp_stage6.csv
   lpvid compare --model stage.json --log exp/exp_stage6.csv --out-png where.png   # failing time windows
 The log's u1..u6 are the commanded body wrench (F_x F_y F_z tau_x tau_y tau_z) and q1..q6
-the measured configuration (x y z psi theta phi).  --method equation (the alias's default)
-fits the sampled equations of motion (docs/math.md, the 6-DOF stage); the mass is held at
-5.47 kg and the force constant fitted (--fit-mass: the other way round; only their ratio
-is identifiable).  --method output refines it by output error (simulated 0.3 s windows of
-the logged wrench against the measured q, each window with its own initial state), which
-removes the equation error's bias towards low inertias on noisy logs and reports standard
-errors; --method both prints the two.  Effects: com (centre-of-mass offset), gap
+the measured configuration (x y z psi theta phi).  --method equation fits the sampled
+equations of motion (docs/math.md, the 6-DOF stage); the mass is held at 5.47 kg and the
+force constant fitted (--fit-mass: the other way round; only their ratio is
+identifiable).  --method output (the default, as fit --log) refines it by output error
+(simulated 0.3 s windows of the logged wrench against the measured q, each window with its
+own initial state), which removes the equation error's bias towards low inertias on noisy
+logs and reports standard errors; --method both prints the two.  Effects: com (centre-of-mass offset), gap
 (gap-dependent force constant alpha(z)), lag (motor electrical lag with back-EMF).
 diagnose refits the model given by --effects with each effect it lacks added alone and
 ranks them by BIC; an effect is significant when it lowers BIC by more than 10.)";
@@ -46,7 +46,7 @@ ranks them by BIC; an effect is significant when it lowers BIC by more than 10.)
 struct Stage6IdOptions {
   std::string log, out;
   std::vector<std::string> effects;
-  std::string method = "equation";  // fit: equation | output | both
+  std::string method = "output";  // fit: equation | output | both (fit --log's default)
   bool fit_mass = false, json = false;
 };
 
@@ -113,8 +113,8 @@ Command make_stage6_command() {
               if (!diagnose) {
                 sub->add_option("--out", o->out, "write the fitted stage6 model file (as lpvid fit) and its history");
                 sub->add_option("--method", o->method,
-                                "equation (default): equation error; output: output error started from it (unbiased "
-                                "with sensor noise, standard errors); both: print the two");
+                                "output (default, as fit --log): output error started from the equation error (unbiased "
+                                "with sensor noise, standard errors); equation: equation error only; both: print the two");
               }
               sub->add_flag("--json", o->json, "print the summary as JSON");
               sub->callback([o, diagnose] { diagnose ? run_diagnose(*o) : run_fit(*o); });
