@@ -291,7 +291,7 @@ bool refinement_predicts_better(const std::vector<ExperimentView>& experiments, 
       // refinement refitted on the half from it: that fit has seen the held-out half,
       // so the comparison favours it, and a refinement that still predicts better is
       // better.  (Found on a linear axis under a broadband reference: the half's
-      // structured fit failed, the check with it, and a refinement 0.0004 % off the
+      // structured fit failed, the check with it, and a refinement 0.0010 % off the
       // plant was dropped for a structured fit 48.6 % off.)
       half = r;
       if (fallback.empty())

@@ -529,15 +529,12 @@ PhysicalParameter& PhysicalModel::parameter(const std::string& name) {
 
 namespace {
 // The library entry of a parameter of an effect (library or definition) the model
-// lacks, and that effect's name; nullptr when there is none.
-const PhysicalParameter* absent_effect_parameter(const PhysicalModel& m, const std::string& name, std::string* owner) {
+// lacks; nullptr when there is none.
+const PhysicalParameter* absent_effect_parameter(const PhysicalModel& m, const std::string& name) {
   auto look = [&](const EffectInfo& e) -> const PhysicalParameter* {
     if (m.has_effect(e.name)) return nullptr;
     for (const PhysicalParameter& q : e.parameters)
-      if (q.name == name) {
-        if (owner != nullptr) *owner = e.name;
-        return &q;
-      }
+      if (q.name == name) return &q;
     return nullptr;
   };
   for (const EffectInfo& e : m.library())
@@ -552,7 +549,7 @@ PhysicalParameter& PhysicalModel::parameter_or_design_value(const std::string& n
   if (index_of(name) >= 0) return parameter(name);
   for (PhysicalParameter& d : design_values)
     if (d.name == name) return d;
-  if (const PhysicalParameter* q = absent_effect_parameter(*this, name, nullptr)) return design_values.emplace_back(*q);
+  if (const PhysicalParameter* q = absent_effect_parameter(*this, name)) return design_values.emplace_back(*q);
   std::vector<std::string> names;
   for (const auto& q : parameters) names.push_back(q.name);
   throw InputError(fmt::format("the model has no parameter '{}', and no effect it could add has one; give one of {} "
@@ -644,7 +641,7 @@ void PhysicalModel::validate() const {
   }
   for (std::size_t k = 0; k < design_values.size(); ++k) {
     const PhysicalParameter& q = design_values[k];
-    const PhysicalParameter* lib = absent_effect_parameter(*this, q.name, nullptr);
+    const PhysicalParameter* lib = absent_effect_parameter(*this, q.name);
     if (lib == nullptr)
       throw InputError(index_of(q.name) >= 0
                            ? fmt::format("design value '{}' is a parameter the model has; set it under \"parameters\" "
