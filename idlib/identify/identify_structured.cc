@@ -90,29 +90,32 @@ void tail_rounds(StructuredRun& run, int pass, const Eigen::VectorXd& grid, Plan
     report_progress(options.progress, {"identify", "tail round", round, 0,
                                        fmt::format("up to {}{}", options.max_tail_rounds,
                                                    pass == 1 ? ", after the order check" : "")});
+    // This round's corrected outputs; they replace `corrected` only when finite, so that
+    // a round that overflows leaves the bands stage the round before's.
+    std::vector<Eigen::MatrixXd> next(experiments.size());
     std::vector<ExperimentView> views;
     parallel_for(static_cast<Index>(experiments.size()), [&](Index e) {  // one task per experiment
       const auto& x = experiments[static_cast<std::size_t>(e)];
-      corrected[static_cast<std::size_t>(e)] =
-          x.output - closed_loop_response_beyond(fit.plant, controller, x.excitation, L);
+      next[static_cast<std::size_t>(e)] = x.output - closed_loop_response_beyond(fit.plant, controller, x.excitation, L);
     });
-    for (std::size_t e = 0; e < experiments.size(); ++e) views.push_back({experiments[e].excitation, corrected[e]});
+    for (std::size_t e = 0; e < experiments.size(); ++e) views.push_back({experiments[e].excitation, next[e]});
     // Where the response had not ended within the horizon, the slow modes' tail
     // amplitudes from the logs (with the last ĝ), not from the model alone
     // (refit_response_beyond): the plain rounds contract too slowly there (measured
     // ~0.7 per round on a drawn plant with 17 % of the energy beyond; ~0.2 with the refit).
     if (run.response_beyond) {
       const std::vector<Eigen::MatrixXd> refit = refit_response_beyond(fit.plant, controller, views, g_final, L);
-      for (std::size_t e = 0; e < experiments.size(); ++e) corrected[e] -= refit[e];
+      for (std::size_t e = 0; e < experiments.size(); ++e) next[e] -= refit[e];
     }
     // A round's plant whose loop with the controller is unstable has a tail that grows
     // without bound over the record: its correction overflows.  The rounds end with the
     // fit before it (found on a linear axis's half-log at a forced order 4: the overflow
     // reached estimate_markov as a log to "rescale", or one with an infinite sample, and
     // the held-out check of the refinement failed with it).  Finite when squared and
-    // summed, as estimate_markov needs it.
+    // summed, as estimate_markov needs it.  `corrected` and g_final then stay the round
+    // before's, which the bands stage reads (the raw outputs and the first ĝ at round 1).
     bool finite = true;
-    for (const Eigen::MatrixXd& c : corrected) finite = finite && std::isfinite(c.squaredNorm());
+    for (const Eigen::MatrixXd& c : next) finite = finite && std::isfinite(c.squaredNorm());
     if (!finite) {
       ch.tail_reason = fmt::format("stopped at round {}: the plant of the round before closes a loop with the "
                                    "controller whose response beyond the horizon grows without bound over the record "
@@ -122,6 +125,7 @@ void tail_rounds(StructuredRun& run, int pass, const Eigen::VectorXd& grid, Plan
       result.warnings.push_back("identify: tail rounds " + ch.tail_reason);
       break;
     }
+    corrected = std::move(next);
     run.mo.num_lags = L;
     run.mo.initial_guess = g_final;  // the previous round's ĝ: the correction is small
     const MarkovResult mr = estimate_markov(views, run.mo, &run.corr);
