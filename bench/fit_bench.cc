@@ -5,8 +5,8 @@
 
 #include "idlib/fit/fit.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 
 #include "idlib/identify/identify.h"
 #include "idlib/lti/discretize.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
 #include "tests/idlib/identify/independent_case.h"
 #include "tests/support/independent_draw.h"

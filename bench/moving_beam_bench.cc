@@ -2,7 +2,7 @@
 // time-domain fit (idlib/validate/time_fit.h): simulated seconds per wall second.
 #include <benchmark/benchmark.h>
 
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/moving_beam.h"
 #include "idlib/validate/time_fit.h"
 

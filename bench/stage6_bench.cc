@@ -4,9 +4,9 @@
 
 #include "idlib/diagnose/diagnose.h"
 #include "idlib/signal/frf.h"
+#include "idlib/sim/stage6_sim.h"
 #include "idlib/stage6/stage6_fit.h"
 #include "idlib/stage6/stage6_output_error.h"
-#include "idlib/stage6/stage6_sim.h"
 
 namespace {
 

@@ -8,7 +8,7 @@
 
 #include "formats/plot/compare_plot.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/validate/model_error.h"
 
 namespace {

@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/logs.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 struct CorrelationTest;     // idlib/validate/time_fit.h

@@ -20,16 +20,16 @@
 #include "cli/simulate_stage6.h"
 #include "formats/io/csv_log.h"
 #include "formats/io/excitation_file.h"
-#include "formats/io/text.h"
 #include "formats/io/model_json.h"
 #include "formats/io/physical_model_json.h"
 #include "formats/io/platform_json.h"
+#include "formats/io/text.h"
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/interconnect.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
 
 namespace lpvid::cli {

@@ -23,7 +23,7 @@
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/physical/physical_model.h"
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/sim/stage6_sim.h"
 
 namespace lpvid::cli {
 namespace {

@@ -14,7 +14,7 @@
 #include "cli/stage6_time.h"
 #include "formats/io/history.h"
 #include "idlib/core/error.h"
-#include "idlib/physical/stage6/stage6_time.h"
+#include "idlib/stage6/stage6_time.h"
 
 namespace lpvid::cli {
 namespace {

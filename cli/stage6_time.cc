@@ -17,9 +17,9 @@
 #include "formats/plot/canvas.h"
 #include "formats/plot/time_plot.h"
 #include "idlib/core/error.h"
-#include "idlib/physical/stage6/stage6_time.h"
 #include "idlib/stage6/stage6_fit.h"
 #include "idlib/stage6/stage6_output_error.h"
+#include "idlib/stage6/stage6_time.h"
 #include "idlib/validate/time_fit.h"
 
 namespace lpvid::cli {

@@ -1,7 +1,7 @@
 // The stage's time-domain route, shared by `lpvid fit --log`, `lpvid diagnose
 // --log`, `lpvid compare --log` (with a stage6 model) and the aliases `lpvid
 // stage6 fit/diagnose`: one implementation, so the loop is the same whichever
-// command a user learnt.  Numerics: idlib/physical/stage6/stage6_time.h (the
+// command a user learnt.  Numerics: idlib/stage6/stage6_time.h (the
 // model <-> fit mapping), idlib/stage6/stage6_fit.h (equation error),
 // idlib/stage6/stage6_output_error.h (output error).  The log is the stage's:
 // t, v1..v6, u1..u6 (commanded wrench F_x F_y F_z tau_x tau_y tau_z), q1..q6

@@ -2,7 +2,7 @@
 // the moving-beam simulation and of the time-domain compare (docs/formats.md).
 //
 // Parameter file: one object, keys = the PlatformParameters field names of
-// idlib/models/platform.h (units in the names); a missing key keeps its
+// idlib/plants/platform/platform.h (units in the names); a missing key keeps its
 // documented default, an unknown key is an error, other types are errors:
 //
 //   {
@@ -21,7 +21,7 @@
 #include <utility>
 #include <vector>
 
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 

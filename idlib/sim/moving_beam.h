@@ -2,7 +2,7 @@
 // Fig. 14): the time-varying closed loop whose measurement the LPV model must
 // predict.  Derivation from the Lagrangian in docs/math.md ("Moving beam").
 //
-// Equations (coordinates and signs of idlib/models/platform.h; q = [psi theta z]):
+// Equations (coordinates and signs of idlib/plants/platform/platform.h; q = [psi theta z]):
 //
 //   M(x_b) q'' + (D + G(x_b, x_b')) q' + K q = tau + w(t)
 //
@@ -31,7 +31,7 @@
 #include <vector>
 
 #include "idlib/core/types.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
 
 namespace lpvid {

@@ -1,5 +1,5 @@
 // Grey-box time-domain fit of the 6-DOF stage's physical parameters from a
-// closed-loop log (seed 001 model; coordinates in idlib/stage6/stage6.h), and a
+// closed-loop log (seed 001 model; coordinates in idlib/plants/stage6/stage6.h), and a
 // BIC ranking of candidate stage effects (gap-dependent force constant α(z),
 // motor electrical lag, centre-of-mass offset).
 //
@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "idlib/core/error.h"
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 
 namespace lpvid::stage6 {
 

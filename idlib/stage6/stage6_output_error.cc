@@ -47,14 +47,7 @@ using State = Eigen::Matrix<T, NX, 1>;
 // R(ψ, θ, φ) of a state (eq 1).
 template <typename T, int NX>
 Eigen::Matrix<T, 3, 3> rotation_of(const State<T, NX>& x) {
-  using std::cos;
-  using std::sin;
-  const T cps = cos(x(3)), sps = sin(x(3)), cth = cos(x(4)), sth = sin(x(4)), cph = cos(x(5)), sph = sin(x(5));
-  Eigen::Matrix<T, 3, 3> R;
-  R << cps * cth, -sps * cph + cps * sth * sph, sps * sph + cps * cph * sth,  //
-      sps * cth, cps * cph + sps * sth * sph, -cps * sph + sps * cph * sth,  //
-      -sth, cth * sph, cth * cph;
-  return R;
+  return rotation_zyx<T>(x(3), x(4), x(5));
 }
 
 // The centre-of-mass offset c = θ[5..7].
@@ -81,10 +74,7 @@ template <typename T, int NX>
 State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, const Eigen::Matrix<double, 3, 4>& r,
                         double z_ref) {
   constexpr bool lag = NX == kLagStates;
-  using std::cos;
-  using std::sin;
   using V3 = Eigen::Matrix<T, 3, 1>;
-  const T cth = cos(x(4)), sth = sin(x(4)), cph = cos(x(5)), sph = sin(x(5));
   const Eigen::Matrix<T, 3, 3> R = rotation_of(x);
   const V3 v = x.template segment<3>(6), w = x.template segment<3>(9);
   const V3 c = com_of(th);
@@ -94,7 +84,7 @@ State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, c
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d ri = r.col(i);
     const T alpha = gap_alpha(th, x, R, ri, z_ref);
-    const int h = i % 2 == 0 ? 0 : 1;  // drive axis of motor i (body x for 1, 3; y for 2, 4)
+    const int h = drive_axis(i);        // body x for motors 1, 3; y for 2, 4
     const V3 arm = ri.cast<T>() - c;    // from the centre of mass
     T fh, fz;
     if constexpr (lag) {
@@ -119,11 +109,8 @@ State<T, NX> derivative(const T* th, const State<T, NX>& x, const Vector8d& f, c
   const V3 acc = R * F * (th[4] / th[0]) - V3(T(0), T(0), T(kGravity_m_per_s2));
   const V3 wdot = (tau * th[4] - w.cross(V3(H.cwiseProduct(w)))).cwiseQuotient(H);
   // q̇_a = W⁻¹ ω (W of eq 4, columns ψ̇ θ̇ φ̇).
-  const T psid = (sph * w(1) + cph * w(2)) / cth;
   dx.template head<3>() = v;
-  dx(3) = psid;
-  dx(4) = cph * w(1) - sph * w(2);
-  dx(5) = w(0) + sth * psid;
+  dx.template segment<3>(3) = euler_rates<T>(x(4), x(5), w);
   dx.template segment<3>(6) = acc;
   dx.template segment<3>(9) = wdot;
   return dx;

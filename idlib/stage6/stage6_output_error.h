@@ -1,6 +1,6 @@
 // Output-error (simulation-error) fit of the 6-DOF stage's physical parameters
 // from a closed-loop log, started from the equation-error fit of
-// idlib/stage6/stage6_fit.h.  Coordinates: idlib/stage6/stage6.h; signals N × 6
+// idlib/stage6/stage6_fit.h.  Coordinates: idlib/plants/stage6/stage6.h; signals N × 6
 // with time along rows (idlib/core/types.h).
 //
 // Why: fit_stage's equation error uses second differences of the measured q as
@@ -67,7 +67,7 @@
 #include <vector>
 
 #include "idlib/core/error.h"
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 #include "idlib/stage6/stage6_fit.h"
 
 namespace lpvid::stage6 {

@@ -8,7 +8,7 @@
 #include "formats/io/frd_csv.h"
 #include "formats/io/model_json.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "tests/support/run_lpvid.h"
 
 namespace lpvid {

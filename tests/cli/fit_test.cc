@@ -12,9 +12,9 @@
 #include "formats/io/physical_model_json.h"
 #include "idlib/fit/fit.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 #include "tests/cli/effect_fixture.h"
 #include "tests/support/run_lpvid.h"
 

@@ -24,9 +24,9 @@
 
 #include "formats/io/frd_csv.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 #include "tests/support/run_lpvid.h"
 
 extern char** environ;

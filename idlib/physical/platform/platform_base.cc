@@ -4,7 +4,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/physical/evaluate.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 namespace {

@@ -18,8 +18,8 @@
 #include <cmath>
 
 #include "idlib/core/types.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/physical_model.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 
@@ -41,21 +41,14 @@ struct PlatformIndices {
 // M(x_b), D, K (3×3, symmetric) for the parameter values p (the model's full list).
 template <class T>
 void platform_matrices(const PlatformIndices& L, const T* p, double x_b, T M[3][3], T D[3][3], T K[3][3]) {
-  using std::cos;
-  using std::sin;
   using std::sqrt;
   const T zero(0.0);
   auto get = [&](Index i, double fallback) { return i >= 0 ? p[i] : T(fallback); };
   const T mp = p[L.m_p], mb = p[L.m_b], zb = p[L.z_b];
   const T cx = get(L.com_x, 0.0), cy = get(L.com_y, 0.0), Jpt = get(L.J_pt, 0.0);
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) M[i][j] = D[i][j] = K[i][j] = zero;
-  M[0][0] = p[L.J_psi] + mb * zb * zb;
-  M[1][1] = p[L.J_theta] + mb * (zb * zb + x_b * x_b);
-  M[2][2] = mp + mb;
-  M[0][1] = M[1][0] = Jpt;
-  M[0][2] = M[2][0] = mp * cy;
-  M[1][2] = M[2][1] = mb * x_b + mp * cx;
+    for (int j = 0; j < 3; ++j) D[i][j] = K[i][j] = zero;
+  platform_mass_matrix(p[L.J_psi], p[L.J_theta], Jpt, mp, mb, zb, cx, cy, x_b, M);
   D[0][0] = p[L.d_psi];
   D[1][1] = p[L.d_theta];
   D[2][2] = p[L.d_z];
@@ -67,14 +60,7 @@ void platform_matrices(const PlatformIndices& L, const T* p, double x_b, T M[3][
   D[1][2] = D[2][1] = p[L.rho_tz] * sqrt(D[1][1] * D[2][2] + T(1e-300));
   // The rods' designed bending (eq 4 rows with rod angles): bend axis t_j in (psi, theta).
   T Kb[2][2] = {{zero, zero}, {zero, zero}};
-  const T k_low = p[L.k_low];
-  for (int j = 0; j < 3; ++j) {
-    const T phi = p[L.rod[j]];
-    const T t0 = -sin(phi), t1 = -cos(phi);
-    Kb[0][0] += k_low * t0 * t0;
-    Kb[0][1] += k_low * t0 * t1;
-    Kb[1][1] += k_low * t1 * t1;
-  }
+  for (int j = 0; j < 3; ++j) add_rod_tilt_stiffness(p[L.rod[j]], zero, p[L.k_low], Kb);
   K[0][0] = Kb[0][0] * p[L.s_psi];
   K[1][1] = Kb[1][1] * p[L.s_theta];
   K[0][1] = Kb[0][1] + p[L.s_pt] * sqrt(Kb[0][0] * Kb[1][1] + T(1e-300));

@@ -4,7 +4,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/physical/evaluate.h"
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 
 namespace lpvid {
 namespace {

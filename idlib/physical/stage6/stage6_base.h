@@ -2,7 +2,7 @@
 // (Nam et al.) linearised about hover, as a physical model of the same framework as
 // the platform (idlib/physical/physical_model.h; docs/effects.md, "Base: stage6").
 //
-// Coordinates as in idlib/stage6/stage6.h: q = [x y z psi theta phi] (m, m, m, rad,
+// Coordinates as in idlib/plants/stage6/stage6.h: q = [x y z psi theta phi] (m, m, m, rad,
 // rad, rad; Z-Y-X Euler angles: yaw psi about z, pitch theta about y, roll phi about
 // x), inputs the commanded body wrench that the controller hands to the
 // allocation f = A(r)⁺ w of eqs 27–30 (r the DESIGNED lever arms of the four
@@ -52,6 +52,7 @@
 #include "idlib/core/types.h"
 #include "idlib/physical/gauss_jordan.h"
 #include "idlib/physical/physical_model.h"
+#include "idlib/plants/stage6/kinematics.h"
 
 namespace lpvid {
 
@@ -76,48 +77,6 @@ namespace stage6_detail {
 template <class T>
 using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
 
-// R = Rz(psi) Ry(theta) Rx(phi) and its derivatives by psi, theta, phi (d[0..2]).
-template <class T>
-void rotation_and_derivatives(const T& psi, const T& theta, const T& phi, Mat<T>& R, Mat<T> d[3]) {
-  using std::cos;
-  using std::sin;
-  const T zero(0.0), one(1.0);
-  auto rz = [&](const T& a, bool deriv) {
-    Mat<T> m = Mat<T>::Constant(3, 3, zero);
-    const T c = cos(a), s = sin(a);
-    if (deriv) {
-      m(0, 0) = -s; m(0, 1) = -c; m(1, 0) = c; m(1, 1) = -s;
-    } else {
-      m(0, 0) = c; m(0, 1) = -s; m(1, 0) = s; m(1, 1) = c; m(2, 2) = one;
-    }
-    return m;
-  };
-  auto ry = [&](const T& a, bool deriv) {
-    Mat<T> m = Mat<T>::Constant(3, 3, zero);
-    const T c = cos(a), s = sin(a);
-    if (deriv) {
-      m(0, 0) = -s; m(0, 2) = c; m(2, 0) = -c; m(2, 2) = -s;
-    } else {
-      m(0, 0) = c; m(0, 2) = s; m(2, 0) = -s; m(2, 2) = c; m(1, 1) = one;
-    }
-    return m;
-  };
-  auto rx = [&](const T& a, bool deriv) {
-    Mat<T> m = Mat<T>::Constant(3, 3, zero);
-    const T c = cos(a), s = sin(a);
-    if (deriv) {
-      m(1, 1) = -s; m(1, 2) = -c; m(2, 1) = c; m(2, 2) = -s;
-    } else {
-      m(1, 1) = c; m(1, 2) = -s; m(2, 1) = s; m(2, 2) = c; m(0, 0) = one;
-    }
-    return m;
-  };
-  R = rz(psi, false) * ry(theta, false) * rx(phi, false);
-  d[0] = rz(psi, true) * ry(theta, false) * rx(phi, false);
-  d[1] = rz(psi, false) * ry(theta, true) * rx(phi, false);
-  d[2] = rz(psi, false) * ry(theta, false) * rx(phi, true);
-}
-
 }  // namespace stage6_detail
 
 // M, D (zero), K (6×6), B_w (6×6), the back-EMF feedback F (6×6; zero without
@@ -130,9 +89,7 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
                      stage6_detail::Mat<T>& M, stage6_detail::Mat<T>& D, stage6_detail::Mat<T>& K,
                      stage6_detail::Mat<T>& Bw, stage6_detail::Mat<T>& F, stage6_detail::Mat<T>& Cq) {
   using Mat = stage6_detail::Mat<T>;
-  using std::cos;
   using std::exp;
-  using std::sin;
   const T zero(0.0), one(1.0);
   const T m = p[L.mass], kappa = p[L.kappa], g = p[L.g];
   const T psi0 = p[L.attitude[0]], theta0 = p[L.attitude[1]], phi0 = p[L.attitude[2]];
@@ -141,17 +98,13 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
   K = Mat::Constant(6, 6, zero);
   F = Mat::Constant(6, 6, zero);
   Cq = Mat::Identity(6, 6);
-  // Kinematics at the hover attitude: R₀ and dR₀/d(psi, theta, phi); W₀ (eq 4,
-  // columns in q's order [psi' theta' phi']): omega = W₀ [psi' theta' phi'].
-  Mat R0, dR[3];
-  stage6_detail::rotation_and_derivatives<T>(psi0, theta0, phi0, R0, dR);
-  Mat W0 = Mat::Constant(3, 3, zero);
-  W0(0, 0) = -sin(theta0);
-  W0(0, 2) = one;
-  W0(1, 0) = cos(theta0) * sin(phi0);
-  W0(1, 1) = cos(phi0);
-  W0(2, 0) = cos(theta0) * cos(phi0);
-  W0(2, 1) = -sin(phi0);
+  // Kinematics at the hover attitude (idlib/plants/stage6/kinematics.h): R₀ and
+  // dR₀/d(psi, theta, phi); W₀ (eq 4, columns in q's order [psi' theta' phi']):
+  // omega = W₀ [psi' theta' phi'].
+  const Mat R0 = stage6::rotation_zyx<T>(psi0, theta0, phi0);
+  const auto dR0 = stage6::rotation_zyx_derivatives<T>(psi0, theta0, phi0);
+  const Mat dR[3] = {dR0[0], dR0[1], dR0[2]};
+  const Mat W0 = stage6::angular_velocity_map<T>(theta0, phi0);
   Mat H = Mat::Constant(3, 3, zero);
   H(0, 0) = p[L.I_xx];
   H(1, 1) = p[L.I_yy];
@@ -166,26 +119,11 @@ bool stage6_matrices(const Stage6Indices& L, const T* p, double z0, double (*val
   // horizontal then vertical force of motors 1..4; horizontal is x for motors 1, 3
   // and y for 2, 4).
   T r[4][3];
+  Eigen::Matrix<T, 3, 4> true_arms;
   for (int i = 0; i < 4; ++i)
-    for (int a = 0; a < 3; ++a) r[i][a] = p[L.arm[i][a]] - (L.com[a] >= 0 ? p[L.com[a]] : zero);
-  Mat At = Mat::Constant(6, 8, zero);
-  for (int i = 0; i < 4; ++i) {
-    const int h = (i % 2 == 0) ? 0 : 1;  // horizontal axis
-    const Index ch = 2 * i, cv = 2 * i + 1;
-    At(h, ch) = one;
-    // r × e_h: e_x → (0, r_z, −r_y); e_y → (−r_z, 0, r_x)
-    if (h == 0) {
-      At(4, ch) = r[i][2];
-      At(5, ch) = -r[i][1];
-    } else {
-      At(3, ch) = -r[i][2];
-      At(5, ch) = r[i][0];
-    }
-    At(2, cv) = one;
-    // r × e_z = (r_y, −r_x, 0)
-    At(3, cv) = r[i][1];
-    At(4, cv) = -r[i][0];
-  }
+    for (int a = 0; a < 3; ++a)
+      true_arms(a, i) = r[i][a] = p[L.arm[i][a]] - (L.com[a] >= 0 ? p[L.com[a]] : zero);
+  const Mat At = stage6::allocation_matrix<T>(true_arms);
   // Each array's gap above the reference at hover, gap_i − z_ref = z0 + ((R₀ − I) r_i)_z
   // (the reference point's height z0, the designed arm r_i), and, the centre of
   // mass being at the reference point plus R c, ∂gap_i/∂q = [0 0 1, (dR/d(psi,

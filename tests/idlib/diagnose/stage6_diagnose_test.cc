@@ -1,6 +1,6 @@
 // diagnose on the 6-DOF maglev stage (issue 13): the same framework, fit and
 // diagnosis as the platform's, on data a user gets from the stage — a 60 s
-// closed-loop log of the NONLINEAR sliding-mode simulation (idlib/stage6/stage6_sim,
+// closed-loop log of the NONLINEAR sliding-mode simulation (idlib/sim/stage6_sim,
 // RK4 of the Lagrange equations with Euler angles; a different code from the base's
 // linearised matrices), reduced to the plant by estimate_plant_frf (P = S_qv S_uv⁻¹
 // with its variance).  Plants are drawn over documented ranges: inertias ±30 % of
@@ -25,7 +25,7 @@
 #include "idlib/core/error.h"
 #include "idlib/diagnose/diagnose.h"
 #include "idlib/signal/frf.h"
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/sim/stage6_sim.h"
 #include "tests/support/statistics.h"
 
 namespace lpvid {

@@ -9,9 +9,9 @@
 
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 namespace fit_test {

@@ -7,11 +7,11 @@
 #include <array>
 #include <random>
 
+#include "idlib/lti/analysis.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/lti/interconnect.h"
-#include "idlib/lti/analysis.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
 #include "idlib/validate/frequency_error.h"
 

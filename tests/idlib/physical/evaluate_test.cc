@@ -8,9 +8,9 @@
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/mechanical/mechanical_base.h"
 #include "idlib/physical/platform/platform_base.h"
+#include "idlib/plants/platform/platform.h"
 #include "tests/support/two_mass_axis.h"
 
 namespace lpvid {

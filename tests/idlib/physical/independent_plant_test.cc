@@ -9,8 +9,8 @@
 
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
 #include "idlib/physical/evaluate.h"
+#include "idlib/plants/platform/platform.h"
 #include "tests/support/independent_platform.h"
 
 namespace lpvid {

@@ -13,8 +13,8 @@
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
 #include "idlib/physical/evaluate.h"
-#include "idlib/stage6/stage6.h"
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/plants/stage6/stage6.h"
+#include "idlib/sim/stage6_sim.h"
 
 namespace lpvid {
 namespace stage6_base_test {

@@ -12,7 +12,7 @@
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/validate/frequency_error.h"
 
 namespace lpvid {

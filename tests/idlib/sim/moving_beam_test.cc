@@ -8,7 +8,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
 #include "idlib/validate/time_fit.h"
 

@@ -4,7 +4,7 @@
 
 #include <iostream>
 
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/sim/stage6_sim.h"
 
 namespace lpvid::stage6 {
 namespace stage6_fit_test {

@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "idlib/core/error.h"
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/sim/stage6_sim.h"
 #include "tests/support/statistics.h"
 
 namespace lpvid::stage6 {

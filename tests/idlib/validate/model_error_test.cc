@@ -8,7 +8,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/lti/frequency_response.h"
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 
 namespace lpvid {
 namespace model_error_test {

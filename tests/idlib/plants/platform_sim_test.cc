@@ -1,9 +1,3 @@
-// test_models links idlib_models only, and CMakeLists.txt is not this module's to
-// edit: until the lead adds idlib_sim to test_models' link list, the simulator is
-// compiled into this test.  (Harmless afterwards: the archive member is then never
-// pulled, as nothing leaves its symbols undefined.)
-#include "idlib/sim/platform_sim.h"  // NOLINT(bugprone-suspicious-include)
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,10 +5,10 @@
 #include <string>
 
 #include "idlib/core/error.h"
-#include "idlib/models/platform.h"
 #include "idlib/lti/discretize.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/sim/platform_sim.h"
-#include "tests/idlib/models/closed_loop_test_util.h"
+#include "tests/idlib/plants/closed_loop_test_util.h"
 
 namespace lpvid {
 namespace platform_sim_test {

@@ -1,5 +1,5 @@
-// The stage6 model <-> time-domain fit mapping (idlib/physical/stage6/stage6_time.h).
-#include "idlib/physical/stage6/stage6_time.h"
+// The stage6 model <-> time-domain fit mapping (idlib/stage6/stage6_time.h).
+#include "idlib/stage6/stage6_time.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

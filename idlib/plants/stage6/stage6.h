@@ -21,6 +21,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "idlib/plants/stage6/kinematics.h"
+
 namespace lpvid::stage6 {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
@@ -60,9 +62,10 @@ struct StageParameters {
   void validate() const;
 };
 
-// ---- kinematics (eqs 1, 4) ----
-Eigen::Matrix3d rotation(const Vector6d& q);  // R = J₁ of eq 1
-Eigen::Matrix3d angular_velocity_map(double theta, double phi);  // W: ω = W [ψ̇ θ̇ φ̇]
+// ---- kinematics (eqs 1, 4; the templates in idlib/plants/stage6/kinematics.h) ----
+// R = J₁ of eq 1 at the angles of q (rotation_zyx); W: ω = W [ψ̇ θ̇ φ̇] is
+// angular_velocity_map(θ, φ).
+inline Eigen::Matrix3d rotation(const Vector6d& q) { return rotation_zyx<double>(q(3), q(4), q(5)); }
 // G(q) (6×6): u = G w, block diagonal [R, Wᵀ].
 Matrix6d wrench_to_generalized(const Vector6d& q);
 
@@ -80,8 +83,8 @@ Vector6d acceleration(const StageParameters& p, const Vector6d& q, const Vector6
 double total_energy(const StageParameters& p, const Vector6d& q, const Vector6d& qd);
 
 // ---- allocation (eqs 27–30) ----
-// A (6×8): w = A f derived from F = Σ f_i, τ = Σ r_i × f_i (DESIGN.md item 6).
-Matrix68d allocation_matrix(const Eigen::Matrix<double, 3, 4>& lever_arms_m);
+// A (6×8): w = A f derived from F = Σ f_i, τ = Σ r_i × f_i (DESIGN.md item 6) is
+// allocation_matrix(lever_arms_m) of kinematics.h.
 // Eq 30 exactly as printed (τ_Z row with −a₄ in the f4y column), for comparison.
 Matrix68d printed_eq30_matrix(const Eigen::Matrix<double, 3, 4>& lever_arms_m);
 // The minimum-norm forces for a desired wrench: f = A⁺ w = Aᵀ(AAᵀ)⁻¹ w.

@@ -1,4 +1,4 @@
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 #include "idlib/core/eigen_decompositions.h"
 
 #include <gtest/gtest.h>
@@ -13,7 +13,7 @@
 
 #include "idlib/core/error.h"
 #include "idlib/lti/discretize.h"
-#include "tests/idlib/models/closed_loop_test_util.h"
+#include "tests/idlib/plants/closed_loop_test_util.h"
 
 namespace lpvid {
 namespace platform_test {

@@ -1,4 +1,4 @@
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 
 #include <fmt/format.h>
 
@@ -49,28 +49,6 @@ void StageParameters::validate() const {
   Eigen::LLT<Eigen::Matrix3d> llt(inertia_kgm2);
   if (llt.info() != Eigen::Success)
     throw InputError("stage inertia_kgm2: must be positive definite (a rigid body's inertia)");
-}
-
-Eigen::Matrix3d rotation(const Vector6d& q) {
-  const double cps = std::cos(q(3)), sps = std::sin(q(3));
-  const double cth = std::cos(q(4)), sth = std::sin(q(4));
-  const double cph = std::cos(q(5)), sph = std::sin(q(5));
-  Eigen::Matrix3d R;
-  R << cps * cth, -sps * cph + cps * sth * sph, sps * sph + cps * cph * sth,  //
-      sps * cth, cps * cph + sps * sth * sph, -cps * sph + sps * cph * sth,  //
-      -sth, cth * sph, cth * cph;
-  return R;
-}
-
-Eigen::Matrix3d angular_velocity_map(double theta, double phi) {
-  // Eq 4 with the columns in q's order [ψ̇ θ̇ φ̇] (eq 4 multiplies [φ̇ θ̇ ψ̇]).
-  const double cth = std::cos(theta), sth = std::sin(theta);
-  const double cph = std::cos(phi), sph = std::sin(phi);
-  Eigen::Matrix3d W;
-  W << -sth, 0.0, 1.0,  //
-      cth * sph, cph, 0.0,  //
-      cth * cph, -sph, 0.0;
-  return W;
 }
 
 namespace {
@@ -131,22 +109,6 @@ double total_energy(const StageParameters& p, const Vector6d& q, const Vector6d&
   const Eigen::Vector3d omega = angular_velocity_map(q(4), q(5)) * qd.tail<3>();
   return 0.5 * p.mass_kg * qd.head<3>().squaredNorm() + 0.5 * omega.dot(p.inertia_kgm2 * omega) +
          p.mass_kg * kGravity_m_per_s2 * q(2);
-}
-
-Matrix68d allocation_matrix(const Eigen::Matrix<double, 3, 4>& r) {
-  Matrix68d A = Matrix68d::Zero();
-  for (int i = 0; i < 4; ++i) {
-    // Motor i's two forces as unit vectors in body axes: horizontal (x for
-    // motors 1, 3; y for 2, 4) then vertical.
-    const Eigen::Vector3d horizontal = (i % 2 == 0) ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-    const Eigen::Vector3d vertical = Eigen::Vector3d::UnitZ();
-    const Eigen::Vector3d ri = r.col(i);
-    A.block<3, 1>(0, 2 * i) = horizontal;
-    A.block<3, 1>(3, 2 * i) = ri.cross(horizontal);
-    A.block<3, 1>(0, 2 * i + 1) = vertical;
-    A.block<3, 1>(3, 2 * i + 1) = ri.cross(vertical);
-  }
-  return A;
 }
 
 Matrix68d printed_eq30_matrix(const Eigen::Matrix<double, 3, 4>& r) {

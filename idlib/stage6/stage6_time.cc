@@ -1,4 +1,4 @@
-#include "idlib/physical/stage6/stage6_time.h"
+#include "idlib/stage6/stage6_time.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>

@@ -1,4 +1,4 @@
-#include "idlib/models/platform.h"
+#include "idlib/plants/platform/platform.h"
 
 #include <fmt/format.h>
 
@@ -75,17 +75,12 @@ void PlatformParameters::validate() const {
 Eigen::Matrix3d mass_matrix(const PlatformParameters& params, double beam_position_m) {
   params.validate();
   require_beam_position(params, beam_position_m);
-  const double mb = params.beam_mass_kg;
-  const double mp = params.platform_mass_kg;
-  const double zb = params.beam_height_m;
-  const double xb = beam_position_m;
+  double m[3][3];
+  platform_mass_matrix(params.J_psi_kgm2, params.J_theta_kgm2, params.J_psitheta_kgm2, params.platform_mass_kg,
+                       params.beam_mass_kg, params.beam_height_m, params.com_x_m, params.com_y_m, beam_position_m, m);
   Eigen::Matrix3d M;
-  M(0, 0) = params.J_psi_kgm2 + mb * zb * zb;
-  M(1, 1) = params.J_theta_kgm2 + mb * (zb * zb + xb * xb);
-  M(2, 2) = mp + mb;
-  M(0, 1) = M(1, 0) = params.J_psitheta_kgm2;
-  M(0, 2) = M(2, 0) = mp * params.com_y_m;
-  M(1, 2) = M(2, 1) = mb * xb + mp * params.com_x_m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) M(i, j) = m[i][j];
   if (Eigen::LLT<Eigen::Matrix3d>(M).info() != Eigen::Success)
     throw InputError(fmt::format(
         "platform parameters: the mass matrix at x_b = {} m is not positive definite (com_x_m = {}, com_y_m = {}); "
@@ -96,17 +91,13 @@ Eigen::Matrix3d mass_matrix(const PlatformParameters& params, double beam_positi
 
 Eigen::Matrix3d stiffness_matrix(const PlatformParameters& params) {
   params.validate();
-  Eigen::Matrix2d tilt = Eigen::Matrix2d::Zero();
-  for (const double phi : params.rod_axis_angles_rad) {
-    // In (psi, theta) coordinates the rotation vector is (ω_x, ω_y) = (psi, -theta).
-    const Eigen::Vector2d twist_axis(std::cos(phi), -std::sin(phi));  // a_j
-    const Eigen::Vector2d bend_axis(-std::sin(phi), -std::cos(phi));  // b_j ⟂ a_j
-    tilt += params.k_torque_high_Nm_per_rad * twist_axis * twist_axis.transpose() +
-            params.k_torque_low_Nm_per_rad * bend_axis * bend_axis.transpose();
-  }
+  double tilt[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
+  for (const double phi : params.rod_axis_angles_rad)
+    add_rod_tilt_stiffness(phi, params.k_torque_high_Nm_per_rad, params.k_torque_low_Nm_per_rad, tilt);
   const double gravity_term = -params.beam_height_m * params.beam_mass_kg * params.gravity_m_per_s2;
   Eigen::Matrix3d K = Eigen::Matrix3d::Zero();
-  K.topLeftCorner<2, 2>() = tilt;
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j) K(i, j) = tilt[i][j];
   K(0, 0) += gravity_term;
   K(1, 1) += gravity_term;
   K(2, 2) = params.k_linear_N_per_m;

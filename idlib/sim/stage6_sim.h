@@ -4,7 +4,7 @@
 // effects (gap-dependent force constant α(z), d-q electrical lag), a fixed-step
 // RK4 integrator with the control held (ZOH) over each control period, the
 // closed-loop identification experiment, and the linearisation about hover.
-// Coordinates and orderings: idlib/stage6/stage6.h.
+// Coordinates and orderings: idlib/plants/stage6/stage6.h.
 #pragma once
 
 #include <Eigen/Core>
@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "idlib/core/types.h"
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 
 namespace lpvid::stage6 {
 

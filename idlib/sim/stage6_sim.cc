@@ -1,4 +1,4 @@
-#include "idlib/stage6/stage6_sim.h"
+#include "idlib/sim/stage6_sim.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,4 @@
-#include "idlib/stage6/stage6.h"
+#include "idlib/plants/stage6/stage6.h"
 
 #include <gtest/gtest.h>
 

@@ -19,6 +19,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 
 #include "idlib/core/types.h"
 
@@ -93,6 +94,35 @@ struct PlatformParameters {
   //   >= 0; beam_height_m, com_*_m and rod angles finite.
   void validate() const;
 };
+
+// The platform's mass matrix and the rods' tilt stiffness, once, as templates on
+// the scalar type: doubles here (mass_matrix, stiffness_matrix), ceres::Jet in the
+// physical base's fits (idlib/physical/platform/platform_base.h).  M as mass_matrix
+// below; `M` is filled whole.
+template <class T>
+void platform_mass_matrix(const T& J_psi, const T& J_theta, const T& J_psitheta, const T& m_p, const T& m_b,
+                          const T& z_b, const T& com_x, const T& com_y, double x_b, T M[3][3]) {
+  M[0][0] = J_psi + m_b * z_b * z_b;
+  M[1][1] = J_theta + m_b * (z_b * z_b + x_b * x_b);
+  M[2][2] = m_p + m_b;
+  M[0][1] = M[1][0] = J_psitheta;
+  M[0][2] = M[2][0] = m_p * com_y;
+  M[1][2] = M[2][1] = m_b * x_b + m_p * com_x;
+}
+
+// The tilt block (psi, theta) of one rod at the axis angle phi (the rotation vector
+// is (psi, −theta)): k_twist s sᵀ + k_bend t tᵀ with s = (cos phi, −sin phi) along
+// the rod and t = (−sin phi, −cos phi) across it; added into K[2][2].
+template <class T>
+void add_rod_tilt_stiffness(const T& phi, const T& k_twist, const T& k_bend, T K[2][2]) {
+  using std::cos;
+  using std::sin;
+  const T s0 = cos(phi), s1 = -sin(phi), t0 = -sin(phi), t1 = -cos(phi);
+  K[0][0] += k_twist * s0 * s0 + k_bend * t0 * t0;
+  K[0][1] += k_twist * s0 * s1 + k_bend * t0 * t1;
+  K[1][0] += k_twist * s1 * s0 + k_bend * t1 * t0;
+  K[1][1] += k_twist * s1 * s1 + k_bend * t1 * t1;
+}
 
 // Mass matrix M(x_b) of eq 2, linearised at q = 0, with the centre-of-mass terms
 // the paper leaves out "for simplicity":
@@ -220,7 +250,7 @@ StateSpace discrete_pi_controller(const std::array<PiGains, 3>& gains, double sa
 // least 0.3·d/m (≈ 7 rad/s at the default parameters) left of the imaginary axis
 // so impulse responses die out within ~1 s, and puts crossover below ~100 rad/s
 // (well inside the 400 rad/s model validity).  Discretised at 1 kHz or 10 kHz the
-// same gains stay stable (tests/idlib/models/platform_test.cc).
+// same gains stay stable (tests/idlib/plants/platform_test.cc).
 // @throws InputError  parameters invalid; coil_damping_Ns_per_m == 0 (a PI loop
 //   on an undamped plant m s² + k cannot be stabilised).
 std::array<PiGains, 3> default_pi_gains(const PlatformParameters& params);
