@@ -54,7 +54,8 @@ BIC does not worsen) is reported as idle, with the 'lpvid model remove' line.  W
 output row or input column (--out-effect writes that user-defined effect for 'lpvid
 model define').  --out writes the winning candidate's fitted model; --png draws where the
 model fails (data and model, the error over the noise band, failing bands red).
-Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log:
+Time domain (base stage6): rank com_offset, gap_dependence, electrical_lag by BIC on a log,
+judged by the output error against its noise floor (nothing missing within 1.5x):
   lpvid diagnose --model stage.json --log exp/exp_stage6.csv
 Time domain (a mechanical base): the time-only effects it lacks (coulomb_friction,
 force_offset, stribeck_friction, input_saturation, position_ripple and, once it is in,

@@ -124,4 +124,27 @@ PhysicalModel stage6_apply_time_fit(const PhysicalModel& model,
   return out;
 }
 
+StageErrorFigure stage_error_figure(const Eigen::MatrixXd& residual, const Eigen::MatrixXd& q) {
+  LPVID_ASSERT(residual.cols() == 6 && q.cols() == 6 && residual.rows() == q.rows() && q.rows() >= 2);
+  StageErrorFigure f;
+  const Eigen::Index N = q.rows();
+  double sum2 = 0.0, floor2 = 0.0, sum = 0.0;
+  for (int c = 0; c < 6; ++c) {
+    const double motion = std::max(std::sqrt((q.col(c).array() - q.col(c).mean()).square().sum() / double(N)), 1e-300);
+    const double rel = std::sqrt(residual.col(c).squaredNorm() / double(N)) / motion;
+    const Eigen::VectorXd de = residual.col(c).tail(N - 1) - residual.col(c).head(N - 1);
+    const double floor = std::sqrt(de.squaredNorm() / double(N - 1) / 2.0) / motion;
+    f.relative[static_cast<std::size_t>(c)] = rel;
+    f.floor[static_cast<std::size_t>(c)] = floor;
+    sum += rel;
+    sum2 += rel * rel;
+    floor2 += floor * floor;
+    f.max = std::max(f.max, rel);
+  }
+  f.mean = sum / 6.0;
+  f.error = std::sqrt(sum2 / 6.0);
+  f.noise_floor = std::sqrt(floor2 / 6.0);
+  return f;
+}
+
 }  // namespace lpvid
