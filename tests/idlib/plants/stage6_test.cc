@@ -73,6 +73,35 @@ TEST(Stage6Allocation, DegenerateGeometryIsAnInputError) {
 
 // h₂ must equal the Lagrange terms Ṁ q̇ − ½ ∂(q̇ᵀ M q̇)/∂q of eq 8, evaluated
 // here by central differences of M(q).
+// kinematics.h's templates against definitions they do not use: R as the product of
+// the three elementary rotations (Eigen's AngleAxis), its derivatives as central
+// differences of R, and W⁻¹ω as a linear solve with W.  Random angles within ±1.2 rad.
+TEST(Stage6Kinematics, RotationItsDerivativesAndTheEulerRatesMatchTheirDefinitions) {
+  std::mt19937_64 rng(kSeed);
+  std::uniform_real_distribution<double> a(-1.2, 1.2);
+  for (int trial = 0; trial < 50; ++trial) {
+    const double psi = a(rng), theta = a(rng), phi = a(rng);
+    const Eigen::Matrix3d R = rotation_zyx(psi, theta, phi);
+    const Eigen::Matrix3d product = (Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()) *
+                                     Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()) *
+                                     Eigen::AngleAxisd(phi, Eigen::Vector3d::UnitX()))
+                                        .toRotationMatrix();
+    EXPECT_LT((R - product).norm(), 1e-14);  // rounding of products of sines
+    const auto dR = rotation_zyx_derivatives(psi, theta, phi);
+    constexpr double h = 1e-6;
+    const Eigen::Matrix3d fd[3] = {
+        (rotation_zyx(psi + h, theta, phi) - rotation_zyx(psi - h, theta, phi)) / (2 * h),
+        (rotation_zyx(psi, theta + h, phi) - rotation_zyx(psi, theta - h, phi)) / (2 * h),
+        (rotation_zyx(psi, theta, phi + h) - rotation_zyx(psi, theta, phi - h)) / (2 * h)};
+    // central differences: O(h²) truncation (1e-12) and 1e-16/h rounding (1e-10)
+    for (int k = 0; k < 3; ++k) EXPECT_LT((dR[static_cast<std::size_t>(k)] - fd[k]).norm(), 1e-9) << k;
+    const Eigen::Vector3d omega(a(rng), a(rng), a(rng));
+    const Eigen::Vector3d rates = euler_rates(theta, phi, omega);
+    const Eigen::Vector3d solved = angular_velocity_map(theta, phi).partialPivLu().solve(omega);
+    EXPECT_LT((rates - solved).norm(), 1e-12 * (1.0 + omega.norm()) / std::cos(theta));
+  }
+}
+
 TEST(Stage6Dynamics, CoriolisTermEqualsTheLagrangeEquation) {
   StageParameters p;
   p.inertia_kgm2 << 0.03, 0.002, -0.001, 0.002, 0.028, 0.0015, -0.001, 0.0015, 0.055;
