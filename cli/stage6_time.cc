@@ -352,9 +352,10 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
   const double ratio = DiagnoseOptions().explained_ratio;
   // Each figure's output-error fit runs at most kJudgeIterations per pass: a model that
   // lacks an effect converges slowly and far off (a rigid body on a log with the gap
-  // effect: 96 iterations, 8.7 s on a 2 s log, inertias of 1900 kg m²; the lag without
-  // the gap on a log with both: 43 s) and is far above the floor long before; models
-  // that lack nothing converged in 7 from their equation-error start (gap; gap + lag).
+  // effect: 96 iterations, 8.7 s on a 2 s log, inertias of 1900 kg m²; uncapped, the
+  // diagnosis of a log with the gap and the lag from the rigid body took 50 s, 11 s
+  // capped) and is far above the floor long before; models that lack nothing converged
+  // in 7 from their equation-error start (gap; gap + lag: measured).
   // Cut short above the floor, the text and JSON say so (stopped_at_iteration_cap).
   constexpr int kJudgeIterations = 10;
   const OutputErrorFigure base_oe = output_error_figure(setup, log, d.base, kJudgeIterations);
