@@ -1,5 +1,5 @@
 // Test support: an INDEPENDENT simulator of the 3-DOF platform of seed 000, written
-// from the physics apart from idlib/models and idlib/physical (it includes neither,
+// from the physics apart from idlib/plants and idlib/physical (it includes neither,
 // and shares no code with them), so that tests of identification and of the
 // model-error loop are not tests of one model family against itself.
 //

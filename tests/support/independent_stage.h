@@ -1,6 +1,6 @@
 // Test support: an INDEPENDENT simulator of the 6-DOF maglev stage of seed 001
-// (Nam et al., ICCAS 2003), written from the paper apart from idlib/stage6 and
-// idlib/physical (it includes neither and shares no code with them), so that the
+// (Nam et al., ICCAS 2003), written from the paper apart from idlib/plants, idlib/stage6 and
+// idlib/physical (it includes none of them and shares no code with them), so that the
 // stage's model-error loop is not tried only on data from lpvid's own simulator.
 //
 // What it is, and where each piece comes from:
