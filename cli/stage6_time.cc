@@ -483,6 +483,10 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
       stage6::stage_output_error_at(setup.nominal, log.u, log.q, log.sample_period_s, setup.model, theta, oo);
   const Eigen::MatrixXd predicted = log.q + e.residual;  // residual = q_sim − q_meas
   const TimeFitResult r = time_fit(log.q, predicted, log.v, log.t(0), log.sample_period_s, fo);
+  // The figure fit --log's history and diagnose --log report, for this model as given.
+  const StageErrorFigure fig = stage_error_figure(e.residual, log.q);
+  const double ratio = DiagnoseOptions().explained_ratio;
+  const bool within = fig.error <= ratio * fig.effective_floor();
 
   nlohmann::json channels = nlohmann::json::array(), failures = nlohmann::json::array(),
                  white = nlohmann::json::array(), cross = nlohmann::json::array();
@@ -515,13 +519,23 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
                                   {"failures", failures},
                                   {"residual_correlates_with", cross},
                                   {"window_s", fo.window_s},
-                                  {"threshold_percent", fo.window_threshold_percent}};
+                                  {"threshold_percent", fo.window_threshold_percent},
+                                  {"error", fig.error},
+                                  {"noise_floor", fig.noise_floor},
+                                  {"effective_floor", fig.effective_floor()},
+                                  {"ratio_to_floor", fig.error / fig.effective_floor()},
+                                  {"within_noise", within}};
   std::string text = fmt::format(
       "compare {} with {} ({}; time domain: the model simulated on the logged wrench in {} windows of {} s, each "
-      "from its own fitted initial state)\n  channel   rms error     noise floor   ratio   whiteness\n",
+      "from its own fitted initial state)\n",
       req.log, req.model_label,
       req.model.effects.empty() ? "rigid body" : fmt::format("{}", fmt::join(req.model.effects, ", ")),
       e.num_windows, oo.window_s);
+  text += fmt::format("  output error {:.3g} % of the motion, noise floor {:.3g} % ({:.3g}x): {}\n",
+                      100.0 * fig.error, 100.0 * fig.effective_floor(), fig.error / fig.effective_floor(),
+                      within ? fmt::format("within the noise (<= {}x)", ratio)
+                             : "something is missing or mis-set (lpvid diagnose --log names what)");
+  text += "  channel   rms error     noise floor   ratio   whiteness\n";
   for (int c = 0; c < 6; ++c) {
     const double rms = std::sqrt(r.residual.col(c).squaredNorm() / double(r.residual.rows()));
     const bool lin = c < 3;
