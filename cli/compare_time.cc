@@ -135,7 +135,9 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
                                  "are fixed by its base",
                                  o.params.empty() ? "the default platform model" : o.params));
   if (!o.params.empty() && is_physical_model_file(o.params)) {
-    // A stage6 model: the stage's time-domain route (cli/stage6_time.h).
+    // A physical model: its base's time route (BaseInfo::time_route): the force error
+    // of a mechanical base (cli/mechanical_time.h), the stage's output error
+    // (cli/stage6_time.h), or, for the platform, the simulation below.
     {
       OutputSet guard;
       guard.input(o.params);
@@ -146,7 +148,8 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
     }
     nlohmann::json fit_section;
     PhysicalModel model = read_physical_model(o.params, &fit_section);
-    if (model.user_base != nullptr) {
+    const BaseInfo::TimeRoute route = model.base_info().time_route;
+    if (route == BaseInfo::TimeRoute::kForceError) {
       // A mechanical base: the force error of the model as given on the log (cli/mechanical_time.h)
       if (!o.controller.empty())
         throw InputError("compare --log with a mechanical model: the force error uses the logged inputs, so no "
@@ -162,7 +165,7 @@ void run_time_compare(const TimeCompareCliOptions& o, const std::string& out_jso
       req.report = out_json;
       return run_mechanical_time_compare(req, o.window_s);
     }
-    if (model.base == "stage6") {
+    if (route == BaseInfo::TimeRoute::kStageOutputError) {
       if (!o.controller.empty())
         throw InputError("compare --log with a stage6 model: the model is simulated on the logged wrench (u1..u6), "
                          "so no controller is needed; leave --controller out");

@@ -120,13 +120,13 @@ nlohmann::json phenomena_json(const std::vector<Phenomenon>& phenomena, const st
 }
 
 // The time-domain routes of --log: the force-error route of a mechanical base
-// (cli/mechanical_time.h) or the stage's equation-error route (cli/stage6_time.h).
+// (cli/mechanical_time.h) or the stage's route (cli/stage6_time.h), by BaseInfo::time_route.
 void run_diagnose_on_log(const DiagnoseCliOptions& o) {
   if (!o.in.data.empty() || !o.in.datasets.empty())
     throw InputError("diagnose: give either --log (time domain) or --data/--datasets (frequency domain), not both");
   refuse_frequency_options(o.frequency_given, "diagnose");
   PhysicalModel model = read_physical_model(o.in.model);
-  if (model.user_base != nullptr) {
+  if (model.base_info().time_route == BaseInfo::TimeRoute::kForceError) {
     if (!o.out_effect.empty())
       throw InputError("diagnose --log: --out-effect is for the frequency route; the force-error route writes --out "
                        "(the named effect fitted), --report and --png");

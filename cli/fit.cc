@@ -67,7 +67,8 @@ struct FitCliOptions {
 std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "n/a"; }
 
 // The time-domain routes of --log: the force-error route of a mechanical base
-// (cli/mechanical_time.h) or the stage's output/equation-error route (cli/stage6_time.h).
+// (cli/mechanical_time.h) or the stage's output/equation-error route (cli/stage6_time.h), by
+// BaseInfo::time_route.
 void run_fit_on_log(const FitCliOptions& o) {
   if (o.log.empty())
     throw InputError("fit --method: the method is for the time-domain fit; give --log RUN.csv (a stage6 model)");
@@ -75,7 +76,7 @@ void run_fit_on_log(const FitCliOptions& o) {
     throw InputError("fit: give either --log (time domain) or --data/--datasets (frequency domain), not both");
   refuse_frequency_options(o.frequency_given, "fit");
   PhysicalModel model = read_physical_model(o.in.model);
-  if (model.user_base != nullptr) {
+  if (model.base_info().time_route == BaseInfo::TimeRoute::kForceError) {
     if (!o.method.empty())
       throw InputError("fit --method: a mechanical base's time route has one method, the force error; drop --method");
     if (!o.bands.empty())

@@ -139,6 +139,15 @@ struct BaseInfo {
   // range (the platform's beam stroke, the stage's gap); empty: finite is enough.
   std::function<void(ModelLayout&, const PhysicalModel&)> compile;
   std::function<void(const PhysicalModel&, double)> check_schedule;
+  // How `fit/diagnose/compare --log` reach a model of this base, so that the CLI's
+  // time routes dispatch on the kind of physics, not on the base's name:
+  //   kNone: no time-domain fit (the platform: compare --log simulates its parameters);
+  //   kStageOutputError: the nonlinear rigid-body equations of motion fitted by
+  //     equation and output error (stage6: idlib/stage6/stage6_time.h);
+  //   kForceError: the equation of motion checked sample by sample on a log of every
+  //     DOF's position (a mechanical base: idlib/fit/force_error.h).
+  enum class TimeRoute { kNone, kStageOutputError, kForceError };
+  TimeRoute time_route = TimeRoute::kNone;
 };
 
 // The library's bases ("platform", "stage6").  A model may instead carry a base of

@@ -333,6 +333,7 @@ std::shared_ptr<const UserBase> make_mechanical_base(const MechanicalDescription
   base->description = d;
   BaseInfo& b = base->info;
   b.name = "mechanical";
+  b.time_route = BaseInfo::TimeRoute::kForceError;
   b.description = d.description.empty() ? fmt::format("user-described mechanical stage '{}'", d.name) : d.description;
   b.parameters = d.parameters;
   for (const auto& c : d.inputs) {

@@ -21,6 +21,7 @@ BaseInfo make_stage6_base() {
   const stage6::StageParameters d;
   BaseInfo b;
   b.name = "stage6";
+  b.time_route = BaseInfo::TimeRoute::kStageOutputError;
   b.description =
       "the 6-DOF maglev stage of seed 001 (eqs 1–30) linearised about hover, inputs the commanded body wrench; "
       "scheduled by the hover height above the reference gap";
