@@ -279,23 +279,29 @@ void run_stage_time_fit(const StageTimeFitRequest& req) {
 
 namespace {
 
+// The error figure's JSON fields, as diagnose --log and compare --log write them.
+nlohmann::json figure_json(const StageErrorFigure& f, double ratio) {
+  return {{"error", f.error},
+          {"noise_floor", f.noise_floor},
+          {"effective_floor", f.effective_floor()},
+          {"ratio_to_floor", f.ratio_to_floor()},
+          {"within_noise", f.within(ratio)}};
+}
+
 // A model's output-error fit (started from its equation-error fit `start`, whose
 // model it must be) and its error figure against the noise floor.
 struct OutputErrorFigure {
   stage6::StageOutputErrorResult fit;
   StageErrorFigure figure;
-  bool within(double ratio) const { return figure.error <= ratio * figure.effective_floor(); }
+  bool within(double ratio) const { return figure.within(ratio); }
   // The fit stopped at its iteration cap (output_error_figure's max_iterations).
   bool capped() const { return fit.report.termination.find("Maximum number of iterations") != std::string::npos; }
   nlohmann::json json(double ratio) const {
-    return {{"error", figure.error},
-            {"noise_floor", figure.noise_floor},
-            {"effective_floor", figure.effective_floor()},
-            {"ratio_to_floor", figure.error / figure.effective_floor()},
-            {"within_noise", within(ratio)},
-            {"bic", fit.bic},
-            {"iterations", fit.iterations},
-            {"stopped_at_iteration_cap", capped()}};
+    nlohmann::json j = figure_json(figure, ratio);
+    j["bic"] = fit.bic;
+    j["iterations"] = fit.iterations;
+    j["stopped_at_iteration_cap"] = capped();
+    return j;
   }
 };
 
@@ -393,7 +399,7 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
       equation_text(d.base) +
       fmt::format("  output error {} of the motion, noise floor {} ({:.3g}x; within the noise: <= {}x)\n",
                   percent(base_oe.figure.error), percent(base_oe.figure.effective_floor()),
-                  base_oe.figure.error / base_oe.figure.effective_floor(), ratio);
+                  base_oe.figure.ratio_to_floor(), ratio);
   if (baseline_within) {
     text += fmt::format("nothing is missing: the model's output error is within {}x the noise floor\n", ratio);
   } else if (named) {
@@ -405,7 +411,7 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
                         explained ? "within the noise"
                                   : fmt::format("still {:.3g}x the floor{}, so more is missing: add {} and "
                                                 "diagnose again from that model",
-                                                with_oe->figure.error / with_oe->figure.effective_floor(),
+                                                with_oe->figure.ratio_to_floor(),
                                                 with_oe->capped() ? fmt::format(" (its output-error fit stopped at {} "
                                                                                 "iterations a pass)",
                                                                                 kJudgeIterations)
@@ -417,11 +423,11 @@ void run_stage_time_diagnose(const StageTimeDiagnoseRequest& req) {
                 ? fmt::format("the model has every time-domain stage effect, and its output error is {:.3g}x the noise "
                               "floor: what is left is not among them; see where it fails in time with lpvid compare "
                               "--log\n",
-                              base_oe.figure.error / base_oe.figure.effective_floor())
+                              base_oe.figure.ratio_to_floor())
                 : fmt::format("nothing significant: no candidate lowers BIC by more than {:g}, yet the output error is "
                               "{:.3g}x the noise floor: what is left is not among the candidates; see where it fails "
                               "in time with lpvid compare --log\n",
-                              req.delta_bic, base_oe.figure.error / base_oe.figure.effective_floor());
+                              req.delta_bic, base_oe.figure.ratio_to_floor());
   }
   if (!d.candidates.empty()) text += "candidates:\n" + table;
   if (!req.out.empty()) {
@@ -486,7 +492,7 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
   // The figure fit --log's history and diagnose --log report, for this model as given.
   const StageErrorFigure fig = stage_error_figure(e.residual, log.q);
   const double ratio = DiagnoseOptions().explained_ratio;
-  const bool within = fig.error <= ratio * fig.effective_floor();
+  const bool within = fig.within(ratio);
 
   nlohmann::json channels = nlohmann::json::array(), failures = nlohmann::json::array(),
                  white = nlohmann::json::array(), cross = nlohmann::json::array();
@@ -509,7 +515,7 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
                        {"input", fmt::format("v{}", c.input + 1)},
                        {"worst_ratio", c.worst_ratio},
                        {"worst_lag", c.worst_lag}});
-  const nlohmann::json summary = {{"log", req.log},
+  nlohmann::json summary = {{"log", req.log},
                                   {"route", "time"},
                                   {"base", "stage6"},
                                   {"effects", req.model.effects},
@@ -519,12 +525,8 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
                                   {"failures", failures},
                                   {"residual_correlates_with", cross},
                                   {"window_s", fo.window_s},
-                                  {"threshold_percent", fo.window_threshold_percent},
-                                  {"error", fig.error},
-                                  {"noise_floor", fig.noise_floor},
-                                  {"effective_floor", fig.effective_floor()},
-                                  {"ratio_to_floor", fig.error / fig.effective_floor()},
-                                  {"within_noise", within}};
+                                  {"threshold_percent", fo.window_threshold_percent}};
+  summary.update(figure_json(fig, ratio));
   std::string text = fmt::format(
       "compare {} with {} ({}; time domain: the model simulated on the logged wrench in {} windows of {} s, each "
       "from its own fitted initial state)\n",
@@ -532,7 +534,7 @@ void run_stage_time_compare(const StageTimeCompareRequest& req) {
       req.model.effects.empty() ? "rigid body" : fmt::format("{}", fmt::join(req.model.effects, ", ")),
       e.num_windows, oo.window_s);
   text += fmt::format("  output error {:.3g} % of the motion, noise floor {:.3g} % ({:.3g}x): {}\n",
-                      100.0 * fig.error, 100.0 * fig.effective_floor(), fig.error / fig.effective_floor(),
+                      100.0 * fig.error, 100.0 * fig.effective_floor(), fig.ratio_to_floor(),
                       within ? fmt::format("within the noise (<= {}x)", ratio)
                              : "something is missing or mis-set (lpvid diagnose --log names what)");
   text += "  channel   rms error     noise floor   ratio   whiteness\n";

@@ -87,6 +87,9 @@ struct StageErrorFigure {
   double mean = 0.0, max = 0.0;               // of `relative`
   // The floor "within the noise" is judged against: the noise, never below lpvid's resolution.
   double effective_floor() const { return std::max(noise_floor, kStageOutputErrorResolution); }
+  double ratio_to_floor() const { return error / effective_floor(); }
+  // Within `ratio` times that floor (the frequency route's explained_ratio, 1.5).
+  bool within(double ratio) const { return error <= ratio * effective_floor(); }
 };
 
 // residual = simulated − measured (N × 6, StageOutputErrorResult::residual), q the
