@@ -69,6 +69,7 @@ struct DiagnoseCliOptions {
   std::string log;  // the stage's time-domain route (cli/stage6_time.h)
   double window_s = 0.0;  // a mechanical base's force-error route (cli/mechanical_time.h)
   double delta_bic = 10.0;
+  std::string weighting = "noise";  // noise | auto (DiagnoseOptions::model_error_weighting)
   bool json = false;
   std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
@@ -178,6 +179,7 @@ nlohmann::json diagnose_outcome_json(const CandidateOutcome& c) {
                       {"fitted", c.fitted},
                       {"failure", c.failure},
                       {"error", c.fitted ? number_or_null(c.error) : nlohmann::json(nullptr)},
+                      {"noise_weighted_error", number_or_null(c.noise_weighted_error)},
                       {"excess_share", c.fitted ? number_or_null(c.excess_share) : nlohmann::json(nullptr)},
                       {"band_share", c.fitted ? number_or_null(c.band_share) : nlohmann::json(nullptr)},
                       {"delta_bic", c.fitted ? number_or_null(c.delta_bic) : nlohmann::json(nullptr)},
@@ -322,6 +324,8 @@ nlohmann::json diagnose_summary(const DiagnoseCliOptions& o, const Diagnosis& d,
       {"noise_floor", number_or_null(d.noise_floor)},
       {"effective_floor", d.effective_floor},
       {"noise_source", d.noise_source},
+      {"weighting", {{"model_error", d.model_error_weight},
+                     {"noise_weighted_baseline_error", number_or_null(d.noise_weighted_baseline_error)}}},
       {"baseline", {{"error", d.baseline_error}, {"bic", d.baseline.bic}, {"aic", d.baseline.aic},
                     {"free_parameters", d.baseline.parameters.size()}, {"residuals", d.baseline.residual_count},
                     {"failing_band_points", d.baseline_band_points}}},
@@ -367,6 +371,7 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.log.empty()) return run_diagnose_on_log(o);
   DiagnoseOptions options;
   options.significance_delta_bic = o.delta_bic;
+  options.model_error_weighting = o.weighting == "auto";
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
   OutputSet outputs;
   outputs.file("--out", o.out);
@@ -445,9 +450,16 @@ Command make_diagnose_command() {
                             "failing windows shaded");
             app->add_option("--report", o->report,
                             "also write the report as JSON here (for model add --from-diagnosis)");
+            app->add_option("--weighting", o->weighting,
+                            "noise (default: error figures of the noise-weighted fits) or auto (when the model fails "
+                            "beyond 1.5x the noise floor, every model's error figure is that of a refit with noise "
+                            "plus the model's error in the weights, as fit --weighting auto reaches it; ΔBIC stays "
+                            "the noise-weighted fits'; docs/math.md, 'Weights when the model fails')")
+                ->check(CLI::IsMember({"noise", "auto"}));
             app->add_flag("--json", o->json, "print the report as JSON");
             app->callback([o, app] {
               o->frequency_given = frequency_options_given(*app);
+              if (app->count("--weighting") > 0) o->frequency_given.emplace_back("--weighting");
               run(*o);
             });
           }};

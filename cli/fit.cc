@@ -61,6 +61,7 @@ struct FitCliOptions {
   std::string log, method;  // the stage's time-domain route (cli/stage6_time.h)
   double window_s = 0.0;     // a mechanical base's force-error route (cli/mechanical_time.h)
   bool json = false;
+  std::string weighting = "noise";  // noise | auto (FitOptions::model_error_weighting)
   std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
 
@@ -156,6 +157,11 @@ nlohmann::json fit_section_json(const FitInputs& in, const FitResult& r) {
       {"cost_after_global_start", r.cost_global},
       {"cost_final", r.cost_final},
       {"restarts", r.restarts},
+      {"weighting",
+       {{"model_error", r.model_error_weight},
+        {"noise_weighted_error", std::isfinite(r.noise_weighted_error) ? nlohmann::json(r.noise_weighted_error)
+                                                                       : nlohmann::json()},
+        {"reweightings", r.reweightings}}},
       {"residuals", r.residual_count},
       {"sigma2", r.sigma2},
       {"aic", r.aic},
@@ -249,6 +255,21 @@ std::string fit_summary_text(const FitCliOptions& o, const FitInputs& in, const 
   if (restarts > 0)
     text += fmt::format("(the first round ended at cost {:.4g}; {} more round{} from the estimate lowered it)\n",
                         first_final, restarts, restarts > 1 ? "s" : "");
+  if (std::isfinite(r.noise_weighted_error)) {
+    if (r.model_error_weight > 0.0)
+      text += fmt::format(
+          "weights: the noise-weighted fit left {:.4g} % against a floor of {:.4g} %, a model error, not noise; "
+          "refitted with each line weighed by its noise plus a model error of {:.3g} % of its response ({} "
+          "round{}), which the error figure measures: {:.4g} %; the costs above are under these weights\n",
+          100.0 * r.noise_weighted_error, 100.0 * r.noise_floor, 100.0 * r.model_error_weight, r.reweightings,
+          r.reweightings > 1 ? "s" : "", 100.0 * r.error);
+    else
+      text += fmt::format("weights: the noise-weighted fit left {:.4g} % against a floor of {:.4g} %; refitting "
+                          "with the model error in the weights ({} round{}) did not lower the error figure, so the "
+                          "noise-weighted fit stands\n",
+                          100.0 * r.noise_weighted_error, 100.0 * r.noise_floor, r.reweightings,
+                          r.reweightings == 1 ? "" : "s");
+  }
   std::size_t name_width = 26;  // names of user-defined effects' parameters can be longer
   for (const auto& e : r.parameters) name_width = std::max(name_width, e.name.size());
   text += fmt::format("{:<{}} {:>12} {:>12} {:>11} {:>9}  {}\n", "parameter", name_width, "start", "estimate",
@@ -308,6 +329,7 @@ void run(const FitCliOptions& o) {
   // 306.3; a second round reached 4.03 % (floor 4.12 %) and 306.59.
   FitOptions rounds = options;
   rounds.restarts = 2;
+  rounds.model_error_weighting = o.weighting == "auto";
   TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
   rounds.progress = progress.get();
   const FitResult r = fit_physical_model(in.start, in.data, rounds);
@@ -351,9 +373,16 @@ Command make_fit_command() {
             app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data; with --log on a mechanical base, the "
                             "force and the model's over time and the residual, failing windows shaded");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
+            app->add_option("--weighting", o->weighting,
+                            "noise (default: each line weighed by its measured noise, maximum likelihood when the "
+                            "model can be exact) or auto (when the model fails beyond 1.5x the noise floor, weigh by "
+                            "noise plus the model's error and refit, so that the fit minimises what the error figure "
+                            "measures; docs/math.md, 'Weights when the model fails')")
+                ->check(CLI::IsMember({"noise", "auto"}));
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o, app] {
               o->frequency_given = frequency_options_given(*app);
+              if (app->count("--weighting") > 0) o->frequency_given.emplace_back("--weighting");
               run(*o);
             });
           }};

@@ -59,6 +59,13 @@ void summary_baseline(Diagnosis& out, const SummaryInputs& in) {
   s.push_back(fmt::format("model with {} free parameters: error {} (rms over the channels of the relative rms error); "
                           "{}",
                           out.baseline.parameters.size(), percent(e0), floor_text));
+  if (std::isfinite(out.noise_weighted_baseline_error))
+    s.push_back(fmt::format("weights: weighted by the noise alone this model scores {}, a model error, not noise; "
+                            "the error figures here are those of fits with each line weighed by its noise plus a "
+                            "model error ({} of the response for this model), as `lpvid fit --weighting auto` "
+                            "reaches them; ΔBIC is the noise-weighted fits' (docs/math.md, \"Weights when the "
+                            "model fails\")",
+                            percent(out.noise_weighted_baseline_error), percent(out.model_error_weight)));
   std::size_t nb = 0;
   for (const auto& set : out.baseline_failures) nb += set.size();
   if (nb == 0) {
@@ -310,6 +317,23 @@ void summary_unexplained(Diagnosis& out, const SummaryInputs& in) {
     s.push_back(fmt::format("  closest combination: {} (error {}, {:.0f} % of the excess; {})",
                             out.combinations.front().effect, percent(out.combinations.front().error),
                             100.0 * out.combinations.front().excess_share, out.combinations.front().verdict));
+  // The cost and the figure disagree: a candidate the data's likelihood wants that
+  // raises the noise-weighted figure.  Say why, and what judges by the figure.
+  if (!options.model_error_weighting) {
+    const double e0 = out.baseline_error;
+    for (const CandidateOutcome& c : out.ranked)
+      if (c.fitted && c.delta_bic < -options.significance_delta_bic && c.error > e0 * 1.001 &&
+          e0 > options.explained_ratio * out.effective_floor) {
+        s.push_back(fmt::format(
+            "  the cost and the error figure disagree: {} lowers the noise-weighted cost (ΔBIC {:.1f}) but raises the "
+            "figure from {} to {}; the model fails by far more than the noise, and weighted by the noise alone a fit "
+            "spends its freedom on the most precisely measured lines; --weighting auto (here and in fit) judges "
+            "every model by the figure a fit with the model error in its weights reaches (docs/math.md, \"Weights "
+            "when the model fails\")",
+            c.effect, c.delta_bic, percent(e0), percent(c.error)));
+        break;
+      }
+  }
 }
 
 // What no library effect explains, as a low-order error model.

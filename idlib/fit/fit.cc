@@ -624,11 +624,10 @@ FitResult fit_round(const PhysicalModel& start, const std::vector<FitDataset>& d
   return FitRound(start, data, options, task).run();
 }
 
-}  // namespace
-
-FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDataset>& data,
-                             const FitOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
+// One fit: the first round, then rounds from the estimate while they lower the cost
+// (FitOptions::restarts).
+FitResult fit_with_restarts(const PhysicalModel& start, const std::vector<FitDataset>& data,
+                            const FitOptions& options) {
   auto task = [&](int round) {
     return options.restarts > 0 ? fmt::format("fit round {}", round) : std::string("fit");
   };
@@ -653,6 +652,51 @@ FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDa
     again.iterations += r.iterations;
     again.restarts = r.restarts + 1;
     r = std::move(again);
+  }
+  return r;
+}
+
+}  // namespace
+
+FitResult fit_physical_model(const PhysicalModel& start, const std::vector<FitDataset>& data,
+                             const FitOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FitResult r = fit_with_restarts(start, data, options);
+  // Weights when the model fails (FitOptions::model_error_weighting): the model error
+  // λ = sqrt(error² − floor²) joins the noise in the weights, and the fit runs again
+  // from the estimate until λ moves by less than kModelErrorSettled of itself.
+  if (options.model_error_weighting && r.noise_known && std::isfinite(r.noise_floor) &&
+      r.error > kModelErrorRatio * r.noise_floor) {
+    const double first = r.error;
+    std::vector<double> starts;
+    for (const ParameterEstimate& e : r.parameters) starts.push_back(e.start);
+    FitResult best = r;
+    FitOptions weighted = options;
+    double lambda = std::sqrt(r.error * r.error - r.noise_floor * r.noise_floor);
+    int rounds = 0;
+    while (rounds < kModelErrorRounds) {
+      weighted.noise.model_error = lambda;
+      FitResult next;
+      try {
+        next = fit_with_restarts(r.model, data, weighted);
+      } catch (const NumericalError&) {
+        break;  // the fits that ended stand
+      }
+      ++rounds;
+      next.model_error_weight = lambda;
+      next.iterations += r.iterations;
+      r = std::move(next);
+      if (r.error < best.error) best = r;
+      const double next_lambda = std::sqrt(std::max(0.0, r.error * r.error - r.noise_floor * r.noise_floor));
+      const bool settled = std::abs(next_lambda - lambda) <= kModelErrorSettled * lambda;
+      lambda = next_lambda;
+      if (settled || !(r.error > kModelErrorRatio * r.noise_floor)) break;
+    }
+    r = std::move(best);
+    r.noise_weighted_error = first;
+    r.reweightings = rounds;
+    // the starts reported stay the user's
+    for (std::size_t k = 0; k < r.parameters.size() && k < starts.size(); ++k) r.parameters[k].start = starts[k];
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

@@ -192,7 +192,13 @@ Prepared prepare(const FitDataset& ds, const PhysicalModel& model, const FitOpti
     if (!in_band(f.omega_rad_s(k), o)) continue;
     RMat inv_scale = nt.scale[kk].cwiseInverse(), weight(rows, cols);
     for (Index i = 0; i < rows; ++i)
-      for (Index j = 0; j < cols; ++j) weight(i, j) = std::isinf(nt.sigma[kk](i, j)) ? 0.0 : 1.0 / nt.sigma[kk](i, j);
+      for (Index j = 0; j < cols; ++j) {
+        // the weight: the data's noise, plus a model error of o.noise.model_error × the
+        // entry's scale when given (FitOptions::model_error_weighting); sigma stays the
+        // data's own, so the noise floor is the data's
+        const double sg = nt.sigma[kk](i, j), me = o.noise.model_error * nt.scale[kk](i, j);
+        weight(i, j) = std::isinf(sg) ? 0.0 : 1.0 / std::sqrt(sg * sg + 0.5 * me * me);
+      }
     d.omega.push_back(f.omega_rad_s(k));
     d.data.emplace_back(f.response[kk]);
     d.inv_scale.push_back(inv_scale);
@@ -364,6 +370,10 @@ void NoiseOptions::validate() const {
                                  noise_level));
   if (!std::isfinite(sigma_floor) || sigma_floor < 0 || sigma_floor >= 1)
     throw InputError(fmt::format("sigma floor {}: must be in [0, 1)", sigma_floor));
+  if (!std::isfinite(model_error) || model_error < 0 || model_error > 100)
+    throw InputError(fmt::format("model error {}: the relative rms model error the weights allow for, in [0, 100] "
+                                 "(e.g. 0.1 for 10 %)",
+                                 model_error));
 }
 
 void FitOptions::validate() const {
