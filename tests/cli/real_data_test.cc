@@ -367,6 +367,103 @@ TEST(RealData, F16LoopNamesTheTorsionModeThenTheNextAndTheModeSoftensAtLevel7) {
   EXPECT_GT(z7, z2 + 3 * std::hypot(sz2, sz7));  // and more damped
 }
 
+// The same loop with the model error in the weights (fit and diagnose --weighting auto;
+// docs/math.md, "Weights when the model fails"), as docs/real-data.md runs it: weighted
+// by the noise alone the third mode (3.47 Hz) raised the error figure from 56.3 % to
+// 99 % and the loop stopped; with the model error in the weights every step names a
+// further mode until the library's eight are in.  Truth from outside the code: the
+// benchmark's wing-torsion mode "around 7.3 Hz" (Noël & Schoukens 2017), and the poles
+// of a rational fit of the same FRF by vector fitting in numpy (common poles, complex
+// residues, 24 pole pairs; not lpvid code): 1.86, 3.47, 3.96, 5.19, 6.62, 7.32, 9.17 Hz
+// among them.  Measured (this machine): 79.2 % (mass line) -> 62.5 -> 54.8 -> 47.2 ->
+// 39.8 -> 34.4 -> 25.5 -> 23.5 -> 6.77 % with the eighth mode, against a floor of
+// 1.48 %; the modes at 1.878, 3.470, 3.971, 5.185, 6.614, 7.320, 9.166 and 20.8 Hz; about
+// five minutes.  Bounds: every step names a mode and lowers the error; the end within
+// 10 % (the measured 6.77 % with room for another machine's round-off in eight chained
+// nonlinear fits); each of the seven in-band poles matched by a mode within 0.05 Hz
+// (one FRF line, 400/8192 Hz).  Not reached, and said in docs/real-data.md: 1.5x the
+// floor (a free rational fit needs about 40 pole pairs to come within 2x).
+TEST(RealData, F16LoopWithTheModelErrorInTheWeightsAddsEveryModeTheLibraryOffers) {
+  LPVID_REAL_DATA_OR_SKIP(low, "f16_gvt/f16_fullmsine_level1.csv");
+  TempDir dir("f16weights");
+  const std::string p1 = dir / "P1.csv";
+  auto r = run_lpvid("frf " + kF16Layout + kF16Channels + "--out " + p1 + " " + low);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string description = std::string(LPVID_SOURCE_DIR) + "/samples/mechanical/f16_gvt.json";
+  r = run_lpvid("model init --base mechanical --from " + description + " --out " + (dir / "fit-1.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string data = " --data " + p1 + " --measured-input --weighting auto";
+  auto fit = [&](const std::string& model, const std::string& out) {
+    const auto f = run_lpvid("fit --model " + model + data + " --out " + out);
+    EXPECT_EQ(f.exit_code, 0) << f.err;
+    return nlohmann::json::parse(std::ifstream(out))["fit"]["error"].get<double>();
+  };
+  double error = fit(dir / "fit-1.json", dir / "fit0.json");
+  std::printf("F-16, model error in the weights: %.2f %%", 100 * error);
+  for (int k = 1; k <= 8; ++k) {
+    const std::string step = dir / fmt::format("step{}.json", k), next = dir / fmt::format("fit{}.json", k);
+    r = run_lpvid("diagnose --model " + (dir / fmt::format("fit{}.json", k - 1)) + data + " --out " + step);
+    ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+    ASSERT_THAT(r.out, HasSubstr(k == 1 ? "missing: structural_mode " : fmt::format("missing: structural_mode_{} ", k)))
+        << r.out;
+    const double e = fit(step, next);
+    std::printf(" -> %.2f %%", 100 * e);
+    std::fflush(stdout);
+    EXPECT_LT(e, error) << "step " << k;
+    error = e;
+  }
+  std::printf("\n");
+  EXPECT_LT(error, 0.10);
+  const auto model = nlohmann::json::parse(std::ifstream(dir / "fit8.json"));
+  std::vector<double> hz;
+  for (int k = 1; k <= 8; ++k)
+    hz.push_back(model["parameters"][k == 1 ? std::string("mode_frequency_rad_s")
+                                             : fmt::format("mode_{}_frequency_rad_s", k)]["value"]
+                     .get<double>() /
+                 (2 * std::numbers::pi));
+  std::sort(hz.begin(), hz.end());
+  std::printf("modes (Hz):");
+  for (double f : hz) std::printf(" %.3f", f);
+  std::printf("\n");
+  for (double pole : {1.86, 3.47, 3.96, 5.19, 6.62, 7.32, 9.17}) {
+    double nearest = INFINITY;
+    for (double f : hz) nearest = std::min(nearest, std::abs(f - pole));
+    EXPECT_LT(nearest, 0.05) << "no mode within one line of the rational fit's pole at " << pole << " Hz";
+  }
+  // The eight modes refitted to level 7: the torsion mode (the one nearest 7.3 Hz)
+  // softens and damps beyond both fits' standard errors, as the benchmark describes.
+  // Measured: 45.995 ± 0.004 rad/s, zeta 0.00494 ± 0.00009 at level 1; 45.000 ± 0.020,
+  // zeta 0.0204 ± 0.0005 at level 7 (error 14.8 % against a floor of 0.59 %).
+  const std::string p7 = dir / "P7.csv";
+  LPVID_REAL_DATA_OR_SKIP(high, "f16_gvt/f16_fullmsine_level7.csv");
+  r = run_lpvid("frf " + kF16Layout + kF16Channels + "--out " + p7 + " " + high);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_lpvid("fit --model " + (dir / "fit8.json") + " --data " + p7 + " --measured-input --weighting auto --out " +
+                (dir / "fit8_level7.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto one = nlohmann::json::parse(std::ifstream(dir / "fit8.json"))["fit"]["parameters"];
+  const auto seven = nlohmann::json::parse(std::ifstream(dir / "fit8_level7.json"))["fit"]["parameters"];
+  std::string torsion;
+  for (int k = 1; k <= 8; ++k) {
+    const std::string name = k == 1 ? std::string("mode_") : fmt::format("mode_{}_", k);
+    if (std::abs(one[name + "frequency_rad_s"]["estimate"].get<double>() / (2 * std::numbers::pi) - 7.32) < 0.05)
+      torsion = name;
+  }
+  ASSERT_FALSE(torsion.empty());
+  auto at = [&](const nlohmann::json& f, const std::string& what) {
+    return std::pair<double, double>{f[torsion + what]["estimate"].get<double>(),
+                                     f[torsion + what]["std_error"].get<double>()};
+  };
+  const auto [w1, sw1] = at(one, "frequency_rad_s");
+  const auto [w7, sw7] = at(seven, "frequency_rad_s");
+  const auto [z1, sz1] = at(one, "damping");
+  const auto [z7, sz7] = at(seven, "damping");
+  std::printf("torsion mode: level 1 %.4f ± %.4f rad/s, zeta %.5f ± %.5f; level 7 %.4f ± %.4f rad/s, zeta %.5f ± %.5f\n",
+              w1, sw1, z1, sz1, w7, sw7, z7, sz7);
+  EXPECT_LT(w7, w1 - 3 * std::hypot(sw1, sw7));
+  EXPECT_GT(z7, z1 + 3 * std::hypot(sz1, sz7));
+}
+
 // The DaISy steel subframe (2 forces x 28 accelerometers, 8523 samples): the output-error
 // refinement's full form would need a 7.3e7-entry Jacobian at order 6, so it runs in modal
 // form with C and D eliminated.  Reference: SLICOT n4sid at n = 20 (s = 21) simulates the
