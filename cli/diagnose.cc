@@ -69,7 +69,6 @@ struct DiagnoseCliOptions {
   std::string log;  // the stage's time-domain route (cli/stage6_time.h)
   double window_s = 0.0;  // a mechanical base's force-error route (cli/mechanical_time.h)
   double delta_bic = 10.0;
-  std::string weighting = "noise";  // noise | auto (DiagnoseOptions::model_error_weighting)
   bool json = false;
   std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
@@ -371,7 +370,7 @@ void run(const DiagnoseCliOptions& o) {
   if (!o.log.empty()) return run_diagnose_on_log(o);
   DiagnoseOptions options;
   options.significance_delta_bic = o.delta_bic;
-  options.model_error_weighting = o.weighting == "auto";
+  options.model_error_weighting = o.in.weighting == "auto";
   if (!o.candidates.empty()) options.candidates = split_names(o.candidates, "--candidates");
   OutputSet outputs;
   outputs.file("--out", o.out);
@@ -450,16 +449,9 @@ Command make_diagnose_command() {
                             "failing windows shaded");
             app->add_option("--report", o->report,
                             "also write the report as JSON here (for model add --from-diagnosis)");
-            app->add_option("--weighting", o->weighting,
-                            "noise (default: error figures of the noise-weighted fits) or auto (when the model fails "
-                            "beyond 1.5x the noise floor, every model's error figure is that of a refit with noise "
-                            "plus the model's error in the weights, as fit --weighting auto reaches it; ΔBIC stays "
-                            "the noise-weighted fits'; docs/math.md, 'Weights when the model fails')")
-                ->check(CLI::IsMember({"noise", "auto"}));
             app->add_flag("--json", o->json, "print the report as JSON");
             app->callback([o, app] {
               o->frequency_given = frequency_options_given(*app);
-              if (app->count("--weighting") > 0) o->frequency_given.emplace_back("--weighting");
               run(*o);
             });
           }};

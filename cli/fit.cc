@@ -61,7 +61,6 @@ struct FitCliOptions {
   std::string log, method;  // the stage's time-domain route (cli/stage6_time.h)
   double window_s = 0.0;     // a mechanical base's force-error route (cli/mechanical_time.h)
   bool json = false;
-  std::string weighting = "noise";  // noise | auto (FitOptions::model_error_weighting)
   std::vector<std::string> frequency_given;  // the frequency route's options given (refused with --log)
 };
 
@@ -329,7 +328,7 @@ void run(const FitCliOptions& o) {
   // 306.3; a second round reached 4.03 % (floor 4.12 %) and 306.59.
   FitOptions rounds = options;
   rounds.restarts = 2;
-  rounds.model_error_weighting = o.weighting == "auto";
+  rounds.model_error_weighting = o.in.weighting == "auto";
   TerminalProgress progress;  // on a terminal only (cli/progress_line.h)
   rounds.progress = progress.get();
   const FitResult r = fit_physical_model(in.start, in.data, rounds);
@@ -373,16 +372,9 @@ Command make_fit_command() {
             app->add_option("--plot", o->plot, "Bode PNG of the model (with +-2 sigma) over the data; with --log on a mechanical base, the "
                             "force and the model's over time and the residual, failing windows shaded");
             app->add_option("--bands", o->bands, "CSV of the model's magnitude/phase and their standard deviations");
-            app->add_option("--weighting", o->weighting,
-                            "noise (default: each line weighed by its measured noise, maximum likelihood when the "
-                            "model can be exact) or auto (when the model fails beyond 1.5x the noise floor, weigh by "
-                            "noise plus the model's error and refit, so that the fit minimises what the error figure "
-                            "measures; docs/math.md, 'Weights when the model fails')")
-                ->check(CLI::IsMember({"noise", "auto"}));
             app->add_flag("--json", o->json, "print the summary as JSON");
             app->callback([o, app] {
               o->frequency_given = frequency_options_given(*app);
-              if (app->count("--weighting") > 0) o->frequency_given.emplace_back("--weighting");
               run(*o);
             });
           }};

@@ -64,13 +64,19 @@ void add_fit_input_options(CLI::App& app, FitInputOptions& o) {
       ->check(positive_up_to(kMaxFrequency, "the highest frequency in rad/s"));
   app.add_option("--grid-count", o.grid_count, "model data: number of frequencies (default 200)")
       ->check(integer_in(2, kMaxFrequencyPoints, "the number of frequencies"));
+  app.add_option("--weighting", o.weighting,
+                 "noise (default: each line weighed by its measured noise, maximum likelihood when the model can be "
+                 "exact) or auto (when the model fails beyond 1.5x the noise floor, its error joins the noise in the "
+                 "weights: fit refits so, diagnose reports every model's figure so, Delta BIC stays the noise-weighted "
+                 "fits'; docs/math.md, 'Weights when the model fails')")
+      ->check(CLI::IsMember({"noise", "auto"}));
 }
 
 std::vector<std::string> frequency_options_given(const CLI::App& app) {
   static const char* const kNames[] = {"--target",    "--controller", "--rate-hz",  "--averages",
                                        "--noise-level", "--band-min",  "--band-max", "--starts",
                                        "--no-global", "--seed",       "--max-iterations", "--grid-lo",
-                                       "--grid-hi",   "--grid-count"};
+                                       "--grid-hi",   "--grid-count", "--weighting"};
   std::vector<std::string> out;
   for (const char* name : kNames)
     if (app.count(name) > 0) out.emplace_back(name);

@@ -40,11 +40,14 @@ struct FitInputOptions {
   // the plant's input was measured (a force at an impedance head), not a held command:
   // the continuous response is the right one, and the ZOH warning does not apply
   bool measured_input = false;
+  // --weighting: "noise" (the default) or "auto", the model's error in the weights when
+  // it fails beyond 1.5x the floor (FitOptions / DiagnoseOptions::model_error_weighting)
+  std::string weighting = "noise";
 };
 
 // Declares --model, --data, --datasets, --target, --controller, --rate-hz,
 // --averages, --noise-level, --band-min, --band-max, --starts, --no-global, --seed,
-// --max-iterations, --grid-lo/-hi/-count on app.
+// --max-iterations, --grid-lo/-hi/-count, --weighting on app.
 void add_fit_input_options(CLI::App& app, FitInputOptions& o);
 
 // The frequency route's options of add_fit_input_options given on app's command line (as

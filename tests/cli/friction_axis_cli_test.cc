@@ -412,6 +412,15 @@ TEST(FrictionAxisCli, BadInputsGetOneLineAndLoseNothing) {
                                        dir / "f.json"));
   one_line(n);
   EXPECT_THAT(n.err, HasSubstr("diagnose --log: --seed is an option of the frequency route"));
+  // --weighting too (the force-error route weighs by its own rules); and a value it does not know
+  const auto w = run_lpvid(fmt::format("diagnose --model {} --log {} --weighting auto --out {}", m0, dir / "run.csv",
+                                       dir / "f.json"));
+  one_line(w);
+  EXPECT_THAT(w.err, HasSubstr("diagnose --log: --weighting is an option of the frequency route"));
+  const auto v = run_lpvid(fmt::format("fit --model {} --log {} --weighting figure --out {}", m0, dir / "run.csv",
+                                       dir / "f.json"));
+  one_line(v);
+  EXPECT_THAT(v.err, HasSubstr("--weighting: figure not in {noise,auto}"));
   // a ripple on a log whose travel holds fewer than three of the shortest period the
   // smoothing passes at its speed (a 2-Hz shake of ±1 cm under a 0.1-s window: 2 cm of
   // travel, 9 mm the shortest period at the median 9 cm/s)
