@@ -473,10 +473,7 @@ void evaluate_candidate(CandidateOutcome& c, const PhysicalModel& from, const st
 // and is named.
 void genuine_mode_from_seeds(CandidateOutcome& c, const PhysicalModel& start, const FitOptions& fo,
                              const CandidateContext& ctx) {
-  FitOptions local = fo;
-  local.global_start = false;
-  local.extra_starts.clear();
-  local.global_parameters.clear();
+  const FitOptions local = local_refit(fo, false);
   std::optional<CandidateOutcome> best, genuine;  // the best significant; the best not a patch
   for (const auto& seed : fo.extra_starts) {
     PhysicalModel m = start;
@@ -517,20 +514,10 @@ void judge_fitted(CandidateOutcome& c, const FitOptions& fo, const CandidateCont
     // the figure as the model can reach it (DiagnoseOptions::model_error_weighting):
     // refitted locally from the noise-weighted estimate with the model error in the
     // weights; the ΔBIC stays the noise-weighted fit's (the data's likelihood)
-    FitOptions polish = fo;
-    polish.global_start = false;
-    polish.extra_starts.clear();
-    polish.global_parameters.clear();
-    polish.restarts = 0;
-    polish.model_error_weighting = true;
-    try {
-      const FitResult p = fit_physical_model(c.fit.model, ctx.data, polish);
-      if (p.error < c.error) {
-        c.noise_weighted_error = c.fit.error;
-        c.error = p.error;
-      }
-    } catch (const NumericalError&) {
-      // the noise-weighted figure stands
+    const std::optional<FitResult> p = reweighted_refit(c.fit.model, ctx.data, fo);
+    if (p && p->error < c.error) {
+      c.noise_weighted_error = c.fit.error;
+      c.error = p->error;
     }
   }
   // The posterior's criterion: the data's BIC plus the priors' −2 log (0 without
@@ -577,6 +564,25 @@ void judge_fitted(CandidateOutcome& c, const FitOptions& fo, const CandidateCont
   CandidateJudgement j = judge_candidate(ev, ctx.options);
   c.significant = j.significant;
   c.verdict = std::move(j.verdict);
+}
+
+FitOptions local_refit(const FitOptions& fo, bool model_error_weighting) {
+  FitOptions local = fo;
+  local.global_start = false;
+  local.extra_starts.clear();
+  local.global_parameters.clear();
+  local.restarts = 0;
+  local.model_error_weighting = model_error_weighting;
+  return local;
+}
+
+std::optional<FitResult> reweighted_refit(const PhysicalModel& from, const std::vector<FitDataset>& data,
+                                          const FitOptions& fo) {
+  try {
+    return fit_physical_model(from, data, local_refit(fo, true));
+  } catch (const NumericalError&) {
+    return std::nullopt;  // the noise-weighted figure stands
+  }
 }
 
 bool leaves_only_noise(const CandidateOutcome& c, const CandidateContext& ctx) {

@@ -4,6 +4,8 @@
 // what the criteria are; this is how a candidate is evaluated.
 #pragma once
 
+#include <optional>
+
 #include <functional>
 #include <string>
 #include <utility>
@@ -73,6 +75,15 @@ std::vector<CandidateOutcome> evaluate_combinations(const std::vector<CandidateO
 // Whether an effect is one of the library's structural modes (structural_mode,
 // structural_mode_2, ...): interchangeable members of a combination.
 bool is_mode_effect(const std::string& name);
+
+// fo for a local refit from where a model is: no global start (so no extra starts,
+// no searched subset), no restarts; with the model error in the weights when asked.
+FitOptions local_refit(const FitOptions& fo, bool model_error_weighting);
+// `from` refitted locally with the model error in its weights
+// (DiagnoseOptions::model_error_weighting: the figure the model can reach, as `fit
+// --weighting auto` reaches it); nullopt when the refit fails numerically.
+std::optional<FitResult> reweighted_refit(const PhysicalModel& from, const std::vector<FitDataset>& data,
+                                          const FitOptions& fo);
 
 // Whether an outcome leaves only noise: error within explained_ratio × the floor and
 // at most 10 % of the baseline's failing-band points.

@@ -544,23 +544,16 @@ Diagnosis diagnose(const PhysicalModel& model, const std::vector<FitDataset>& da
   out.baseline_error = out.baseline.error;
   if (options.model_error_weighting && out.baseline.noise_known &&
       out.baseline.error > options.explained_ratio * out.baseline.noise_floor) {
-    // the baseline's figure as it can reach it (DiagnoseOptions::model_error_weighting)
-    FitOptions polish = refit;
-    polish.global_start = false;
-    polish.model_error_weighting = true;
-    // from the noise-weighted estimate, and from the model as given (a model `fit
+    // the baseline's figure as it can reach it (DiagnoseOptions::model_error_weighting),
+    // from the noise-weighted estimate and from the model as given (a model `fit
     // --weighting auto` wrote is already there; measured on the F-16's seven modes: 28.6 %
     // from the estimate, 23.5 % as given)
     for (const PhysicalModel* from : std::initializer_list<const PhysicalModel*>{&out.baseline.model, &model}) {
-      try {
-        const FitResult p = fit_physical_model(*from, data, polish);
-        if (p.error < out.baseline_error) {
-          out.noise_weighted_baseline_error = out.baseline.error;
-          out.baseline_error = p.error;
-          out.model_error_weight = p.model_error_weight;
-        }
-      } catch (const NumericalError&) {
-        // the noise-weighted figure stands
+      const std::optional<FitResult> p = reweighted_refit(*from, data, refit);
+      if (p && p->error < out.baseline_error) {
+        out.noise_weighted_baseline_error = out.baseline.error;
+        out.baseline_error = p->error;
+        out.model_error_weight = p->model_error_weight;
       }
     }
   }
