@@ -77,6 +77,11 @@ struct Problem {
   const std::vector<Prepared>& sets;
   Index residuals = 0;  // the data's, then one per prior
   std::vector<PriorRow> priors = {};
+  // The response and its derivatives at every line, kept between calls: built anew
+  // per call they were F x p fixed-capacity matrices (6 MB at the F-16's 267 lines and
+  // 26 parameters) allocated and faulted in at every Jacobian, half of a diagnosis's time.
+  std::vector<CMat> T = {};
+  std::vector<std::vector<CMat>> dT = {};
 
   void set_z(const double* z) {
     for (Index q = 0; q < engine.num_free(); ++q)
@@ -87,8 +92,6 @@ struct Problem {
   bool residual(const double* z, double* r, double* jac) {
     set_z(z);
     const Index p = engine.num_free();
-    std::vector<CMat> T;
-    std::vector<std::vector<CMat>> dT;
     Index row = 0;
     for (const Prepared& d : sets) {
       if (!engine.evaluate(d, T, jac != nullptr ? &dT : nullptr)) return false;
