@@ -11,8 +11,9 @@
 #
 #   tests/support/loop_trial.sh [SEEDS (default 5)] [FIRST_SEED (default 1000)]
 #   ROUTE=frf EFFECTS="none delay" tests/support/loop_trial.sh 3
+#   WEIGHTING=auto tests/support/loop_trial.sh 3   # fit and diagnose --weighting auto
 #
-# Writes /tmp/lpvid-loop-trial/<route>/<effect>_<seed>/ and prints one line per run
+# Writes /tmp/lpvid-loop-trial/<route>-<weighting>/<effect>_<seed>/ and prints one line per run
 # and a summary.  Draw ranges: INDEP_ARGS (default: psi/theta stiffness ratio
 # 0.6-1.6, closed-loop damping >= 0.05, noise 0.1-10x, never noise-free).
 set -euo pipefail
@@ -24,7 +25,9 @@ first="${2:-1000}"
 route="${ROUTE:-analyzer}"
 effects="${EFFECTS:-none mode delay coil_lag com_offset rod_twist sensor_resonance}"
 indep_args="${INDEP_ARGS:---ratio-min 0.6 --ratio-max 1.6 --cl-damping-min 0.05 --no-zero-noise}"
-root="/tmp/lpvid-loop-trial/$route"
+weighting="${WEIGHTING:-noise}"
+case "$weighting" in noise|auto) ;; *) echo "loop_trial.sh: WEIGHTING=$weighting: give noise or auto" >&2; exit 2 ;; esac
+root="/tmp/lpvid-loop-trial/$route-$weighting"
 mkdir -p "$root"
 : > "$root/results.txt"
 
@@ -66,8 +69,9 @@ EOF
     z_design=$(python3 -c "print(round($z_b, 2))")
     "$lpvid" model init --out model.json --set "k_torque_low_Nm_per_rad=$design" --set "beam_height_m=$z_design" > /dev/null
     start=$(date +%s.%N)
-    "$lpvid" fit --model model.json --datasets data.json --out fit1.json > fit.txt 2>&1 || true
-    "$lpvid" diagnose --model fit1.json --datasets data.json --json > diagnose.json 2> diagnose.err || true
+    "$lpvid" fit --model model.json --datasets data.json --weighting "$weighting" --out fit1.json > fit.txt 2>&1 || true
+    "$lpvid" diagnose --model fit1.json --datasets data.json --weighting "$weighting" --json > diagnose.json \
+        2> diagnose.err || true
     end=$(date +%s.%N)
     python3 - "$effect" "$seed" "$(expected "$effect")" "$start" "$end" <<'EOF' | tee -a "$root/results.txt"
 import json, sys

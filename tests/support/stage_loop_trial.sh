@@ -15,6 +15,7 @@
 #
 #   tests/support/stage_loop_trial.sh [SEEDS (default 3)] [FIRST_SEED (default 100)]
 #   EFFECTS="none gap" NONE_SEEDS=10 SEGMENT=2048 NOISE_SCALE=0 tests/support/stage_loop_trial.sh 3
+#   WEIGHTING=auto tests/support/stage_loop_trial.sh 3   # the frf route's fit and diagnose --weighting auto
 #
 # Writes /tmp/lpvid-stage-trial/<effect>_<seed>/ and prints one line per run and a
 # summary.  CPU heavy (a diagnosis refits 8 candidates): run it niced.
@@ -29,6 +30,8 @@ effects="${EFFECTS:-none gap lag com delay}"
 segment="${SEGMENT:-2048}"
 noise_args=""
 [ -n "${NOISE_SCALE:-}" ] && noise_args="--noise-scale $NOISE_SCALE"
+weighting="${WEIGHTING:-noise}"
+case "$weighting" in noise|auto) ;; *) echo "stage_loop_trial.sh: WEIGHTING=$weighting: give noise or auto" >&2; exit 2 ;; esac
 root="${ROOT:-/tmp/lpvid-stage-trial}"
 mkdir -p "$root"
 : > "$root/results.txt"
@@ -55,14 +58,14 @@ for effect in $effects; do
         --quantity P --segment "$segment" --out P.csv exp_stage6.csv > frf.txt 2>&1
     sets=$(awk '/^mass_kg|^lever_arm_/ {printf " --set %s=%s", $1, $3}' truth.txt)
     "$lpvid" model init --base stage6 --out model.json $sets > init.txt 2>&1
-    "$lpvid" fit --model model.json --data P.csv@0 --rate-hz 1000 --out fit1.json > fit1.txt 2>&1 || true
-    "$lpvid" diagnose --model fit1.json --data P.csv@0 --rate-hz 1000 --json > diagnose.json 2> diagnose.err || true
+    "$lpvid" fit --model model.json --data P.csv@0 --rate-hz 1000 --weighting "$weighting" --out fit1.json > fit1.txt 2>&1 || true
+    "$lpvid" diagnose --model fit1.json --data P.csv@0 --rate-hz 1000 --weighting "$weighting" --json > diagnose.json 2> diagnose.err || true
     # a single effect, or a combination's members joined by commas (model add A,B)
     named=$(python3 -c "import json; d = json.load(open('diagnose.json')); print(','.join(d.get('missing_effects') or ([d['missing']] if d['missing'] else [])))" 2>/dev/null || true)
     refit="-"
     if [ -n "$named" ]; then
       "$lpvid" model add "$named" --model fit1.json --out start2.json > add.txt 2>&1 || true
-      "$lpvid" fit --model start2.json --data P.csv@0 --rate-hz 1000 --out fit2.json > fit2.txt 2>&1 || true
+      "$lpvid" fit --model start2.json --data P.csv@0 --rate-hz 1000 --weighting "$weighting" --out fit2.json > fit2.txt 2>&1 || true
       refit=$(python3 -c "
 import json
 h = [json.loads(l) for l in open('fit2.json.history.jsonl')]
