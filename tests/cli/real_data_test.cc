@@ -378,7 +378,8 @@ TEST(RealData, F16LoopNamesTheTorsionModeThenTheNextAndTheModeSoftensAtLevel7) {
 // among them.  Measured (this machine): 79.2 % (mass line) -> 62.5 -> 54.8 -> 47.2 ->
 // 39.8 -> 34.4 -> 25.5 -> 23.5 -> 6.77 % with the eighth mode, against a floor of
 // 1.48 %; the modes at 1.878, 3.470, 3.971, 5.185, 6.614, 7.320, 9.166 and 20.8 Hz; about
-// 100 s alone (five minutes before the fit kept its derivative arrays between calls).  Bounds: every step names a mode and lowers the error; the end within
+// 100 s alone (five minutes before the fit kept its derivative arrays between calls).
+// Bounds: every step names a mode and lowers the error; the end within
 // 10 % (the measured 6.77 % with room for another machine's round-off in eight chained
 // nonlinear fits); each of the seven in-band poles matched by a mode within 0.05 Hz
 // (one FRF line, 400/8192 Hz).  Not reached, and said in docs/real-data.md: 1.5x the
